@@ -1,0 +1,679 @@
+//! The TOML configuration: CAVE walls, head, eyes, scene placement, lighting and render defaults.
+//!
+//! Parsing is strict (unknown keys are refused) and every semantic check names the file, the
+//! field and the offending value, so a lab engineer can fix a config without reading code.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Mat4, Quat, Vec3};
+use serde::Deserialize;
+
+use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
+
+/// Everything that can be wrong with a config file.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("config file {path} is not valid: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("config file {path}: field `{field}` has invalid value {value}: {reason}")]
+    Invalid {
+        path: PathBuf,
+        field: String,
+        value: String,
+        reason: String,
+    },
+}
+
+/// The whole configuration file, as written.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConfigFile {
+    #[serde(default)]
+    pub cave: CaveSection,
+    #[serde(default)]
+    pub head: HeadSection,
+    #[serde(default)]
+    pub render: RenderSection,
+    #[serde(default)]
+    pub scene: SceneSection,
+    #[serde(default)]
+    pub lighting: LightingSection,
+    #[serde(rename = "wall")]
+    pub walls: Vec<WallSection>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaveSection {
+    /// Interpupillary distance in metres.
+    #[serde(default = "default_ipd")]
+    pub eye_separation: f32,
+    #[serde(default = "default_near")]
+    pub near: f32,
+    #[serde(default = "default_far")]
+    pub far: f32,
+    /// View direction assumed by fixed-direction stereo; default −z (⟂ the front wall).
+    #[serde(default = "default_view_direction")]
+    pub stereo_view_direction: [f32; 3],
+}
+
+impl Default for CaveSection {
+    fn default() -> Self {
+        Self {
+            eye_separation: default_ipd(),
+            near: default_near(),
+            far: default_far(),
+            stereo_view_direction: default_view_direction(),
+        }
+    }
+}
+
+fn default_ipd() -> f32 {
+    0.064
+}
+fn default_near() -> f32 {
+    0.05
+}
+fn default_far() -> f32 {
+    2000.0
+}
+fn default_view_direction() -> [f32; 3] {
+    [0.0, 0.0, -1.0]
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeadSection {
+    #[serde(default = "default_head_position")]
+    pub position: [f32; 3],
+    #[serde(default)]
+    pub yaw_degrees: f32,
+    #[serde(default)]
+    pub pitch_degrees: f32,
+    #[serde(default)]
+    pub roll_degrees: f32,
+}
+
+impl Default for HeadSection {
+    fn default() -> Self {
+        Self {
+            position: default_head_position(),
+            yaw_degrees: 0.0,
+            pitch_degrees: 0.0,
+            roll_degrees: 0.0,
+        }
+    }
+}
+
+fn default_head_position() -> [f32; 3] {
+    [0.0, 1.7, 0.0]
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSection {
+    #[serde(default = "default_mode")]
+    pub mode: String,
+    /// MSAA sample count: 1 (off) or 4.
+    #[serde(default = "default_msaa")]
+    pub msaa: u32,
+    #[serde(default)]
+    pub wireframe: bool,
+    /// Clear colour, sRGB components in 0..1.
+    #[serde(default = "default_background")]
+    pub background: [f32; 3],
+}
+
+impl Default for RenderSection {
+    fn default() -> Self {
+        Self {
+            mode: default_mode(),
+            msaa: default_msaa(),
+            wireframe: false,
+            background: default_background(),
+        }
+    }
+}
+
+fn default_mode() -> String {
+    "stereo".into()
+}
+fn default_msaa() -> u32 {
+    4
+}
+fn default_background() -> [f32; 3] {
+    [0.02, 0.02, 0.03]
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSection {
+    /// glTF file; relative paths are relative to the config file's folder.
+    pub path: Option<PathBuf>,
+    #[serde(default)]
+    pub world_from_cave: PlacementSection,
+}
+
+/// Where the CAVE stands in the scene: scene point = translation + yaw · scale · CAVE point.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlacementSection {
+    #[serde(default)]
+    pub translation: [f32; 3],
+    #[serde(default)]
+    pub yaw_degrees: f32,
+    #[serde(default = "one")]
+    pub scale: f32,
+}
+
+impl Default for PlacementSection {
+    fn default() -> Self {
+        Self {
+            translation: [0.0; 3],
+            yaw_degrees: 0.0,
+            scale: 1.0,
+        }
+    }
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightingSection {
+    /// Ambient light colour (linear).
+    #[serde(default = "default_ambient")]
+    pub ambient: [f32; 3],
+    #[serde(default)]
+    pub directional: DirectionalLightSection,
+    #[serde(default)]
+    pub point: PointLightSection,
+}
+
+impl Default for LightingSection {
+    fn default() -> Self {
+        Self {
+            ambient: default_ambient(),
+            directional: DirectionalLightSection::default(),
+            point: PointLightSection::default(),
+        }
+    }
+}
+
+fn default_ambient() -> [f32; 3] {
+    [0.18, 0.18, 0.2]
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DirectionalLightSection {
+    /// Direction the light travels, in scene (world) space.
+    #[serde(default = "default_sun_direction")]
+    pub direction: [f32; 3],
+    #[serde(default = "default_sun_color")]
+    pub color: [f32; 3],
+    #[serde(default = "default_sun_intensity")]
+    pub intensity: f32,
+}
+
+impl Default for DirectionalLightSection {
+    fn default() -> Self {
+        Self {
+            direction: default_sun_direction(),
+            color: default_sun_color(),
+            intensity: default_sun_intensity(),
+        }
+    }
+}
+
+fn default_sun_direction() -> [f32; 3] {
+    [-0.4, -1.0, -0.3]
+}
+fn default_sun_color() -> [f32; 3] {
+    [1.0, 0.97, 0.9]
+}
+fn default_sun_intensity() -> f32 {
+    0.6
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointLightSection {
+    /// Position in scene (world) space.
+    #[serde(default = "default_point_position")]
+    pub position: [f32; 3],
+    #[serde(default = "default_point_color")]
+    pub color: [f32; 3],
+    #[serde(default = "default_point_intensity")]
+    pub intensity: f32,
+    /// Distance (metres) at which the light has faded to zero.
+    #[serde(default = "default_point_range")]
+    pub range: f32,
+}
+
+impl Default for PointLightSection {
+    fn default() -> Self {
+        Self {
+            position: default_point_position(),
+            color: default_point_color(),
+            intensity: default_point_intensity(),
+            range: default_point_range(),
+        }
+    }
+}
+
+fn default_point_position() -> [f32; 3] {
+    [0.0, 2.4, 0.0]
+}
+fn default_point_color() -> [f32; 3] {
+    [1.0, 0.9, 0.75]
+}
+fn default_point_intensity() -> f32 {
+    0.8
+}
+fn default_point_range() -> f32 {
+    12.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallSection {
+    pub name: String,
+    pub lower_left: [f32; 3],
+    pub lower_right: [f32; 3],
+    pub upper_left: [f32; 3],
+    /// Pixels (width, height).
+    pub resolution: [u32; 2],
+}
+
+/// Lighting ready for the renderer (scene/world space).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lighting {
+    pub ambient: Vec3,
+    pub sun_direction: Vec3,
+    pub sun_color: Vec3,
+    pub point_position: Vec3,
+    pub point_color: Vec3,
+    pub point_range: f32,
+}
+
+impl Default for Lighting {
+    fn default() -> Self {
+        LightingSection::default().to_lighting()
+    }
+}
+
+impl LightingSection {
+    fn to_lighting(&self) -> Lighting {
+        Lighting {
+            ambient: Vec3::from(self.ambient),
+            sun_direction: Vec3::from(self.directional.direction).normalize_or(Vec3::NEG_Y),
+            sun_color: Vec3::from(self.directional.color) * self.directional.intensity,
+            point_position: Vec3::from(self.point.position),
+            point_color: Vec3::from(self.point.color) * self.point.intensity,
+            point_range: self.point.range,
+        }
+    }
+}
+
+/// A validated configuration, ready to use.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// The file it came from (for messages and relative paths).
+    pub source: PathBuf,
+    pub cave: Cave,
+    pub head: Head,
+    pub eye_separation: f32,
+    pub mode: RenderMode,
+    pub msaa: u32,
+    pub wireframe: bool,
+    /// Clear colour, sRGB.
+    pub background: [f32; 3],
+    /// Scene file, already resolved against the config's folder.
+    pub scene_path: Option<PathBuf>,
+    pub world_from_cave: Mat4,
+    pub lighting: Lighting,
+}
+
+impl Config {
+    /// Reads and validates a config file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses and validates config text; `path` is used for messages and relative paths.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        let file: ConfigFile = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.to_owned(),
+            message: e.to_string().trim_end().to_owned(),
+        })?;
+        file.validate(path)
+    }
+}
+
+struct Checker<'a> {
+    path: &'a Path,
+}
+
+impl Checker<'_> {
+    fn fail(&self, field: &str, value: impl std::fmt::Debug, reason: &str) -> ConfigError {
+        ConfigError::Invalid {
+            path: self.path.to_owned(),
+            field: field.to_owned(),
+            value: format!("{value:?}"),
+            reason: reason.to_owned(),
+        }
+    }
+
+    fn finite3(&self, field: &str, v: [f32; 3]) -> Result<Vec3, ConfigError> {
+        if v.iter().all(|c| c.is_finite()) {
+            Ok(Vec3::from(v))
+        } else {
+            Err(self.fail(field, v, "every component must be a finite number"))
+        }
+    }
+
+    fn range(&self, field: &str, v: f32, lo: f32, hi: f32) -> Result<f32, ConfigError> {
+        if v.is_finite() && v >= lo && v <= hi {
+            Ok(v)
+        } else {
+            Err(self.fail(field, v, &format!("must be between {lo} and {hi}")))
+        }
+    }
+
+    fn colour(&self, field: &str, v: [f32; 3], max: f32) -> Result<Vec3, ConfigError> {
+        let c = self.finite3(field, v)?;
+        if c.min_element() < 0.0 || c.max_element() > max {
+            return Err(self.fail(field, v, &format!("components must be in 0..{max}")));
+        }
+        Ok(c)
+    }
+}
+
+/// Largest accepted wall image side; beyond any projector and wgpu's default texture limit.
+const MAX_WALL_PIXELS: u32 = 8192;
+
+impl ConfigFile {
+    /// Checks every field and builds the ready-to-use config.
+    pub fn validate(&self, path: &Path) -> Result<Config, ConfigError> {
+        let ck = Checker { path };
+
+        if self.walls.is_empty() {
+            return Err(ck.fail("wall", "[]", "at least one [[wall]] is required"));
+        }
+        let mut walls = Vec::with_capacity(self.walls.len());
+        for (i, w) in self.walls.iter().enumerate() {
+            walls.push(validate_wall(&ck, i, w, &walls)?);
+        }
+
+        let c = &self.cave;
+        let eye_separation = ck.range("cave.eye_separation", c.eye_separation, 0.0, 0.5)?;
+        let near = ck.range("cave.near", c.near, 1e-4, 10.0)?;
+        let far = c.far;
+        if !(far.is_finite() && far > near * 10.0 && far <= 1e7) {
+            return Err(ck.fail(
+                "cave.far",
+                far,
+                "must be finite, at most 1e7 and at least ten times cave.near",
+            ));
+        }
+        let view_dir = ck.finite3("cave.stereo_view_direction", c.stereo_view_direction)?;
+        if left_of(view_dir).is_none() {
+            return Err(ck.fail(
+                "cave.stereo_view_direction",
+                c.stereo_view_direction,
+                "must have a horizontal component (it sets which way the stereo eyes are split)",
+            ));
+        }
+
+        let h = &self.head;
+        let head_pos = ck.finite3("head.position", h.position)?;
+        for (field, v) in [
+            ("head.yaw_degrees", h.yaw_degrees),
+            ("head.pitch_degrees", h.pitch_degrees),
+            ("head.roll_degrees", h.roll_degrees),
+        ] {
+            ck.range(field, v, -360.0, 360.0)?;
+        }
+
+        let r = &self.render;
+        let mode = RenderMode::from_name(&r.mode).ok_or_else(|| {
+            let names: Vec<_> = RenderMode::ALL.iter().map(|m| m.name()).collect();
+            ck.fail(
+                "render.mode",
+                &r.mode,
+                &format!("must be one of {}", names.join(", ")),
+            )
+        })?;
+        if !matches!(r.msaa, 1 | 4) {
+            return Err(ck.fail("render.msaa", r.msaa, "must be 1 (off) or 4"));
+        }
+        let background = ck.colour("render.background", r.background, 1.0)?;
+
+        let p = &self.scene.world_from_cave;
+        let translation = ck.finite3("scene.world_from_cave.translation", p.translation)?;
+        let yaw = ck.range(
+            "scene.world_from_cave.yaw_degrees",
+            p.yaw_degrees,
+            -360.0,
+            360.0,
+        )?;
+        let scale = ck.range("scene.world_from_cave.scale", p.scale, 1e-3, 1e3)?;
+        let world_from_cave = Mat4::from_scale_rotation_translation(
+            Vec3::splat(scale),
+            Quat::from_rotation_y(yaw.to_radians()),
+            translation,
+        );
+
+        let l = &self.lighting;
+        ck.colour("lighting.ambient", l.ambient, 10.0)?;
+        let sun = ck.finite3("lighting.directional.direction", l.directional.direction)?;
+        if sun.length() < 1e-6 {
+            return Err(ck.fail(
+                "lighting.directional.direction",
+                l.directional.direction,
+                "must not be the zero vector",
+            ));
+        }
+        ck.colour("lighting.directional.color", l.directional.color, 10.0)?;
+        ck.range(
+            "lighting.directional.intensity",
+            l.directional.intensity,
+            0.0,
+            100.0,
+        )?;
+        ck.finite3("lighting.point.position", l.point.position)?;
+        ck.colour("lighting.point.color", l.point.color, 10.0)?;
+        ck.range("lighting.point.intensity", l.point.intensity, 0.0, 100.0)?;
+        ck.range("lighting.point.range", l.point.range, 1e-3, 1e6)?;
+
+        let scene_path = self.scene.path.as_ref().map(|p| {
+            if p.is_absolute() {
+                p.clone()
+            } else {
+                path.parent().unwrap_or(Path::new(".")).join(p)
+            }
+        });
+
+        Ok(Config {
+            source: path.to_owned(),
+            cave: Cave {
+                walls,
+                near,
+                far,
+                stereo_view_direction: view_dir,
+            },
+            head: Head {
+                position: head_pos,
+                orientation: Head::orientation_from_degrees(
+                    h.yaw_degrees,
+                    h.pitch_degrees,
+                    h.roll_degrees,
+                ),
+            },
+            eye_separation,
+            mode,
+            msaa: r.msaa,
+            wireframe: r.wireframe,
+            background: background.to_array(),
+            scene_path,
+            world_from_cave,
+            lighting: l.to_lighting(),
+        })
+    }
+}
+
+fn validate_wall(
+    ck: &Checker<'_>,
+    index: usize,
+    w: &WallSection,
+    earlier: &[Wall],
+) -> Result<Wall, ConfigError> {
+    let field = |name: &str| format!("wall[{index}].{name}");
+    let name_ok = !w.name.is_empty()
+        && w.name.len() <= 64
+        && w.name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if !name_ok {
+        return Err(ck.fail(
+            &field("name"),
+            &w.name,
+            "must be 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files)",
+        ));
+    }
+    if earlier.iter().any(|e| e.name == w.name) {
+        return Err(ck.fail(&field("name"), &w.name, "another wall has this name"));
+    }
+    let ll = ck.finite3(&field("lower_left"), w.lower_left)?;
+    let lr = ck.finite3(&field("lower_right"), w.lower_right)?;
+    let ul = ck.finite3(&field("upper_left"), w.upper_left)?;
+    // A wall narrower than a millimetre is a typo, not a screen.
+    const MIN_SIDE_M: f32 = 1e-3;
+    let width = (lr - ll).length();
+    if width < MIN_SIDE_M {
+        return Err(ck.fail(
+            &field("lower_right"),
+            w.lower_right,
+            "coincides with lower_left: the wall has no width",
+        ));
+    }
+    let height = (ul - ll).length();
+    if height < MIN_SIDE_M {
+        return Err(ck.fail(
+            &field("upper_left"),
+            w.upper_left,
+            "coincides with lower_left: the wall has no height",
+        ));
+    }
+    // The two edges from lower_left must be perpendicular (cosine below ~0.06°); a skewed
+    // parallelogram cannot be driven by a rectangular image.
+    let cosine = (lr - ll).dot(ul - ll) / (width * height);
+    if cosine.abs() > 1e-3 {
+        return Err(ck.fail(
+            &field("upper_left"),
+            w.upper_left,
+            &format!(
+                "edges lower_left→lower_right and lower_left→upper_left are not perpendicular \
+                 (angle {:.2}°): walls must be rectangles",
+                cosine.clamp(-1.0, 1.0).acos().to_degrees()
+            ),
+        ));
+    }
+    let [pw, ph] = w.resolution;
+    if pw == 0 || ph == 0 || pw > MAX_WALL_PIXELS || ph > MAX_WALL_PIXELS {
+        return Err(ck.fail(
+            &field("resolution"),
+            w.resolution,
+            &format!("width and height must be 1..={MAX_WALL_PIXELS} pixels"),
+        ));
+    }
+    Ok(Wall {
+        name: w.name.clone(),
+        lower_left: ll,
+        lower_right: lr,
+        upper_left: ul,
+        resolution: w.resolution,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[[wall]]
+name = "front"
+lower_left = [-1.65, 0.0, -1.65]
+lower_right = [1.65, 0.0, -1.65]
+upper_left = [-1.65, 2.9, -1.65]
+resolution = [1280, 720]
+"#;
+
+    fn err(text: &str) -> String {
+        match Config::from_toml(text, Path::new("test.toml")) {
+            Ok(_) => panic!("accepted:\n{text}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn minimal_config_gets_defaults() {
+        let cfg = Config::from_toml(GOOD, Path::new("x/test.toml")).expect("valid");
+        assert_eq!(cfg.cave.walls.len(), 1);
+        assert_eq!(cfg.mode, RenderMode::Stereo);
+        assert!((cfg.eye_separation - 0.064).abs() < 1e-7);
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = err(&format!("{GOOD}\n[head]\nposition = [0,1,0]\nheigth = 3\n"));
+        assert!(e.contains("test.toml") && e.contains("heigth"), "{e}");
+    }
+
+    #[test]
+    fn nan_is_refused_with_field_and_value() {
+        let e = err(&GOOD.replace("[-1.65, 2.9, -1.65]", "[-1.65, nan, -1.65]"));
+        assert!(e.contains("wall[0].upper_left") && e.contains("NaN"), "{e}");
+    }
+
+    #[test]
+    fn skewed_wall_is_refused() {
+        let e = err(&GOOD.replace("[-1.65, 2.9, -1.65]", "[-1.0, 2.9, -1.65]"));
+        assert!(e.contains("not perpendicular"), "{e}");
+    }
+
+    #[test]
+    fn degenerate_and_zero_size_walls_are_refused() {
+        let e = err(&GOOD.replace("[1.65, 0.0, -1.65]", "[-1.65, 0.0, -1.65]"));
+        assert!(
+            e.contains("wall[0].lower_right") && e.contains("no width"),
+            "{e}"
+        );
+        let e = err(&GOOD.replace("[1280, 720]", "[0, 720]"));
+        assert!(
+            e.contains("wall[0].resolution") && e.contains("[0, 720]"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn bad_mode_lists_the_choices() {
+        let e = err(&format!("{GOOD}\n[render]\nmode = \"omni\"\n"));
+        assert!(
+            e.contains("render.mode") && e.contains("tracked-stereo"),
+            "{e}"
+        );
+    }
+}

@@ -1,0 +1,265 @@
+//! Procedural meshes (boxes, planes, cylinders, spheres) for the asset generator and tests.
+
+use glam::{Mat3, Mat4, Vec2, Vec3};
+
+use super::Vertex;
+
+/// An indexed triangle mesh in its own local space.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeshData {
+    pub vertices: Vec<Vertex>,
+    pub indices: Vec<u32>,
+}
+
+impl MeshData {
+    /// Appends another mesh's triangles.
+    pub fn append(&mut self, other: &MeshData) {
+        let base = self.vertices.len() as u32;
+        self.vertices.extend_from_slice(&other.vertices);
+        self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+
+    /// Returns the mesh with every vertex transformed by `m` (normals by its inverse transpose).
+    pub fn transformed(mut self, m: Mat4) -> MeshData {
+        let normal_matrix = Mat3::from_mat4(m).inverse().transpose();
+        for v in &mut self.vertices {
+            v.position = m.transform_point3(Vec3::from(v.position)).to_array();
+            v.normal = (normal_matrix * Vec3::from(v.normal))
+                .normalize_or(Vec3::Y)
+                .to_array();
+        }
+        if m.determinant() < 0.0 {
+            for tri in self.indices.chunks_exact_mut(3) {
+                tri.swap(1, 2);
+            }
+        }
+        self
+    }
+
+    /// Reverses every triangle and normal (to see a closed shape from inside).
+    pub fn flipped(mut self) -> MeshData {
+        for tri in self.indices.chunks_exact_mut(3) {
+            tri.swap(1, 2);
+        }
+        for v in &mut self.vertices {
+            v.normal = (-Vec3::from(v.normal)).to_array();
+        }
+        self
+    }
+
+    fn push_quad(&mut self, corners: [Vec3; 4], normal: Vec3, uvs: [Vec2; 4]) {
+        let base = self.vertices.len() as u32;
+        for (p, uv) in corners.iter().zip(uvs) {
+            self.vertices.push(Vertex {
+                position: p.to_array(),
+                normal: normal.to_array(),
+                uv: uv.to_array(),
+            });
+        }
+        self.indices
+            .extend_from_slice(&[base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+}
+
+/// A rectangle in its own plane, subdivided `nx × ny` times: `origin + s·u + t·v` for s, t in
+/// 0..1, facing `u × v`. UVs are in metres × `uv_per_m` so textures tile at a physical size.
+pub fn grid(origin: Vec3, u: Vec3, v: Vec3, nx: u32, ny: u32, uv_per_m: f32) -> MeshData {
+    let nx = nx.max(1);
+    let ny = ny.max(1);
+    let normal = u.cross(v).normalize_or(Vec3::Y);
+    let (lu, lv) = (u.length(), v.length());
+    let mut mesh = MeshData::default();
+    for j in 0..=ny {
+        for i in 0..=nx {
+            let s = i as f32 / nx as f32;
+            let t = j as f32 / ny as f32;
+            mesh.vertices.push(Vertex {
+                position: (origin + s * u + t * v).to_array(),
+                normal: normal.to_array(),
+                uv: [s * lu * uv_per_m, (1.0 - t) * lv * uv_per_m],
+            });
+        }
+    }
+    let row = nx + 1;
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = j * row + i;
+            mesh.indices
+                .extend_from_slice(&[a, a + 1, a + row + 1, a, a + row + 1, a + row]);
+        }
+    }
+    mesh
+}
+
+/// An axis-aligned box centred at the origin with outward faces; UVs in metres × `uv_per_m`.
+pub fn cuboid(size: Vec3, uv_per_m: f32) -> MeshData {
+    let h = size * 0.5;
+    let mut mesh = MeshData::default();
+    // (normal, right, up) per face; corners are n·h ± r·h ± u·h.
+    let faces = [
+        (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+        (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+        (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+        (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+        (Vec3::Z, Vec3::X, Vec3::Y),
+        (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+    ];
+    for (n, r, u) in faces {
+        let c = n * h;
+        let rr = r * h;
+        let uu = u * h;
+        let w = rr.length() * 2.0 * uv_per_m;
+        let t = uu.length() * 2.0 * uv_per_m;
+        mesh.push_quad(
+            [c - rr - uu, c + rr - uu, c + rr + uu, c - rr + uu],
+            n,
+            [
+                Vec2::new(0.0, t),
+                Vec2::new(w, t),
+                Vec2::new(w, 0.0),
+                Vec2::ZERO,
+            ],
+        );
+    }
+    mesh
+}
+
+/// A (truncated) cone or cylinder around +y from y = 0 to `height`, with optional caps.
+pub fn frustum_shell(
+    radius_bottom: f32,
+    radius_top: f32,
+    height: f32,
+    segments: u32,
+    caps: bool,
+) -> MeshData {
+    let segments = segments.max(3);
+    let mut mesh = MeshData::default();
+    let slope = (radius_bottom - radius_top) / height.max(1e-6);
+    for i in 0..=segments {
+        let a = i as f32 / segments as f32 * std::f32::consts::TAU;
+        let (s, c) = a.sin_cos();
+        let n = Vec3::new(s, slope, c).normalize();
+        for (y, r, v) in [(0.0, radius_bottom, 1.0), (height, radius_top, 0.0)] {
+            mesh.vertices.push(Vertex {
+                position: [r * s, y, r * c],
+                normal: n.to_array(),
+                uv: [i as f32 / segments as f32, v],
+            });
+        }
+    }
+    for i in 0..segments {
+        let a = 2 * i;
+        mesh.indices
+            .extend_from_slice(&[a, a + 2, a + 3, a, a + 3, a + 1]);
+    }
+    if caps {
+        for (y, r, n) in [
+            (0.0, radius_bottom, Vec3::NEG_Y),
+            (height, radius_top, Vec3::Y),
+        ] {
+            if r <= 0.0 {
+                continue;
+            }
+            let centre = mesh.vertices.len() as u32;
+            mesh.vertices.push(Vertex {
+                position: [0.0, y, 0.0],
+                normal: n.to_array(),
+                uv: [0.5, 0.5],
+            });
+            for i in 0..segments {
+                let a = i as f32 / segments as f32 * std::f32::consts::TAU;
+                let (s, c) = a.sin_cos();
+                mesh.vertices.push(Vertex {
+                    position: [r * s, y, r * c],
+                    normal: n.to_array(),
+                    uv: [0.5 + 0.5 * s, 0.5 + 0.5 * c],
+                });
+            }
+            for i in 0..segments {
+                let a = centre + 1 + i;
+                let b = centre + 1 + (i + 1) % segments;
+                if n.y > 0.0 {
+                    mesh.indices.extend_from_slice(&[centre, a, b]);
+                } else {
+                    mesh.indices.extend_from_slice(&[centre, b, a]);
+                }
+            }
+        }
+    }
+    mesh
+}
+
+/// A UV sphere centred at the origin.
+pub fn uv_sphere(radius: f32, rings: u32, segments: u32) -> MeshData {
+    let rings = rings.max(2);
+    let segments = segments.max(3);
+    let mut mesh = MeshData::default();
+    for j in 0..=rings {
+        let theta = j as f32 / rings as f32 * std::f32::consts::PI;
+        let (st, ct) = theta.sin_cos();
+        for i in 0..=segments {
+            let phi = i as f32 / segments as f32 * std::f32::consts::TAU;
+            let (sp, cp) = phi.sin_cos();
+            let n = Vec3::new(st * sp, ct, st * cp);
+            mesh.vertices.push(Vertex {
+                position: (n * radius).to_array(),
+                normal: n.to_array(),
+                uv: [i as f32 / segments as f32, j as f32 / rings as f32],
+            });
+        }
+    }
+    let row = segments + 1;
+    for j in 0..rings {
+        for i in 0..segments {
+            let a = j * row + i;
+            let b = a + row;
+            if j != 0 {
+                mesh.indices.extend_from_slice(&[a, b, a + 1]);
+            }
+            if j != rings - 1 {
+                mesh.indices.extend_from_slice(&[a + 1, b, b + 1]);
+            }
+        }
+    }
+    mesh
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every triangle's winding agrees with its vertex normals (front faces point outwards).
+    fn assert_outward(mesh: &MeshData) {
+        for tri in mesh.indices.chunks_exact(3) {
+            let [a, b, c] = [tri[0], tri[1], tri[2]].map(|i| mesh.vertices[i as usize]);
+            let face = (Vec3::from(b.position) - Vec3::from(a.position))
+                .cross(Vec3::from(c.position) - Vec3::from(a.position));
+            if face.length() < 1e-9 {
+                continue;
+            }
+            let n = Vec3::from(a.normal) + Vec3::from(b.normal) + Vec3::from(c.normal);
+            assert!(
+                face.dot(n) > 0.0,
+                "triangle {tri:?} winds against its normal"
+            );
+        }
+    }
+
+    #[test]
+    fn builders_wind_outwards() {
+        assert_outward(&cuboid(Vec3::new(1.0, 2.0, 3.0), 1.0));
+        assert_outward(&uv_sphere(1.0, 8, 12));
+        assert_outward(&frustum_shell(1.0, 0.5, 1.0, 12, true));
+        assert_outward(&grid(Vec3::ZERO, Vec3::X, Vec3::NEG_Z, 3, 2, 1.0));
+        assert_outward(
+            &cuboid(Vec3::ONE, 1.0).transformed(Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0))),
+        );
+    }
+
+    #[test]
+    fn grid_faces_u_cross_v() {
+        let g = grid(Vec3::ZERO, Vec3::X, Vec3::NEG_Z, 1, 1, 1.0);
+        assert_eq!(g.vertices[0].normal, [0.0, 1.0, 0.0]);
+        assert_eq!(g.indices.len(), 6);
+    }
+}
