@@ -1,9 +1,12 @@
 //! omnicave: omnidirectional stereo rendering of virtual environments for CAVEs.
 //!
 //! Layers, with dependencies pointing one way: [`scene`] (glTF → CPU meshes) and [`cave`]
-//! (walls, head, eyes, projections) know nothing of the GPU; [`output`] composes eye images.
+//! (walls, head, eyes, projections) know nothing of the GPU; [`render`] owns GPU resources;
+//! [`output`] composes eye images; [`headless`] ties them together for the CLI.
 
 pub mod cave;
 pub mod config;
+pub mod headless;
 pub mod output;
+pub mod render;
 pub mod scene;

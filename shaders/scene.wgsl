@@ -1,0 +1,70 @@
+// Scene geometry: Blinn-Phong shaded, textured triangles for one wall and eye.
+// Paired with src/render/scene_pass.rs; shared structs come from common.wgsl.
+
+// Keep in sync with `MaterialUniforms` in src/render/uniforms.rs.
+struct MaterialUniforms {
+    // Linear RGBA multiplier.
+    base_color: vec4<f32>,
+    // rgb: emitted light (linear); w: 1 for unlit materials.
+    emissive: vec4<f32>,
+    // x: shininess, y: specular strength, z: alpha cutoff (< 0 = opaque), w unused.
+    params: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> frame: FrameUniforms;
+@group(0) @binding(1) var<uniform> view: ViewUniforms;
+@group(1) @binding(0) var<uniform> material: MaterialUniforms;
+@group(1) @binding(1) var base_texture: texture_2d<f32>;
+@group(1) @binding(2) var base_sampler: sampler;
+
+struct VertexInput {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+}
+
+struct VertexOutput {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) cave_position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) eye: vec3<f32>,
+}
+
+@vertex
+fn vs_main(in: VertexInput) -> VertexOutput {
+    let p = (frame.cave_from_world * vec4<f32>(in.position, 1.0)).xyz;
+    var out: VertexOutput;
+    out.clip = view.clip_from_cave * vec4<f32>(p, 1.0);
+    out.cave_position = p;
+    out.normal = (frame.normal_from_world * vec4<f32>(in.normal, 0.0)).xyz;
+    out.uv = in.uv;
+    out.eye = view.eye_position.xyz;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
+    // Materials without a texture are bound to a 1×1 white one, so this is always valid.
+    let base = material.base_color * textureSample(base_texture, base_sampler, in.uv);
+    if material.params.z >= 0.0 && base.a < material.params.z {
+        discard;
+    }
+    if material.emissive.w > 0.5 {
+        // KHR_materials_unlit: exactly the base colour.
+        return vec4<f32>(base.rgb, 1.0);
+    }
+    var n = normalize(in.normal);
+    if !front_facing {
+        n = -n;
+    }
+    let lit = blinn_phong(
+        frame, base.rgb, in.cave_position, n, in.eye, material.params.x, material.params.y,
+    );
+    return vec4<f32>(lit + material.emissive.rgb, 1.0);
+}
+
+@fragment
+fn fs_wireframe() -> @location(0) vec4<f32> {
+    return frame.wire_color;
+}

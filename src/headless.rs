@@ -1,0 +1,153 @@
+//! Headless rendering of a config + scene to PNG files: the `render` command's engine.
+
+use std::path::{Path, PathBuf};
+
+use crate::cave::{Eye, Head, RenderMode};
+use crate::config::{Config, ConfigError};
+use crate::output::{self, OutputError};
+use crate::render::{FrameParams, Gpu, RenderError, RenderSettings, Renderer, WallImages};
+use crate::scene::{Scene, SceneError, load_gltf};
+
+/// Anything that stops a headless render.
+#[derive(Debug, thiserror::Error)]
+pub enum HeadlessError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    #[error("no scene given: pass --scene or set [scene] path in {0}")]
+    NoScene(PathBuf),
+}
+
+/// Per-run overrides of the config (what the CLI flags set).
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    pub scene: Option<PathBuf>,
+    pub mode: Option<RenderMode>,
+    pub head: Option<glam::Vec3>,
+    pub head_yaw_degrees: Option<f32>,
+    pub eye_separation: Option<f32>,
+    /// Replaces every wall's pixel size.
+    pub size: Option<[u32; 2]>,
+    pub msaa: Option<u32>,
+    pub wireframe: bool,
+}
+
+impl Overrides {
+    /// Applies the overrides to a loaded config.
+    pub fn apply(&self, config: &mut Config) {
+        if let Some(mode) = self.mode {
+            config.mode = mode;
+        }
+        if let Some(p) = self.head {
+            config.head.position = p;
+        }
+        if let Some(yaw) = self.head_yaw_degrees {
+            config.head = Head {
+                position: config.head.position,
+                orientation: Head::orientation_from_degrees(yaw, 0.0, 0.0),
+            };
+        }
+        if let Some(ipd) = self.eye_separation {
+            config.eye_separation = ipd;
+        }
+        if let Some(size) = self.size {
+            for wall in &mut config.cave.walls {
+                wall.resolution = size;
+            }
+        }
+        if let Some(msaa) = self.msaa {
+            config.msaa = msaa;
+        }
+        config.wireframe |= self.wireframe;
+    }
+}
+
+/// Renders one frame of `scene` as configured and returns every wall's eye images.
+pub fn render_images(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+) -> Result<Vec<WallImages>, RenderError> {
+    let mut renderer = Renderer::new(
+        gpu,
+        &config.cave,
+        RenderSettings {
+            msaa: config.msaa,
+            wireframe: config.wireframe,
+        },
+    )?;
+    renderer.set_scene(scene);
+    renderer.render(&frame_params(config));
+    renderer.read_images()
+}
+
+/// The frame parameters a config describes.
+pub fn frame_params(config: &Config) -> FrameParams<'_> {
+    FrameParams {
+        cave: &config.cave,
+        head: config.head,
+        mode: config.mode,
+        eye_separation: config.eye_separation,
+        world_from_cave: config.world_from_cave,
+        lighting: config.lighting,
+        background: config.background,
+    }
+}
+
+/// Files written by [`render_to_dir`].
+#[derive(Debug, Clone)]
+pub struct Written {
+    pub files: Vec<PathBuf>,
+}
+
+/// Loads config and scene, renders, writes `<wall>-left.png`, `<wall>-right.png` for every wall
+/// and `unfolded-anaglyph.png` into `out_dir`.
+pub fn render_to_dir(
+    config_path: &Path,
+    overrides: &Overrides,
+    out_dir: &Path,
+) -> Result<Written, HeadlessError> {
+    let mut config = Config::load(config_path)?;
+    overrides.apply(&mut config);
+    let scene_path = overrides
+        .scene
+        .clone()
+        .or_else(|| config.scene_path.clone())
+        .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
+    let scene = load_gltf(&scene_path)?;
+    tracing::info!(
+        "scene {}: {} triangles, {} materials, {} textures",
+        scene_path.display(),
+        scene.triangle_count(),
+        scene.materials.len(),
+        scene.textures.len()
+    );
+    let gpu = Gpu::headless()?;
+    let images = render_images(&gpu, &config, &scene)?;
+    write_images(&images, out_dir).map_err(Into::into)
+}
+
+/// Writes eye images and the unfolded anaglyph.
+pub fn write_images(images: &[WallImages], out_dir: &Path) -> Result<Written, OutputError> {
+    output::ensure_dir(out_dir)?;
+    let mut files = Vec::new();
+    let mut anaglyphs = Vec::with_capacity(images.len());
+    for wall in images {
+        for eye in Eye::BOTH {
+            let path = out_dir.join(format!("{}-{}.png", wall.wall, eye.name()));
+            output::write_png(&path, wall.eye(eye))?;
+            files.push(path);
+        }
+        anaglyphs.push(output::anaglyph(&wall.left, &wall.right)?);
+    }
+    let refs: Vec<_> = anaglyphs.iter().collect();
+    let path = out_dir.join("unfolded-anaglyph.png");
+    output::write_png(&path, &output::unfold(&refs))?;
+    files.push(path);
+    Ok(Written { files })
+}

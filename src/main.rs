@@ -1,0 +1,176 @@
+//! The `omnicave` command line: headless rendering now; the CAVE application joins later.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use glam::Vec3;
+
+use omnicave::cave::RenderMode;
+use omnicave::headless::{self, Overrides};
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "omnicave",
+    version,
+    about = "Omnidirectional stereo rendering for CAVEs"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Render one frame headless: every wall for both eyes, written as PNG files.
+    Render(RenderArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct RenderArgs {
+    /// CAVE configuration (TOML).
+    #[arg(long, default_value = "config/cave.toml")]
+    config: PathBuf,
+    /// glTF scene (.gltf or .glb); default: the config's [scene] path.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Render mode: mono, stereo, tracked-stereo; default: the config's.
+    #[arg(long, value_parser = parse_mode)]
+    mode: Option<RenderMode>,
+    /// Head position in CAVE space, metres: X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    head: Option<Vec3>,
+    /// Head yaw in degrees (positive turns left; 0 faces the front wall), for tracked-stereo.
+    #[arg(long, value_parser = parse_yaw, allow_hyphen_values = true)]
+    head_yaw: Option<f32>,
+    /// Eye separation in metres.
+    #[arg(long, value_parser = parse_ipd)]
+    ipd: Option<f32>,
+    /// Pixel size of every wall image, WxH (overrides the config).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<[u32; 2]>,
+    /// MSAA samples: 1 or 4.
+    #[arg(long, value_parser = parse_msaa)]
+    msaa: Option<u32>,
+    /// Draw the wireframe overlay.
+    #[arg(long)]
+    wireframe: bool,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+fn parse_mode(s: &str) -> Result<RenderMode, String> {
+    RenderMode::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = RenderMode::ALL.iter().map(|m| m.name()).collect();
+        format!("unknown mode '{s}'; expected one of: {}", names.join(", "))
+    })
+}
+
+fn parse_finite(s: &str, what: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number ({what})"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("'{s}' is not a finite number ({what})"))
+    }
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z in metres, got '{s}'"));
+    }
+    let mut v = [0.0; 3];
+    for (slot, part) in v.iter_mut().zip(&parts) {
+        *slot = parse_finite(part, "head coordinate")?;
+    }
+    Ok(Vec3::from(v))
+}
+
+fn parse_yaw(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s, "degrees")?;
+    if v.abs() > 360.0 {
+        return Err(format!("yaw {v} is outside -360..360 degrees"));
+    }
+    Ok(v)
+}
+
+fn parse_ipd(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s, "metres")?;
+    if !(0.0..=0.5).contains(&v) {
+        return Err(format!("eye separation {v} m is outside 0..0.5 m"));
+    }
+    Ok(v)
+}
+
+fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WxH (e.g. 1280x720), got '{s}'"))?;
+    let dim = |d: &str| -> Result<u32, String> {
+        let v: u32 = d
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{d}' is not a whole number of pixels"))?;
+        if (1..=8192).contains(&v) {
+            Ok(v)
+        } else {
+            Err(format!("{v} pixels is outside 1..=8192"))
+        }
+    };
+    Ok([dim(w)?, dim(h)?])
+}
+
+fn parse_msaa(s: &str) -> Result<u32, String> {
+    match s.trim() {
+        "1" => Ok(1),
+        "4" => Ok(4),
+        _ => Err(format!("MSAA must be 1 or 4, got '{s}'")),
+    }
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "info,wgpu_core=warn,wgpu_hal=warn,naga=warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Render(args) => {
+            let overrides = Overrides {
+                scene: args.scene,
+                mode: args.mode,
+                head: args.head,
+                head_yaw_degrees: args.head_yaw,
+                eye_separation: args.ipd,
+                size: args.size,
+                msaa: args.msaa,
+                wireframe: args.wireframe,
+            };
+            let written = headless::render_to_dir(&args.config, &overrides, &args.out)
+                .context("render failed")?;
+            for f in &written.files {
+                tracing::info!("wrote {}", f.display());
+            }
+            Ok(())
+        }
+    }
+}

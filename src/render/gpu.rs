@@ -1,0 +1,72 @@
+//! The one wgpu device: adapter selection and the optional features the renderer uses.
+
+use super::RenderError;
+
+/// Instance, adapter, device and queue, plus what the adapter can do.
+#[derive(Debug, Clone)]
+pub struct Gpu {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// Wireframe rendering (`POLYGON_MODE_LINE`) is available.
+    pub wireframe_supported: bool,
+}
+
+impl Gpu {
+    /// Opens the default adapter without a window (honours `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`).
+    pub fn headless() -> Result<Self, RenderError> {
+        // Vulkan/Metal/DX12 by default (probing GL only adds noise where EGL is absent);
+        // WGPU_BACKEND=gl still selects GL.
+        let instance = wgpu::Instance::new(
+            wgpu::InstanceDescriptor {
+                backends: wgpu::Backends::PRIMARY,
+                ..wgpu::InstanceDescriptor::new_without_display_handle()
+            }
+            .with_env(),
+        );
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        Self::from_adapter(instance, adapter)
+    }
+
+    /// Creates the device on a chosen adapter, enabling the optional features it offers.
+    pub fn from_adapter(
+        instance: wgpu::Instance,
+        adapter: wgpu::Adapter,
+    ) -> Result<Self, RenderError> {
+        let wanted = wgpu::Features::POLYGON_MODE_LINE;
+        let features = adapter.features() & wanted;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("omnicave device"),
+            required_features: features,
+            required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::Device(e.to_string()))?;
+        let info = adapter.get_info();
+        tracing::info!(
+            "GPU: {} ({:?}, {:?}, driver {})",
+            info.name,
+            info.device_type,
+            info.backend,
+            info.driver
+        );
+        Ok(Self {
+            instance,
+            adapter,
+            device,
+            queue,
+            wireframe_supported: features.contains(wgpu::Features::POLYGON_MODE_LINE),
+        })
+    }
+
+    /// "name (backend)" of the adapter, for logs and reports.
+    pub fn adapter_name(&self) -> String {
+        let info = self.adapter.get_info();
+        format!("{} ({:?})", info.name, info.backend)
+    }
+}

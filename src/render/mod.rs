@@ -1,0 +1,306 @@
+//! The multi-wall stereo renderer: owns the GPU resources and draws every wall for every eye.
+
+pub mod gpu;
+pub mod scene_pass;
+pub mod shaders;
+pub mod targets;
+pub mod uniforms;
+
+use glam::Mat4;
+use image::RgbaImage;
+
+pub use gpu::Gpu;
+use scene_pass::{SceneGpu, ScenePass};
+use targets::WallTargets;
+use uniforms::{FrameUniforms, ViewUniforms};
+
+use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, view_setups};
+use crate::config::Lighting;
+use crate::scene::Scene;
+
+/// Everything that can go wrong in the render layer.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(
+        "no usable GPU adapter: {0} (is a Vulkan driver such as mesa-vulkan-drivers installed?)"
+    )]
+    NoAdapter(String),
+    #[error("cannot create the GPU device: {0}")]
+    Device(String),
+    #[error("reading images back from the GPU failed: {0}")]
+    Readback(String),
+    #[error("MSAA ×{0} is not supported here (use 1 or 4)")]
+    Msaa(u32),
+}
+
+/// Settings that change pipelines or targets (rarely; never per frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RenderSettings {
+    /// 1 (off) or 4.
+    pub msaa: u32,
+    pub wireframe: bool,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            msaa: 4,
+            wireframe: false,
+        }
+    }
+}
+
+/// What one frame is rendered from.
+#[derive(Debug, Clone)]
+pub struct FrameParams<'a> {
+    pub cave: &'a Cave,
+    pub head: Head,
+    pub mode: RenderMode,
+    pub eye_separation: f32,
+    pub world_from_cave: Mat4,
+    pub lighting: Lighting,
+    /// Clear colour, sRGB 0..1.
+    pub background: [f32; 3],
+}
+
+/// Counts from the last frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FrameStats {
+    pub views: usize,
+    pub triangles_submitted: usize,
+}
+
+/// The renderer: one scene pass, one scene, per-wall per-eye targets.
+#[derive(Debug)]
+pub struct Renderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    settings: RenderSettings,
+    scene_pass: ScenePass,
+    scene: Option<SceneGpu>,
+    targets: Vec<WallTargets>,
+    wall_names: Vec<String>,
+    last_views: Vec<ViewSetup>,
+    wireframe_supported: bool,
+}
+
+impl Renderer {
+    /// Creates targets for every wall of `cave` and builds all pipelines.
+    pub fn new(gpu: &Gpu, cave: &Cave, settings: RenderSettings) -> Result<Self, RenderError> {
+        if !matches!(settings.msaa, 1 | 4) {
+            return Err(RenderError::Msaa(settings.msaa));
+        }
+        if settings.wireframe && !gpu.wireframe_supported {
+            tracing::warn!("wireframe requested but the adapter lacks POLYGON_MODE_LINE; off");
+        }
+        let scene_pass = ScenePass::new(&gpu.device, settings.msaa, cave.walls.len() * 2);
+        let mut renderer = Self {
+            device: gpu.device.clone(),
+            queue: gpu.queue.clone(),
+            settings,
+            scene_pass,
+            scene: None,
+            targets: Vec::new(),
+            wall_names: Vec::new(),
+            last_views: Vec::new(),
+            wireframe_supported: gpu.wireframe_supported,
+        };
+        renderer.sync_walls(cave);
+        Ok(renderer)
+    }
+
+    /// Replaces the scene (uploads buffers and textures once).
+    pub fn set_scene(&mut self, scene: &Scene) {
+        self.scene = Some(
+            self.scene_pass
+                .upload_scene(&self.device, &self.queue, scene),
+        );
+    }
+
+    /// Changes MSAA or wireframe; rebuilds pipelines and targets only when MSAA changes.
+    pub fn set_settings(
+        &mut self,
+        settings: RenderSettings,
+        cave: &Cave,
+    ) -> Result<(), RenderError> {
+        if !matches!(settings.msaa, 1 | 4) {
+            return Err(RenderError::Msaa(settings.msaa));
+        }
+        let msaa_changed = settings.msaa != self.settings.msaa;
+        self.settings = settings;
+        if msaa_changed {
+            self.scene_pass.build_pipelines(&self.device, settings.msaa);
+            self.targets.clear();
+            self.sync_walls(cave);
+        }
+        Ok(())
+    }
+
+    pub fn settings(&self) -> RenderSettings {
+        self.settings
+    }
+
+    /// Makes the targets match the walls' names and pixel sizes (only changed walls are rebuilt).
+    fn sync_walls(&mut self, cave: &Cave) {
+        self.scene_pass
+            .ensure_view_capacity(&self.device, cave.walls.len() * 2);
+        self.targets.truncate(cave.walls.len());
+        self.wall_names.truncate(cave.walls.len());
+        for (i, wall) in cave.walls.iter().enumerate() {
+            let up_to_date = self
+                .targets
+                .get(i)
+                .is_some_and(|t| t.size == wall.resolution)
+                && self.wall_names.get(i) == Some(&wall.name);
+            if up_to_date {
+                continue;
+            }
+            let targets = WallTargets::new(
+                &self.device,
+                &wall.name,
+                wall.resolution,
+                self.settings.msaa,
+            );
+            if i < self.targets.len() {
+                self.targets[i] = targets;
+                self.wall_names[i] = wall.name.clone();
+            } else {
+                self.targets.push(targets);
+                self.wall_names.push(wall.name.clone());
+            }
+        }
+    }
+
+    /// Renders every view of the frame and submits the work (no CPU read-back).
+    pub fn render(&mut self, frame: &FrameParams<'_>) -> FrameStats {
+        self.sync_walls(frame.cave);
+        let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
+        let frame_uniforms = FrameUniforms::new(frame.world_from_cave, &frame.lighting);
+        self.scene_pass.write_uniforms(
+            &self.queue,
+            &frame_uniforms,
+            views.iter().map(ViewUniforms::from),
+        );
+        let clear = srgb_to_linear_color(frame.background);
+        let wireframe = self.settings.wireframe && self.wireframe_supported;
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("Renderer::frame"),
+            });
+        for (index, view) in views.iter().enumerate() {
+            let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
+            let (attachment, resolve) = match &target.msaa_view {
+                Some(msaa) => (msaa, Some(&target.color_view)),
+                None => (&target.color_view, None),
+            };
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("Renderer::scene_pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: attachment,
+                    depth_slice: None,
+                    resolve_target: resolve,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(clear),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &target.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if let Some(scene) = &self.scene {
+                self.scene_pass.draw(&mut pass, scene, index, wireframe);
+            }
+        }
+        self.queue.submit([encoder.finish()]);
+        let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
+        let stats = FrameStats {
+            views: views.len(),
+            triangles_submitted: triangles * views.len(),
+        };
+        self.last_views = views;
+        stats
+    }
+
+    /// The views of the last rendered frame.
+    pub fn last_views(&self) -> &[ViewSetup] {
+        &self.last_views
+    }
+
+    /// The colour texture holding `wall`'s image for `eye` in the last frame (in mono both eyes
+    /// share one image).
+    pub fn eye_texture(&self, wall: usize, eye: Eye) -> Option<&wgpu::Texture> {
+        let mono = self.last_views.iter().any(|v| v.eye.is_none());
+        let slot = if mono { 0 } else { eye as usize };
+        self.targets.get(wall).map(|t| &t.eyes[slot].color)
+    }
+
+    /// Reads every wall's left and right image back to the CPU (headless output and tests).
+    pub fn read_images(&self) -> Result<Vec<WallImages>, RenderError> {
+        let mut textures = Vec::with_capacity(self.targets.len() * 2);
+        for wall in 0..self.targets.len() {
+            for eye in Eye::BOTH {
+                if let Some(t) = self.eye_texture(wall, eye) {
+                    textures.push(t);
+                }
+            }
+        }
+        let mut images = targets::read_textures(&self.device, &self.queue, &textures)?.into_iter();
+        let mut out = Vec::with_capacity(self.targets.len());
+        for name in &self.wall_names {
+            let (Some(left), Some(right)) = (images.next(), images.next()) else {
+                return Err(RenderError::Readback("missing eye image".into()));
+            };
+            out.push(WallImages {
+                wall: name.clone(),
+                left,
+                right,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// One wall's pair of eye images on the CPU.
+#[derive(Debug, Clone)]
+pub struct WallImages {
+    pub wall: String,
+    pub left: RgbaImage,
+    pub right: RgbaImage,
+}
+
+impl WallImages {
+    pub fn eye(&self, eye: Eye) -> &RgbaImage {
+        match eye {
+            Eye::Left => &self.left,
+            Eye::Right => &self.right,
+        }
+    }
+}
+
+/// sRGB-encoded colour → the linear clear value an sRGB target needs to store exactly it.
+fn srgb_to_linear_color(c: [f32; 3]) -> wgpu::Color {
+    let lin = |v: f32| {
+        let v = f64::from(v);
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    wgpu::Color {
+        r: lin(c[0]),
+        g: lin(c[1]),
+        b: lin(c[2]),
+        a: 1.0,
+    }
+}

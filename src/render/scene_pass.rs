@@ -1,0 +1,574 @@
+//! Draws the scene's triangles for one wall and eye (shaders/scene.wgsl): pipelines, scene
+//! buffers, materials and textures, all created once and reused every frame.
+
+use std::collections::HashMap;
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::shaders;
+use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
+use super::uniforms::{FrameUniforms, MaterialUniforms, ViewUniforms};
+use crate::scene::{Scene, Texture, Wrap};
+
+/// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct GpuVertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    uv: [f32; 2],
+}
+
+const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+
+/// Which pipeline variant a draw needs. Pipelines are built once per key, never per frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct PipelineKey {
+    double_sided: bool,
+    wireframe: bool,
+}
+
+/// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
+pub const UNIFORM_STRIDE: u64 = 256;
+
+/// The scene pass: layouts, pipelines and per-frame uniform buffers.
+#[derive(Debug)]
+pub struct ScenePass {
+    frame_layout: wgpu::BindGroupLayout,
+    material_layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    shader: wgpu::ShaderModule,
+    pipelines: HashMap<PipelineKey, wgpu::RenderPipeline>,
+    msaa: u32,
+    frame_buffer: wgpu::Buffer,
+    view_buffer: wgpu::Buffer,
+    view_capacity: usize,
+    frame_bind_group: wgpu::BindGroup,
+    /// Reused every frame to stage view uniforms (no per-frame allocation).
+    view_staging: Vec<u8>,
+}
+
+/// A scene uploaded to the GPU.
+#[derive(Debug)]
+pub struct SceneGpu {
+    vertex_buffer: wgpu::Buffer,
+    index_buffer: wgpu::Buffer,
+    draws: Vec<GpuDraw>,
+    material_bind_groups: Vec<wgpu::BindGroup>,
+    /// Kept alive for the bind groups.
+    _material_buffer: wgpu::Buffer,
+    _textures: Vec<wgpu::Texture>,
+    pub triangle_count: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct GpuDraw {
+    first_index: u32,
+    index_count: u32,
+    material: usize,
+    double_sided: bool,
+}
+
+impl ScenePass {
+    pub fn new(device: &wgpu::Device, msaa: u32, view_capacity: usize) -> Self {
+        let uniform_entry = |binding, dynamic| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ScenePass::frame_layout"),
+            entries: &[uniform_entry(0, false), uniform_entry(1, true)],
+        });
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ScenePass::material_layout"),
+            entries: &[
+                uniform_entry(0, true),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ScenePass::pipeline_layout"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
+            immediate_size: 0,
+        });
+        let shader = shaders::module(device, "ScenePass::shader", shaders::SCENE);
+        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ScenePass::frame_buffer"),
+            size: std::mem::size_of::<FrameUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let (view_buffer, frame_bind_group) =
+            Self::view_resources(device, &frame_layout, &frame_buffer, view_capacity);
+        let mut pass = Self {
+            frame_layout,
+            material_layout,
+            pipeline_layout,
+            shader,
+            pipelines: HashMap::new(),
+            msaa,
+            frame_buffer,
+            view_buffer,
+            view_capacity,
+            frame_bind_group,
+            view_staging: Vec::with_capacity(view_capacity * UNIFORM_STRIDE as usize),
+        };
+        pass.build_pipelines(device, msaa);
+        pass
+    }
+
+    fn view_resources(
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        frame_buffer: &wgpu::Buffer,
+        capacity: usize,
+    ) -> (wgpu::Buffer, wgpu::BindGroup) {
+        let view_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ScenePass::view_buffer"),
+            size: UNIFORM_STRIDE * capacity.max(1) as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ScenePass::frame_bind_group"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &view_buffer,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<ViewUniforms>() as u64),
+                    }),
+                },
+            ],
+        });
+        (view_buffer, bind_group)
+    }
+
+    /// Builds every pipeline variant for a sample count (at start-up and when MSAA changes).
+    pub fn build_pipelines(&mut self, device: &wgpu::Device, msaa: u32) {
+        self.msaa = msaa;
+        self.pipelines.clear();
+        let wireframe_supported = device
+            .features()
+            .contains(wgpu::Features::POLYGON_MODE_LINE);
+        for double_sided in [false, true] {
+            for wireframe in [false, true] {
+                if wireframe && !wireframe_supported {
+                    continue;
+                }
+                let key = PipelineKey {
+                    double_sided,
+                    wireframe,
+                };
+                let pipeline = self.build_pipeline(device, key);
+                self.pipelines.insert(key, pipeline);
+            }
+        }
+    }
+
+    fn build_pipeline(&self, device: &wgpu::Device, key: PipelineKey) -> wgpu::RenderPipeline {
+        let label = format!(
+            "ScenePass::pipeline{}{}",
+            if key.double_sided {
+                " double-sided"
+            } else {
+                ""
+            },
+            if key.wireframe { " wireframe" } else { "" }
+        );
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(&label),
+            layout: Some(&self.pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &self.shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<GpuVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &VERTEX_ATTRIBUTES,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: (!key.double_sided).then_some(wgpu::Face::Back),
+                polygon_mode: if key.wireframe {
+                    wgpu::PolygonMode::Line
+                } else {
+                    wgpu::PolygonMode::Fill
+                },
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(!key.wireframe),
+                depth_compare: Some(if key.wireframe {
+                    wgpu::CompareFunction::LessEqual
+                } else {
+                    wgpu::CompareFunction::Less
+                }),
+                stencil: Default::default(),
+                // Pull the overlay's lines slightly towards the eye so they win against the
+                // filled surface they outline.
+                bias: if key.wireframe {
+                    wgpu::DepthBiasState {
+                        constant: -4,
+                        slope_scale: -1.0,
+                        clamp: 0.0,
+                    }
+                } else {
+                    Default::default()
+                },
+            }),
+            multisample: wgpu::MultisampleState {
+                count: self.msaa,
+                ..Default::default()
+            },
+            fragment: Some(wgpu::FragmentState {
+                module: &self.shader,
+                entry_point: Some(if key.wireframe {
+                    "fs_wireframe"
+                } else {
+                    "fs_main"
+                }),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+
+    pub fn msaa(&self) -> u32 {
+        self.msaa
+    }
+
+    /// Grows the view uniform buffer if a CAVE with more walls needs it (not per frame).
+    pub fn ensure_view_capacity(&mut self, device: &wgpu::Device, views: usize) {
+        if views <= self.view_capacity {
+            return;
+        }
+        let (buffer, bind_group) =
+            Self::view_resources(device, &self.frame_layout, &self.frame_buffer, views);
+        self.view_buffer = buffer;
+        self.frame_bind_group = bind_group;
+        self.view_capacity = views;
+    }
+
+    /// Uploads this frame's uniforms: one write for the frame, one for all views.
+    pub fn write_uniforms(
+        &mut self,
+        queue: &wgpu::Queue,
+        frame: &FrameUniforms,
+        views: impl Iterator<Item = ViewUniforms>,
+    ) {
+        queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(frame));
+        self.view_staging.clear();
+        for view in views.take(self.view_capacity) {
+            self.view_staging
+                .extend_from_slice(bytemuck::bytes_of(&view));
+            self.view_staging.resize(
+                self.view_staging
+                    .len()
+                    .next_multiple_of(UNIFORM_STRIDE as usize),
+                0,
+            );
+        }
+        if !self.view_staging.is_empty() {
+            queue.write_buffer(&self.view_buffer, 0, &self.view_staging);
+        }
+    }
+
+    /// Records the draws of `scene` for view slot `view_index` into an open render pass.
+    pub fn draw(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        scene: &SceneGpu,
+        view_index: usize,
+        wireframe: bool,
+    ) {
+        let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
+        pass.set_bind_group(0, &self.frame_bind_group, &[view_offset]);
+        pass.set_vertex_buffer(0, scene.vertex_buffer.slice(..));
+        pass.set_index_buffer(scene.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
+        for &wire in layers {
+            let mut bound: Option<PipelineKey> = None;
+            for draw in &scene.draws {
+                let key = PipelineKey {
+                    double_sided: draw.double_sided,
+                    wireframe: wire,
+                };
+                if bound != Some(key) {
+                    let Some(pipeline) = self.pipelines.get(&key) else {
+                        continue;
+                    };
+                    pass.set_pipeline(pipeline);
+                    bound = Some(key);
+                }
+                let material_offset = (draw.material as u64 * UNIFORM_STRIDE) as u32;
+                pass.set_bind_group(
+                    1,
+                    &scene.material_bind_groups[draw.material],
+                    &[material_offset],
+                );
+                pass.draw_indexed(
+                    draw.first_index..draw.first_index + draw.index_count,
+                    0,
+                    0..1,
+                );
+            }
+        }
+    }
+
+    /// Uploads a scene: vertex/index buffers, material uniforms, textures with mipmaps.
+    pub fn upload_scene(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &Scene,
+    ) -> SceneGpu {
+        let vertices: Vec<GpuVertex> = scene
+            .vertices
+            .iter()
+            .map(|v| GpuVertex {
+                position: v.position,
+                normal: v.normal,
+                uv: v.uv,
+            })
+            .collect();
+        // wgpu refuses zero-sized buffers; an empty scene still gets valid (unused) buffers.
+        let vertex_bytes: &[u8] = if vertices.is_empty() {
+            &[0; 32]
+        } else {
+            bytemuck::cast_slice(&vertices)
+        };
+        let index_bytes: &[u8] = if scene.indices.is_empty() {
+            &[0; 12]
+        } else {
+            bytemuck::cast_slice(&scene.indices)
+        };
+        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("SceneGpu::vertex_buffer"),
+            contents: vertex_bytes,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+        });
+        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("SceneGpu::index_buffer"),
+            contents: index_bytes,
+            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+        });
+
+        let textures: Vec<wgpu::Texture> = scene
+            .textures
+            .iter()
+            .map(|t| upload_texture(device, queue, t))
+            .collect();
+        let white = upload_texture(
+            device,
+            queue,
+            &Texture {
+                name: "white".into(),
+                width: 1,
+                height: 1,
+                rgba8: vec![255; 4],
+            },
+        );
+        let texture_views: Vec<wgpu::TextureView> = textures
+            .iter()
+            .map(|t| t.create_view(&Default::default()))
+            .collect();
+        let white_view = white.create_view(&Default::default());
+
+        let mut material_bytes =
+            Vec::with_capacity(scene.materials.len() * UNIFORM_STRIDE as usize);
+        for m in &scene.materials {
+            material_bytes.extend_from_slice(bytemuck::bytes_of(&MaterialUniforms::from(m)));
+            material_bytes.resize(
+                material_bytes
+                    .len()
+                    .next_multiple_of(UNIFORM_STRIDE as usize),
+                0,
+            );
+        }
+        if material_bytes.is_empty() {
+            material_bytes.resize(UNIFORM_STRIDE as usize, 0);
+        }
+        let material_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("SceneGpu::material_buffer"),
+            contents: &material_bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+
+        let mut samplers: HashMap<(Wrap, Wrap, bool), wgpu::Sampler> = HashMap::new();
+        let mut material_bind_groups = Vec::with_capacity(scene.materials.len());
+        for m in &scene.materials {
+            let (view, key) = match m.base_color_texture {
+                Some(t) if t.texture < texture_views.len() => {
+                    (&texture_views[t.texture], (t.wrap_u, t.wrap_v, t.nearest))
+                }
+                _ => (&white_view, (Wrap::Repeat, Wrap::Repeat, false)),
+            };
+            let sampler = samplers
+                .entry(key)
+                .or_insert_with(|| make_sampler(device, key));
+            material_bind_groups.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(&format!("SceneGpu::material {}", m.name)),
+                layout: &self.material_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &material_buffer,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(
+                                std::mem::size_of::<MaterialUniforms>() as u64
+                            ),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::Sampler(sampler),
+                    },
+                ],
+            }));
+        }
+
+        let draws = scene
+            .draws
+            .iter()
+            .filter(|d| d.material < scene.materials.len())
+            .map(|d| GpuDraw {
+                first_index: d.first_index,
+                index_count: d.index_count,
+                material: d.material,
+                double_sided: scene.materials[d.material].double_sided,
+            })
+            .collect();
+
+        let mut all_textures = textures;
+        all_textures.push(white);
+        SceneGpu {
+            vertex_buffer,
+            index_buffer,
+            draws,
+            material_bind_groups,
+            _material_buffer: material_buffer,
+            _textures: all_textures,
+            triangle_count: scene.triangle_count(),
+        }
+    }
+}
+
+fn address_mode(w: Wrap) -> wgpu::AddressMode {
+    match w {
+        Wrap::Repeat => wgpu::AddressMode::Repeat,
+        Wrap::MirroredRepeat => wgpu::AddressMode::MirrorRepeat,
+        Wrap::ClampToEdge => wgpu::AddressMode::ClampToEdge,
+    }
+}
+
+fn make_sampler(device: &wgpu::Device, (u, v, nearest): (Wrap, Wrap, bool)) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("SceneGpu::sampler"),
+        address_mode_u: address_mode(u),
+        address_mode_v: address_mode(v),
+        mag_filter: if nearest {
+            wgpu::FilterMode::Nearest
+        } else {
+            wgpu::FilterMode::Linear
+        },
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        anisotropy_clamp: 8,
+        ..Default::default()
+    })
+}
+
+/// Uploads an sRGB texture with a full mip chain (box-filtered on the CPU, once at load).
+fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wgpu::Texture {
+    let mip_count = 32 - t.width.max(t.height).max(1).leading_zeros();
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(&format!("SceneGpu::texture {}", t.name)),
+        size: wgpu::Extent3d {
+            width: t.width,
+            height: t.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: mip_count,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let mut level = image::RgbaImage::from_raw(t.width, t.height, t.rgba8.clone());
+    for mip in 0..mip_count {
+        let Some(img) = level.as_ref() else { break };
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: mip,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            img.as_raw(),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(img.width() * 4),
+                rows_per_image: Some(img.height()),
+            },
+            wgpu::Extent3d {
+                width: img.width(),
+                height: img.height(),
+                depth_or_array_layers: 1,
+            },
+        );
+        let (w, h) = ((img.width() / 2).max(1), (img.height() / 2).max(1));
+        level = Some(image::imageops::resize(
+            img,
+            w,
+            h,
+            image::imageops::FilterType::Triangle,
+        ));
+    }
+    texture
+}

@@ -1,0 +1,27 @@
+//! WGSL sources: every feature shader is compiled with the shared `common.wgsl` prepended.
+
+/// Shared structs and functions (lighting, uniforms).
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+
+/// Scene geometry (paired with `src/render/scene_pass.rs`).
+pub const SCENE: &str = include_str!("../../shaders/scene.wgsl");
+
+/// Every feature shader by file stem, for validation.
+pub const FEATURES: &[(&str, &str)] = &[("scene", SCENE)];
+
+/// Full source of a feature shader: common declarations followed by the feature's own code.
+pub fn compose(feature_source: &str) -> String {
+    let mut s = String::with_capacity(COMMON.len() + feature_source.len() + 1);
+    s.push_str(COMMON);
+    s.push('\n');
+    s.push_str(feature_source);
+    s
+}
+
+/// Builds the shader module for a feature (once, at pipeline creation).
+pub fn module(device: &wgpu::Device, label: &str, feature_source: &str) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(compose(feature_source).into()),
+    })
+}

@@ -1,0 +1,89 @@
+//! GPU-visible uniform structs; each one mirrors a WGSL struct and must stay in sync with it.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+
+use crate::cave::ViewSetup;
+use crate::config::Lighting;
+use crate::scene::Material;
+
+/// Per-frame data. Keep in sync with `FrameUniforms` in shaders/common.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct FrameUniforms {
+    pub cave_from_world: [[f32; 4]; 4],
+    pub normal_from_world: [[f32; 4]; 4],
+    pub sun_direction: [f32; 4],
+    pub sun_color: [f32; 4],
+    pub point_position: [f32; 4],
+    pub point_color: [f32; 4],
+    pub ambient: [f32; 4],
+    pub wire_color: [f32; 4],
+}
+
+impl FrameUniforms {
+    /// Lighting is given in scene (world) space and moved into CAVE space here.
+    pub fn new(world_from_cave: Mat4, lighting: &Lighting) -> Self {
+        let cave_from_world = world_from_cave.inverse();
+        // Normals transform with the inverse transpose of the linear part.
+        let normal_from_world =
+            Mat4::from_mat3(glam::Mat3::from_mat4(cave_from_world).inverse().transpose());
+        let sun = cave_from_world
+            .transform_vector3(lighting.sun_direction)
+            .normalize_or(Vec3::NEG_Y);
+        let point = cave_from_world.transform_point3(lighting.point_position);
+        // Ranges are physical distances in the scene; CAVE metres differ by the placement scale.
+        let scale = cave_from_world.transform_vector3(Vec3::X).length();
+        Self {
+            cave_from_world: cave_from_world.to_cols_array_2d(),
+            normal_from_world: normal_from_world.to_cols_array_2d(),
+            sun_direction: sun.extend(0.0).to_array(),
+            sun_color: lighting.sun_color.extend(0.0).to_array(),
+            point_position: point.extend(lighting.point_range * scale).to_array(),
+            point_color: lighting.point_color.extend(0.0).to_array(),
+            ambient: lighting.ambient.extend(0.0).to_array(),
+            wire_color: [0.9, 0.9, 0.9, 1.0],
+        }
+    }
+}
+
+/// One wall from one eye. Keep in sync with `ViewUniforms` in shaders/common.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ViewUniforms {
+    pub clip_from_cave: [[f32; 4]; 4],
+    pub eye_position: [f32; 4],
+}
+
+impl From<&ViewSetup> for ViewUniforms {
+    fn from(view: &ViewSetup) -> Self {
+        Self {
+            clip_from_cave: view.clip_from_cave.to_cols_array_2d(),
+            eye_position: view.eye_position.extend(1.0).to_array(),
+        }
+    }
+}
+
+/// One material. Keep in sync with `MaterialUniforms` in shaders/scene.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct MaterialUniforms {
+    pub base_color: [f32; 4],
+    pub emissive: [f32; 4],
+    pub params: [f32; 4],
+}
+
+impl From<&Material> for MaterialUniforms {
+    fn from(m: &Material) -> Self {
+        Self {
+            base_color: m.base_color,
+            emissive: [
+                m.emissive[0],
+                m.emissive[1],
+                m.emissive[2],
+                if m.unlit { 1.0 } else { 0.0 },
+            ],
+            params: [m.shininess, m.specular, m.alpha_cutoff.unwrap_or(-1.0), 0.0],
+        }
+    }
+}
