@@ -1,0 +1,590 @@
+//! Generates the bundled scenes (`assets/living-room.glb`, `assets/city.glb`) deterministically.
+//!
+//! `gen-assets [--out DIR]` writes them; `gen-assets --check [--out DIR]` fails if the files
+//! there differ from what this generator makes (so committed assets always match the code).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use glam::{Mat4, Vec3};
+use image::{Rgba, RgbaImage};
+
+use omnicave::scene::build::{MeshData, cuboid, frustum_shell, grid, uv_sphere};
+use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, NodeDesc};
+
+fn main() -> anyhow::Result<()> {
+    let mut out = PathBuf::from("assets");
+    let mut check = false;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--check" => check = true,
+            "--out" => out = PathBuf::from(args.next().context("--out needs a folder")?),
+            other => bail!("unknown argument '{other}' (use --out DIR and/or --check)"),
+        }
+    }
+    let files = [("living-room.glb", living_room()?), ("city.glb", city()?)];
+    let mut stale = Vec::new();
+    for (name, bytes) in &files {
+        let path = out.join(name);
+        if check {
+            let on_disk = std::fs::read(&path).unwrap_or_default();
+            if on_disk != *bytes {
+                stale.push(path);
+            }
+        } else {
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+            eprintln!("wrote {} ({} KiB)", path.display(), bytes.len() / 1024);
+        }
+    }
+    if !stale.is_empty() {
+        bail!(
+            "assets differ from the generator's output: {:?}; run `cargo run --bin gen-assets`",
+            stale
+        );
+    }
+    Ok(())
+}
+
+/// A small deterministic PRNG (xorshift64*), so the assets are byte-identical on every run.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let v = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
+        (v >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.next()
+    }
+}
+
+fn png(img: &RgbaImage) -> anyhow::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .context("encoding PNG")?;
+    Ok(bytes)
+}
+
+fn shade(c: [u8; 3], f: f32) -> Rgba<u8> {
+    let s = |v: u8| (f32::from(v) * f).clamp(0.0, 255.0) as u8;
+    Rgba([s(c[0]), s(c[1]), s(c[2]), 255])
+}
+
+/// Parquet: planks 1/4 texture wide with staggered joints and grain; one tile = 1 m.
+fn parquet_texture() -> RgbaImage {
+    let mut rng = Rng(7);
+    let size = 256;
+    let plank_w = size / 8;
+    let offsets: Vec<u32> = (0..8).map(|_| (rng.next() * size as f32) as u32).collect();
+    let tones: Vec<f32> = (0..32).map(|_| rng.range(0.8, 1.1)).collect();
+    RgbaImage::from_fn(size, size, |x, y| {
+        let column = x / plank_w;
+        let along = (y + offsets[column as usize]) % size;
+        let plank = column * 4 + along / (size / 4);
+        let joint = x.is_multiple_of(plank_w) || along.is_multiple_of(size / 4);
+        if joint {
+            return Rgba([60, 38, 22, 255]);
+        }
+        let grain = 0.92 + 0.08 * ((x as f32 * 0.9 + (along as f32 * 0.05).sin() * 3.0).sin());
+        shade([168, 112, 64], tones[plank as usize % 32] * grain)
+    })
+}
+
+/// Wallpaper: soft vertical stripes with a small diamond pattern.
+fn wallpaper_texture() -> RgbaImage {
+    RgbaImage::from_fn(128, 128, |x, y| {
+        let stripe = if (x / 16) % 2 == 0 { 1.0 } else { 0.94 };
+        let dx = (x % 32) as i32 - 16;
+        let dy = (y % 32) as i32 - 16;
+        let diamond = if dx.abs() + dy.abs() < 3 { 0.85 } else { 1.0 };
+        shade([222, 214, 190], stripe * diamond)
+    })
+}
+
+/// A "painting": sky gradient, sun, hills, in a dark frame band.
+fn painting_texture() -> RgbaImage {
+    let (w, h) = (192, 128);
+    RgbaImage::from_fn(w, h, |x, y| {
+        let (fx, fy) = (x as f32 / w as f32, y as f32 / h as f32);
+        let hill = 0.62 + 0.08 * (fx * 9.0).sin() + 0.05 * (fx * 23.0).cos();
+        let sun = ((fx - 0.72).powi(2) + (fy - 0.3).powi(2)).sqrt() < 0.08;
+        if sun {
+            Rgba([250, 220, 90, 255])
+        } else if fy > hill {
+            shade([60, 130, 60], 0.8 + 0.4 * (1.0 - fy))
+        } else {
+            shade([90, 150, 220], 0.7 + 0.5 * fy)
+        }
+    })
+}
+
+/// Book spines / fabric: coarse weave for the sofa.
+fn fabric_texture() -> RgbaImage {
+    RgbaImage::from_fn(64, 64, |x, y| {
+        let weave = if (x + y) % 4 < 2 { 1.0 } else { 0.9 };
+        shade([70, 90, 140], weave)
+    })
+}
+
+fn living_room() -> anyhow::Result<Vec<u8>> {
+    let mut w = GlbWriter::new();
+    let parquet = w.add_png_texture("parquet", &png(&parquet_texture())?);
+    let wallpaper = w.add_png_texture("wallpaper", &png(&wallpaper_texture())?);
+    let painting = w.add_png_texture("painting", &png(&painting_texture())?);
+    let fabric = w.add_png_texture("fabric", &png(&fabric_texture())?);
+
+    let textured = |name: &str, texture: usize, roughness: f32| MaterialDesc {
+        texture: Some(texture),
+        ..MaterialDesc::plain(name, [1.0; 3], roughness)
+    };
+    let m_floor = w.add_material(&textured("parquet", parquet, 0.35));
+    let m_wall = w.add_material(&textured("wallpaper", wallpaper, 0.9));
+    let m_ceiling = w.add_material(&MaterialDesc::plain("ceiling", [0.92, 0.92, 0.9], 0.95));
+    let m_wood = w.add_material(&MaterialDesc::plain("dark wood", [0.30, 0.17, 0.08], 0.45));
+    let m_sofa = w.add_material(&textured("sofa fabric", fabric, 0.85));
+    let m_metal = w.add_material(&MaterialDesc {
+        metallic: 0.9,
+        ..MaterialDesc::plain("brass", [0.8, 0.62, 0.3], 0.3)
+    });
+    let m_shade = w.add_material(&MaterialDesc {
+        double_sided: true,
+        ..MaterialDesc::plain("lamp shade", [0.95, 0.85, 0.65], 0.8)
+    });
+    let m_bulb = w.add_material(&MaterialDesc {
+        emissive: [1.0, 0.9, 0.7],
+        ..MaterialDesc::plain("bulb", [1.0, 0.95, 0.85], 0.5)
+    });
+    let m_vase = w.add_material(&MaterialDesc::plain("glazed vase", [0.1, 0.35, 0.55], 0.12));
+    let m_painting = w.add_material(&textured("painting", painting, 0.6));
+    let m_frame = w.add_material(&MaterialDesc::plain("gilt frame", [0.55, 0.42, 0.15], 0.4));
+    let m_books: Vec<usize> = [
+        [0.6, 0.1, 0.1],
+        [0.1, 0.3, 0.5],
+        [0.2, 0.45, 0.2],
+        [0.75, 0.6, 0.2],
+        [0.35, 0.2, 0.45],
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, c)| w.add_material(&MaterialDesc::plain(&format!("book {i}"), *c, 0.7)))
+    .collect();
+
+    // The room: 6 m × 6 m × 2.7 m around the CAVE, each surface a single large quad (two
+    // triangles) as in the thesis: exactly what a per-vertex warp interpolates badly.
+    let (x0, x1, z0, z1, top) = (-3.0, 3.0, -3.5, 2.5, 2.7);
+    let floor = grid(
+        Vec3::new(x0, 0.0, z1),
+        Vec3::X * (x1 - x0),
+        Vec3::NEG_Z * (z1 - z0),
+        1,
+        1,
+        1.0,
+    );
+    let ceiling = grid(
+        Vec3::new(x0, top, z0),
+        Vec3::X * (x1 - x0),
+        Vec3::Z * (z1 - z0),
+        1,
+        1,
+        1.0,
+    );
+    let mut walls = MeshData::default();
+    let h = Vec3::Y * top;
+    walls.append(&grid(
+        Vec3::new(x0, 0.0, z0),
+        Vec3::X * (x1 - x0),
+        h,
+        1,
+        1,
+        1.2,
+    )); // front
+    walls.append(&grid(
+        Vec3::new(x1, 0.0, z1),
+        Vec3::NEG_X * (x1 - x0),
+        h,
+        1,
+        1,
+        1.2,
+    )); // back
+    walls.append(&grid(
+        Vec3::new(x0, 0.0, z1),
+        Vec3::NEG_Z * (z1 - z0),
+        h,
+        1,
+        1,
+        1.2,
+    )); // left
+    walls.append(&grid(
+        Vec3::new(x1, 0.0, z0),
+        Vec3::Z * (z1 - z0),
+        h,
+        1,
+        1,
+        1.2,
+    )); // right
+    let room_mesh = w.add_mesh(
+        "room",
+        &[(&floor, m_floor), (&walls, m_wall), (&ceiling, m_ceiling)],
+    );
+    let room = w.add_node(NodeDesc::new("room").with_mesh(room_mesh));
+
+    // Sofa against the left room wall, facing +x.
+    let mut sofa = MeshData::default();
+    let at = |m: MeshData, p: Vec3| m.transformed(Mat4::from_translation(p));
+    sofa.append(&at(
+        cuboid(Vec3::new(0.9, 0.42, 2.2), 2.0),
+        Vec3::new(0.0, 0.21, 0.0),
+    ));
+    sofa.append(&at(
+        cuboid(Vec3::new(0.22, 0.5, 2.2), 2.0),
+        Vec3::new(-0.34, 0.67, 0.0),
+    ));
+    for z in [-1.0, 1.0] {
+        sofa.append(&at(
+            cuboid(Vec3::new(0.9, 0.62, 0.2), 2.0),
+            Vec3::new(0.0, 0.31, z),
+        ));
+    }
+    let sofa_mesh = w.add_mesh("sofa", &[(&sofa, m_sofa)]);
+
+    // Coffee table: top and four legs.
+    let mut table = at(
+        cuboid(Vec3::new(1.1, 0.05, 0.6), 1.0),
+        Vec3::new(0.0, 0.42, 0.0),
+    );
+    for (x, z) in [(-0.5, -0.25), (0.5, -0.25), (-0.5, 0.25), (0.5, 0.25)] {
+        table.append(&at(
+            cuboid(Vec3::new(0.05, 0.4, 0.05), 1.0),
+            Vec3::new(x, 0.2, z),
+        ));
+    }
+    let table_mesh = w.add_mesh("coffee table", &[(&table, m_wood)]);
+
+    // Dense vase on the table (specular highlights show the lighting eye).
+    let vase = uv_sphere(0.12, 32, 48).transformed(Mat4::from_scale(Vec3::new(1.0, 1.4, 1.0)));
+    let vase_mesh = w.add_mesh("vase", &[(&vase, m_vase)]);
+
+    // A chair (one mesh, used twice through nodes).
+    let mut chair = at(
+        cuboid(Vec3::new(0.45, 0.05, 0.45), 1.0),
+        Vec3::new(0.0, 0.45, 0.0),
+    );
+    chair.append(&at(
+        cuboid(Vec3::new(0.45, 0.5, 0.04), 1.0),
+        Vec3::new(0.0, 0.72, 0.21),
+    ));
+    for (x, z) in [(-0.2, -0.2), (0.2, -0.2), (-0.2, 0.2), (0.2, 0.2)] {
+        chair.append(&at(
+            cuboid(Vec3::new(0.035, 0.45, 0.035), 1.0),
+            Vec3::new(x, 0.225, z),
+        ));
+    }
+    let chair_mesh = w.add_mesh("chair", &[(&chair, m_wood)]);
+
+    // Floor lamp: brass pole, dense shade, emissive bulb.
+    let pole = frustum_shell(0.015, 0.015, 1.45, 16, true);
+    let base = frustum_shell(0.16, 0.14, 0.03, 32, true);
+    let mut lamp_metal = pole;
+    lamp_metal.append(&base);
+    let shade_mesh_data = at(
+        frustum_shell(0.24, 0.14, 0.32, 64, false),
+        Vec3::new(0.0, 1.3, 0.0),
+    );
+    let bulb = at(uv_sphere(0.05, 12, 16), Vec3::new(0.0, 1.42, 0.0));
+    let lamp_mesh = w.add_mesh(
+        "floor lamp",
+        &[
+            (&lamp_metal, m_metal),
+            (&shade_mesh_data, m_shade),
+            (&bulb, m_bulb),
+        ],
+    );
+
+    // Ceiling lamp where the config's point light is.
+    let ceiling_lamp = at(uv_sphere(0.12, 16, 24), Vec3::new(0.0, 2.5, -0.6));
+    let ceiling_cord = at(
+        frustum_shell(0.008, 0.008, 0.08, 8, false),
+        Vec3::new(0.0, 2.62, -0.6),
+    );
+    let ceiling_lamp_mesh = w.add_mesh(
+        "ceiling lamp",
+        &[(&ceiling_lamp, m_bulb), (&ceiling_cord, m_metal)],
+    );
+
+    // Picture hung 1 cm in front of the left room wall (thesis Fig. 7.3: with a plain warp it
+    // vanishes behind the wall in one eye).
+    let canvas = grid(
+        Vec3::new(x0 + 0.012, 1.1, 0.6),
+        Vec3::NEG_Z * 1.2,
+        Vec3::Y * 0.8,
+        1,
+        1,
+        1.0,
+    );
+    let canvas = MeshData {
+        vertices: canvas
+            .vertices
+            .iter()
+            .map(|v| omnicave::scene::Vertex {
+                uv: [(0.6 - v.position[2]) / 1.2, (1.9 - v.position[1]) / 0.8],
+                ..*v
+            })
+            .collect(),
+        indices: canvas.indices,
+    };
+    let mut frame = MeshData::default();
+    for (y, z, sy, sz) in [
+        (1.08, 0.0, 0.04, 1.28),
+        (1.92, 0.0, 0.04, 1.28),
+        (1.5, 0.62, 0.88, 0.04),
+        (1.5, -0.62, 0.88, 0.04),
+    ] {
+        frame.append(&at(
+            cuboid(Vec3::new(0.03, sy, sz), 1.0),
+            Vec3::new(x0 + 0.015, y, z),
+        ));
+    }
+    let picture_mesh = w.add_mesh("picture", &[(&canvas, m_painting), (&frame, m_frame)]);
+
+    // Bookshelf on the right room wall, many small books (medium density).
+    let mut rng = Rng(42);
+    let mut shelf = MeshData::default();
+    for side in [-0.9, 0.9] {
+        shelf.append(&at(
+            cuboid(Vec3::new(0.3, 1.9, 0.03), 1.0),
+            Vec3::new(0.0, 0.95, side),
+        ));
+    }
+    let mut books: Vec<MeshData> = vec![MeshData::default(); m_books.len()];
+    for level in 0..5 {
+        let y = 0.05 + level as f32 * 0.45;
+        shelf.append(&at(
+            cuboid(Vec3::new(0.3, 0.03, 1.8), 1.0),
+            Vec3::new(0.0, y, 0.0),
+        ));
+        let mut z = -0.86;
+        while z < 0.82 {
+            let thick = rng.range(0.025, 0.06);
+            let tall = rng.range(0.2, 0.34);
+            let pick = (rng.next() * m_books.len() as f32) as usize % m_books.len();
+            books[pick].append(&at(
+                cuboid(Vec3::new(0.22, tall, thick), 4.0),
+                Vec3::new(0.02, y + 0.015 + tall / 2.0, z + thick / 2.0),
+            ));
+            z += thick + 0.004;
+        }
+    }
+    let mut shelf_prims: Vec<(&MeshData, usize)> = vec![(&shelf, m_wood)];
+    for (mesh, mat) in books.iter().zip(&m_books) {
+        shelf_prims.push((mesh, *mat));
+    }
+    let shelf_mesh = w.add_mesh("bookshelf", &shelf_prims);
+
+    // Furniture hierarchy: a group node with children (exercises node transforms).
+    let n_sofa = w.add_node(
+        NodeDesc::new("sofa")
+            .with_mesh(sofa_mesh)
+            .at(Vec3::new(-2.45, 0.0, 0.0)),
+    );
+    let n_vase = w.add_node(
+        NodeDesc::new("vase")
+            .with_mesh(vase_mesh)
+            .at(Vec3::new(0.25, 0.61, 0.0)),
+    );
+    let n_table = w.add_node(
+        NodeDesc::new("coffee table")
+            .with_mesh(table_mesh)
+            .at(Vec3::new(-1.75, 0.0, 0.3))
+            .rotated_y_degrees(90.0)
+            .with_children(vec![n_vase]),
+    );
+    let n_chair_a = w.add_node(
+        NodeDesc::new("chair A")
+            .with_mesh(chair_mesh)
+            .at(Vec3::new(1.0, 0.0, -2.2))
+            .rotated_y_degrees(200.0),
+    );
+    let n_chair_b = w.add_node(
+        NodeDesc::new("chair B")
+            .with_mesh(chair_mesh)
+            .at(Vec3::new(2.2, 0.0, -1.0))
+            .rotated_y_degrees(120.0),
+    );
+    let n_lamp = w.add_node(
+        NodeDesc::new("floor lamp")
+            .with_mesh(lamp_mesh)
+            .at(Vec3::new(-2.3, 0.0, -2.8)),
+    );
+    let n_shelf = w.add_node(
+        NodeDesc::new("bookshelf")
+            .with_mesh(shelf_mesh)
+            .at(Vec3::new(2.82, 0.0, 0.6))
+            .rotated_y_degrees(180.0),
+    );
+    let n_picture = w.add_node(NodeDesc::new("picture").with_mesh(picture_mesh));
+    let n_ceiling_lamp = w.add_node(NodeDesc::new("ceiling lamp").with_mesh(ceiling_lamp_mesh));
+    let furniture = w.add_node(NodeDesc::new("furniture").with_children(vec![
+        n_sofa,
+        n_table,
+        n_chair_a,
+        n_chair_b,
+        n_lamp,
+        n_shelf,
+        n_picture,
+        n_ceiling_lamp,
+    ]));
+    Ok(w.to_glb(&[room, furniture]))
+}
+
+/// City ground: one 40 m cell = a 30 m block of pavement and half a 10 m street on each side.
+fn street_texture() -> RgbaImage {
+    let size = 256;
+    let m = |px: u32| px as f32 * 40.0 / size as f32; // pixels → metres
+    RgbaImage::from_fn(size, size, |x, y| {
+        let (mx, my) = (m(x), m(y));
+        let in_street_x = !(5.0..35.0).contains(&mx);
+        let in_street_y = !(5.0..35.0).contains(&my);
+        if !(in_street_x || in_street_y) {
+            // Pavement with 2 m slabs.
+            let joint = (mx % 2.0) < 0.16 || (my % 2.0) < 0.16;
+            return if joint {
+                Rgba([150, 150, 145, 255])
+            } else {
+                Rgba([190, 188, 180, 255])
+            };
+        }
+        // Centre line dashes (street centre lies on the cell border).
+        let near_centre_x = in_street_x && !(0.25..=39.75).contains(&mx);
+        let near_centre_y = in_street_y && !(0.25..=39.75).contains(&my);
+        let crossing = in_street_x && in_street_y;
+        if !crossing && ((near_centre_x && (my % 4.0) < 2.0) || (near_centre_y && (mx % 4.0) < 2.0))
+        {
+            return Rgba([240, 240, 235, 255]);
+        }
+        let grain = ((x * 7 + y * 13) % 5) as f32 * 0.02;
+        shade([62, 64, 68], 0.95 + grain)
+    })
+}
+
+/// Facade: one tile = 4 m × 4 m with a window.
+fn facade_texture() -> RgbaImage {
+    RgbaImage::from_fn(64, 64, |x, y| {
+        let window = (12..52).contains(&x) && (14..46).contains(&y);
+        if window {
+            let sky = 0.8 + 0.4 * (y as f32 / 64.0);
+            shade([70, 95, 120], sky)
+        } else {
+            Rgba([205, 200, 188, 255])
+        }
+    })
+}
+
+fn city() -> anyhow::Result<Vec<u8>> {
+    let mut w = GlbWriter::new();
+    let streets = w.add_png_texture("streets", &png(&street_texture())?);
+    let facade = w.add_png_texture("facade", &png(&facade_texture())?);
+    let m_ground = w.add_material(&MaterialDesc {
+        texture: Some(streets),
+        ..MaterialDesc::plain("streets", [1.0; 3], 0.9)
+    });
+    let building_tints = [
+        [1.0, 1.0, 1.0],
+        [0.95, 0.85, 0.75],
+        [0.8, 0.85, 0.95],
+        [0.9, 0.9, 0.8],
+    ];
+    let m_buildings: Vec<usize> = building_tints
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            w.add_material(&MaterialDesc {
+                texture: Some(facade),
+                ..MaterialDesc::plain(&format!("facade {i}"), *c, 0.7)
+            })
+        })
+        .collect();
+    let m_trunk = w.add_material(&MaterialDesc::plain("trunk", [0.35, 0.25, 0.15], 0.9));
+    let m_leaves = w.add_material(&MaterialDesc::plain("leaves", [0.2, 0.45, 0.18], 0.9));
+
+    // Ground: one huge quad, 16 × 16 cells of 40 m; the CAVE stands on a crossing at the origin.
+    let cells = 16;
+    let extent = cells as f32 * 40.0;
+    let origin = Vec3::new(-extent / 2.0, 0.0, extent / 2.0);
+    let ground = grid(
+        origin,
+        Vec3::X * extent,
+        Vec3::NEG_Z * extent,
+        1,
+        1,
+        1.0 / 40.0,
+    );
+    let ground_mesh = w.add_mesh("ground", &[(&ground, m_ground)]);
+    let mut roots = vec![w.add_node(NodeDesc::new("ground").with_mesh(ground_mesh))];
+
+    // Buildings on every block; cell (i, j) spans [i·40, i·40+40] shifted so a crossing is at 0.
+    let mut rng = Rng(2015);
+    let mut per_material: Vec<MeshData> = vec![MeshData::default(); m_buildings.len()];
+    let half = cells / 2;
+    for i in -half..half {
+        for j in -half..half {
+            let (cx, cz) = (i as f32 * 40.0 + 20.0, j as f32 * 40.0 + 20.0);
+            // Quadrant-split blocks: up to four buildings per block.
+            for (qx, qz) in [(-7.5, -7.5), (7.5, -7.5), (-7.5, 7.5), (7.5, 7.5)] {
+                if rng.next() < 0.2 {
+                    continue;
+                }
+                let (sx, sz) = (rng.range(9.0, 12.0), rng.range(9.0, 12.0));
+                let dist = (cx * cx + cz * cz).sqrt();
+                let tall = rng.range(8.0, 25.0)
+                    + if dist > 120.0 {
+                        rng.range(0.0, 45.0)
+                    } else {
+                        0.0
+                    };
+                let b = cuboid(Vec3::new(sx, tall, sz), 0.25).transformed(Mat4::from_translation(
+                    Vec3::new(cx + qx, tall / 2.0, cz + qz),
+                ));
+                let k = (rng.next() * per_material.len() as f32) as usize % per_material.len();
+                per_material[k].append(&b);
+            }
+        }
+    }
+    let prims: Vec<(&MeshData, usize)> = per_material
+        .iter()
+        .zip(m_buildings.iter().copied())
+        .collect();
+    let buildings_mesh = w.add_mesh("buildings", &prims);
+    roots.push(w.add_node(NodeDesc::new("buildings").with_mesh(buildings_mesh)));
+
+    // Trees along the two streets through the origin: one mesh, many nodes.
+    let trunk = frustum_shell(0.15, 0.12, 2.0, 8, false);
+    let crown = frustum_shell(1.4, 0.0, 3.5, 10, true)
+        .transformed(Mat4::from_translation(Vec3::new(0.0, 1.8, 0.0)));
+    let tree_mesh = w.add_mesh("tree", &[(&trunk, m_trunk), (&crown, m_leaves)]);
+    let mut trees = Vec::new();
+    for k in -6..=6 {
+        if k == 0 {
+            continue;
+        }
+        let d = k as f32 * 18.0;
+        for p in [
+            Vec3::new(d, 0.0, 4.0),
+            Vec3::new(d, 0.0, -4.0),
+            Vec3::new(4.0, 0.0, d),
+            Vec3::new(-4.0, 0.0, d),
+        ] {
+            trees.push(w.add_node(NodeDesc::new("tree").with_mesh(tree_mesh).at(p)));
+        }
+    }
+    roots.push(w.add_node(NodeDesc::new("trees").with_children(trees)));
+    Ok(w.to_glb(&roots))
+}
