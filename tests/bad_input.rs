@@ -1,0 +1,428 @@
+//! Bad input never panics: malformed configs, glTF files and CLI arguments give clear errors
+//! that name the file, the field or object, and the value.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use omnicave::config::Config;
+use omnicave::scene::load_gltf;
+use serde_json::json;
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad_input");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+// ---------------------------------------------------------------- config
+
+fn config_error(name: &str, text: &str) -> String {
+    let path = tmp(name);
+    std::fs::write(&path, text).unwrap();
+    let err = Config::load(&path)
+        .expect_err("config should be refused")
+        .to_string();
+    assert!(err.contains(name), "error does not name the file: {err}");
+    err
+}
+
+fn default_cave_text() -> String {
+    std::fs::read_to_string(repo("config/cave.toml")).unwrap()
+}
+
+#[test]
+fn bundled_configs_are_valid() {
+    for name in ["config/cave.toml", "config/desktop.toml"] {
+        let cfg = Config::load(&repo(name)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(cfg.cave.walls.len(), 3);
+        let names: Vec<_> = cfg.cave.walls.iter().map(|w| w.name.as_str()).collect();
+        assert_eq!(names, ["left", "front", "right"]);
+        assert!(
+            cfg.scene_path.as_ref().is_some_and(|p| p.is_file()),
+            "{name}: scene missing"
+        );
+    }
+    let cave = Config::load(&repo("config/cave.toml")).unwrap().cave;
+    assert_eq!(
+        cave,
+        omnicave::cave::Cave {
+            ..omnicave::cave::thesis_cave()
+        }
+    );
+}
+
+#[test]
+fn config_errors_name_file_field_and_value() {
+    let base = default_cave_text();
+    let cases = [
+        (
+            "unknown-key.toml",
+            base.replace("eye_separation = 0.064", "eye_seperation = 0.064"),
+            vec!["eye_seperation"],
+        ),
+        (
+            "nan.toml",
+            base.replacen(
+                "lower_left = [-1.65, 0.0, 1.65]",
+                "lower_left = [nan, 0.0, 1.65]",
+                1,
+            ),
+            vec!["wall[0].lower_left", "NaN"],
+        ),
+        (
+            "degenerate.toml",
+            base.replacen(
+                "upper_left = [-1.65, 2.9, -1.65]",
+                "upper_left = [-1.65, 0.0, -1.65]",
+                1,
+            ),
+            vec!["wall[1].upper_left", "no height"],
+        ),
+        (
+            "skewed.toml",
+            base.replacen(
+                "upper_left = [1.65, 2.9, -1.65]",
+                "upper_left = [1.65, 2.9, -1.3]",
+                1,
+            ),
+            vec!["wall[2].upper_left", "not perpendicular", "-1.3"],
+        ),
+        (
+            "zero-size.toml",
+            base.replacen("resolution = [1280, 720]", "resolution = [1280, 0]", 1),
+            vec!["wall[0].resolution", "[1280, 0]"],
+        ),
+        (
+            "negative-ipd.toml",
+            base.replace("eye_separation = 0.064", "eye_separation = -0.064"),
+            vec!["cave.eye_separation", "-0.064"],
+        ),
+        (
+            "bad-mode.toml",
+            base.replace("mode = \"stereo\"", "mode = \"omnistereo\""),
+            vec!["render.mode", "omnistereo", "mono"],
+        ),
+        (
+            "no-walls.toml",
+            "[cave]\neye_separation = 0.06\n".to_owned(),
+            vec!["wall"],
+        ),
+        (
+            "duplicate-wall.toml",
+            base.replace("name = \"right\"", "name = \"left\""),
+            vec!["wall[2].name", "another wall"],
+        ),
+        (
+            "not-toml.toml",
+            "this is [not toml".to_owned(),
+            vec!["not valid"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        let err = config_error(name, &text);
+        for n in needles {
+            assert!(err.contains(n), "{name}: '{n}' missing from: {err}");
+        }
+    }
+    let missing = Config::load(&tmp("does-not-exist.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(missing.contains("does-not-exist.toml"), "{missing}");
+}
+
+// ---------------------------------------------------------------- glTF
+
+/// A change to a glTF document and its binary buffer.
+type GltfEdit = dyn FnOnce(&mut serde_json::Value, &mut Vec<u8>);
+
+/// A one-triangle glTF with an external buffer; `edit` may break the JSON or the binary.
+fn write_triangle_gltf(
+    name: &str,
+    edit: impl FnOnce(&mut serde_json::Value, &mut Vec<u8>),
+) -> PathBuf {
+    let mut bin = Vec::new();
+    for v in [[0.0f32, 0.0, -2.0], [1.0, 0.0, -2.0], [0.0, 1.0, -2.0]] {
+        for c in v {
+            bin.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0] {
+        bin.extend_from_slice(&i.to_le_bytes()); // last one is padding
+    }
+    let bin_name = format!("{name}.bin");
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{"uri": bin_name, "byteLength": 44}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 6}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+             "min": [0.0, 0.0, -2.0], "max": [1.0, 1.0, -2.0]},
+            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+        ]
+    });
+    edit(&mut doc, &mut bin);
+    let path = tmp(&format!("{name}.gltf"));
+    std::fs::write(&path, doc.to_string()).unwrap();
+    std::fs::write(tmp(&bin_name), &bin).unwrap();
+    path
+}
+
+fn gltf_error(path: &Path) -> String {
+    let err = load_gltf(path)
+        .expect_err("file should be refused")
+        .to_string();
+    let file = path.file_name().unwrap().to_str().unwrap();
+    assert!(err.contains(file), "error does not name {file}: {err}");
+    err
+}
+
+#[test]
+fn a_well_formed_triangle_loads_with_generated_normals() {
+    let scene = load_gltf(&write_triangle_gltf("good", |_, _| {})).unwrap();
+    assert_eq!(scene.triangle_count(), 1);
+    // No NORMAL attribute: generated from the winding (counter-clockwise seen from +z).
+    for v in &scene.vertices {
+        assert!((v.normal[2] - 1.0).abs() < 1e-6, "{:?}", v.normal);
+    }
+}
+
+#[test]
+fn truncated_glb_is_refused() {
+    let bytes = std::fs::read(repo("assets/living-room.glb")).unwrap();
+    for (name, cut) in [
+        ("truncated-half.glb", bytes.len() / 2),
+        ("truncated-header.glb", 10),
+        ("truncated-json.glb", 100),
+    ] {
+        let path = tmp(name);
+        std::fs::write(&path, &bytes[..cut]).unwrap();
+        let err = gltf_error(&path);
+        assert!(
+            err.contains("truncated") || err.contains("not valid glTF"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn missing_buffer_is_named() {
+    let path = write_triangle_gltf("missing-buffer", |doc, _| {
+        doc["buffers"][0]["uri"] = json!("nowhere.bin");
+    });
+    let err = gltf_error(&path);
+    assert!(
+        err.contains("nowhere.bin") && err.contains("does not exist"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_accessors_are_refused() {
+    let cases: Vec<(&str, Box<GltfEdit>, &str)> = vec![
+        (
+            "accessor-past-view",
+            Box::new(|doc, _| doc["accessors"][0]["count"] = json!(30)),
+            "read past the end of buffer view",
+        ),
+        (
+            "view-past-buffer",
+            Box::new(|doc, bin| {
+                bin.truncate(40);
+                doc["buffers"][0]["byteLength"] = json!(40);
+            }),
+            "outside buffer",
+        ),
+        (
+            "index-out-of-range",
+            Box::new(|_, bin| bin[38..40].copy_from_slice(&7u16.to_le_bytes())),
+            "index 7 is out of range for 3 vertices",
+        ),
+        (
+            "nan-position",
+            Box::new(|_, bin| bin[0..4].copy_from_slice(&f32::NAN.to_le_bytes())),
+            "NaN",
+        ),
+        (
+            "huge-count",
+            Box::new(|doc, _| doc["accessors"][0]["count"] = json!(u32::MAX)),
+            "accessor 0",
+        ),
+        (
+            "wrong-type",
+            Box::new(|doc, _| doc["accessors"][0]["type"] = json!("VEC2")),
+            "",
+        ),
+        (
+            "bad-material",
+            Box::new(|doc, _| doc["meshes"][0]["primitives"][0]["material"] = json!(5)),
+            "",
+        ),
+    ];
+    for (name, edit, needle) in cases {
+        let path = write_triangle_gltf(name, edit);
+        let err = gltf_error(&path);
+        assert!(
+            err.contains(needle),
+            "{name}: '{needle}' missing from: {err}"
+        );
+    }
+}
+
+#[test]
+fn garbage_empty_and_missing_files_are_refused() {
+    for (name, bytes) in [
+        ("empty.glb", Vec::new()),
+        ("garbage.gltf", b"\x00\x01\x02 not json".to_vec()),
+        ("wrong-json.gltf", br#"{"asset": 3}"#.to_vec()),
+        ("glb-magic-only.glb", b"glTF".to_vec()),
+    ] {
+        let path = tmp(name);
+        std::fs::write(&path, bytes).unwrap();
+        gltf_error(&path);
+    }
+    let err = load_gltf(&tmp("no-such-scene.glb"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no-such-scene.glb"), "{err}");
+}
+
+// ---------------------------------------------------------------- CLI
+
+fn omnicave(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_omnicave"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn bad_cli_arguments_exit_nonzero_with_a_message() {
+    let out = tmp("cli-out");
+    let out = out.to_str().unwrap();
+    let bad_config = tmp("cli-bad.toml");
+    std::fs::write(
+        &bad_config,
+        default_cave_text().replace("msaa = 4", "msaa = 3"),
+    )
+    .unwrap();
+    let bad_scene = tmp("cli-bad.glb");
+    std::fs::write(&bad_scene, b"glTF\x02\x00\x00\x00\xff\xff\xff\xff").unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["render", "--mode", "bogus", "--out", out],
+            "unknown mode 'bogus'",
+        ),
+        (
+            vec!["render", "--head", "1,2", "--out", out],
+            "expected X,Y,Z",
+        ),
+        (
+            vec!["render", "--head", "1,2,abc", "--out", out],
+            "'abc' is not a number",
+        ),
+        (
+            vec!["render", "--head", "1,inf,2", "--out", out],
+            "not a finite number",
+        ),
+        (
+            vec!["render", "--size", "0x10", "--out", out],
+            "outside 1..=8192",
+        ),
+        (
+            vec!["render", "--size", "640", "--out", out],
+            "expected WxH",
+        ),
+        (vec!["render", "--ipd", "2", "--out", out], "outside 0..0.5"),
+        (
+            vec!["render", "--msaa", "2", "--out", out],
+            "MSAA must be 1 or 4",
+        ),
+        (
+            vec!["render", "--head-yaw", "720", "--out", out],
+            "outside -360..360",
+        ),
+        (vec!["render"], "--out"),
+        (vec!["fly"], "unrecognized subcommand"),
+        (
+            vec!["render", "--config", "nope.toml", "--out", out],
+            "nope.toml",
+        ),
+        (
+            vec![
+                "render",
+                "--config",
+                bad_config.to_str().unwrap(),
+                "--out",
+                out,
+            ],
+            "render.msaa",
+        ),
+        (
+            vec![
+                "render",
+                "--scene",
+                bad_scene.to_str().unwrap(),
+                "--out",
+                out,
+            ],
+            "cli-bad.glb",
+        ),
+    ];
+    for (args, needle) in cases {
+        let (ok, stderr) = omnicave(&args);
+        assert!(!ok, "{args:?} should fail");
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: '{needle}' missing from:\n{stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{args:?} panicked:\n{stderr}");
+    }
+}
+
+#[test]
+fn render_command_writes_every_wall_and_eye() {
+    let out = tmp("cli-render");
+    let _ = std::fs::remove_dir_all(&out);
+    let (ok, stderr) = omnicave(&[
+        "render",
+        "--config",
+        "config/cave.toml",
+        "--mode",
+        "tracked-stereo",
+        "--head",
+        "0.2,1.6,-0.3",
+        "--head-yaw",
+        "-20",
+        "--size",
+        "128x72",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "render failed:\n{stderr}");
+    for wall in ["left", "front", "right"] {
+        for eye in ["left", "right"] {
+            let img = image::open(out.join(format!("{wall}-{eye}.png"))).unwrap();
+            assert_eq!((img.width(), img.height()), (128, 72));
+        }
+    }
+    let unfolded = image::open(out.join("unfolded-anaglyph.png")).unwrap();
+    assert_eq!((unfolded.width(), unfolded.height()), (384, 72));
+}

@@ -1,0 +1,123 @@
+//! Helpers shared by the integration tests: one GPU, marker scenes, pixel analysis.
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
+
+use std::sync::OnceLock;
+
+use glam::{Mat4, Vec2, Vec3};
+use image::RgbaImage;
+
+use omnicave::cave::{Cave, Head, RenderMode};
+use omnicave::config::Lighting;
+use omnicave::render::{FrameParams, Gpu, RenderSettings, Renderer, WallImages};
+use omnicave::scene::build::{MeshData, uv_sphere};
+use omnicave::scene::{Material, Scene};
+
+/// One device for the whole test binary (lavapipe in CI). Fails loudly if there is none:
+/// a missing driver must turn CI red, not skip the rendering tests.
+pub fn gpu() -> &'static Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| {
+        Gpu::headless().expect("a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers)")
+    })
+}
+
+/// Distinct, exactly reproducible unlit colours (components 0 or 1 survive sRGB encoding
+/// exactly as 0 or 255).
+pub const MARKER_COLOURS: [[u8; 3]; 7] = [
+    [255, 0, 0],
+    [0, 255, 0],
+    [0, 0, 255],
+    [255, 255, 0],
+    [255, 0, 255],
+    [0, 255, 255],
+    [255, 255, 255],
+];
+
+pub const BACKGROUND_SRGB: [f32; 3] = [0.0, 0.0, 0.0];
+
+/// A small unlit sphere at each point, coloured `MARKER_COLOURS[i % 7]`. The radius grows
+/// with the distance from `viewer` so every marker covers about the same few pixels.
+pub fn marker_scene(points: &[Vec3], viewer: Vec3, radius_per_metre: f32) -> Scene {
+    let mut scene = Scene::default();
+    for (i, p) in points.iter().enumerate() {
+        let c = MARKER_COLOURS[i % MARKER_COLOURS.len()];
+        let m = scene.add_material(Material::unlit(
+            &format!("marker {i}"),
+            c.map(|v| f32::from(v) / 255.0),
+        ));
+        let r = radius_per_metre * (*p - viewer).length();
+        let mesh = uv_sphere(r, 12, 16).transformed(Mat4::from_translation(*p));
+        scene.add_mesh(&mesh.vertices, &mesh.indices, m);
+    }
+    scene
+}
+
+/// Adds a mesh with an unlit colour to a scene.
+pub fn add_unlit(scene: &mut Scene, mesh: &MeshData, rgb: [u8; 3]) {
+    let m = scene.add_material(Material::unlit("unlit", rgb.map(|v| f32::from(v) / 255.0)));
+    scene.add_mesh(&mesh.vertices, &mesh.indices, m);
+}
+
+/// Renders one frame and reads every wall's eye images back.
+pub fn render(
+    cave: &Cave,
+    head: Head,
+    mode: RenderMode,
+    scene: &Scene,
+    settings: RenderSettings,
+) -> Vec<WallImages> {
+    let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
+    renderer.set_scene(scene);
+    renderer.render(&FrameParams {
+        cave,
+        head,
+        mode,
+        eye_separation: 0.064,
+        world_from_cave: Mat4::IDENTITY,
+        lighting: Lighting::default(),
+        background: BACKGROUND_SRGB,
+    });
+    renderer.read_images().expect("read back")
+}
+
+/// The thesis CAVE at a test resolution.
+pub fn cave_at(width: u32, height: u32) -> Cave {
+    let mut cave = omnicave::cave::thesis_cave();
+    for wall in &mut cave.walls {
+        wall.resolution = [width, height];
+    }
+    cave
+}
+
+/// Centroid (pixel coordinates, centres at +0.5) and count of pixels of exactly `rgb`.
+pub fn centroid_of(img: &RgbaImage, rgb: [u8; 3]) -> Option<(Vec2, usize)> {
+    let mut sum = Vec2::ZERO;
+    let mut n = 0usize;
+    for (x, y, p) in img.enumerate_pixels() {
+        if p[0] == rgb[0] && p[1] == rgb[1] && p[2] == rgb[2] {
+            sum += Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            n += 1;
+        }
+    }
+    (n > 0).then(|| (sum / n as f32, n))
+}
+
+/// Whether `p` lies at least `margin` pixels inside an image of `size`.
+pub fn inside(p: Vec2, size: [u32; 2], margin: f32) -> bool {
+    p.x >= margin
+        && p.y >= margin
+        && p.x <= size[0] as f32 - margin
+        && p.y <= size[1] as f32 - margin
+}
+
+/// Least-squares line y = a + b·x through points.
+pub fn fit_line(points: &[(f32, f32)]) -> (f32, f32) {
+    let n = points.len() as f64;
+    let (sx, sy, sxx, sxy) = points.iter().fold((0.0, 0.0, 0.0, 0.0), |acc, &(x, y)| {
+        let (x, y) = (f64::from(x), f64::from(y));
+        (acc.0 + x, acc.1 + y, acc.2 + x * x, acc.3 + x * y)
+    });
+    let b = (n * sxy - sx * sy) / (n * sxx - sx * sx);
+    let a = (sy - b * sx) / n;
+    (a as f32, b as f32)
+}
