@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Runs every check CI runs: formatting, lints, the Khronos glTF validator on the bundled scenes,
+# and all tests (which render for real, headless, on whatever Vulkan adapter is present —
+# lavapipe on a machine without a GPU).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash scripts/setup.sh
+# libwayland warns when this is unset; harmless, but it clutters test output.
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
+chmod 0700 "$XDG_RUNTIME_DIR"
+
+echo "== cargo fmt --check"
+cargo fmt --check
+echo "== cargo clippy"
+cargo clippy --all-targets --locked -- -D warnings
+echo "== Khronos glTF validator on assets/"
+(cd tools/gltf-validator && npm install --no-audit --no-fund --silent && node validate.mjs ../../assets/*.glb)
+echo "== cargo test"
+log=$(mktemp)
+cargo test --locked 2>&1 | tee "$log"
+# One total over every test binary, as the last line.
+awk '/^test result:/ { p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' "$log"
