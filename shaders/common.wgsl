@@ -18,13 +18,65 @@ struct FrameUniforms {
     ambient: vec4<f32>,
     // rgba: wireframe overlay colour (linear).
     wire_color: vec4<f32>,
+    // x: warp (0 = none, 1 = similar triangles, 2 = intersection point);
+    // y, z: pole-merge start and end elevation (radians); w: 1 if pole merging is on.
+    omni: vec4<f32>,
 }
 
 // One wall seen from one eye. Keep in sync with `ViewUniforms` in src/render/uniforms.rs.
 struct ViewUniforms {
     clip_from_cave: mat4x4<f32>,
-    // xyz: centre of projection (CAVE space); w unused.
+    // xyz: centre of projection (CAVE space; the projective viewpoint C in omnistereo).
     eye_position: vec4<f32>,
+    // Omnistereo: the wall plane (n, d) with s(X) = dot(n, X) + d, n towards the viewer.
+    wall_plane: vec4<f32>,
+    // Omnistereo: xyz head position; w: signed half IPD (−IPD/2 left eye, +IPD/2 right eye).
+    omni_head: vec4<f32>,
+}
+
+// Omnistereo, mirrored on the CPU by src/cave/omni.rs (keep the two in step).
+
+// Fraction of the IPD kept at an elevation (smoothstep fade between the pole-merge angles).
+fn pole_merge_factor(elevation: f32, omni: vec4<f32>) -> f32 {
+    if omni.w < 0.5 {
+        return 1.0;
+    }
+    if omni.z <= omni.y {
+        return select(0.0, 1.0, elevation < omni.y);
+    }
+    let t = clamp((elevation - omni.y) / (omni.z - omni.y), 0.0, 1.0);
+    return 1.0 - t * t * (3.0 - 2.0 * t);
+}
+
+// The eye that should see `v`: the head moved sideways by half the IPD, perpendicular to the
+// horizontal direction from the head to `v`.
+fn omni_eye(v: vec3<f32>, view: ViewUniforms, omni: vec4<f32>) -> vec3<f32> {
+    let head = view.omni_head.xyz;
+    let d = v - head;
+    let horizontal = vec2<f32>(d.x, d.z);
+    let len = length(horizontal);
+    let elevation = atan2(abs(d.y), len);
+    var dir = vec3<f32>(0.0, 0.0, -1.0);
+    if len > 1e-12 {
+        dir = vec3<f32>(horizontal.x / len, 0.0, horizontal.y / len);
+    }
+    let right = cross(dir, vec3<f32>(0.0, 1.0, 0.0));
+    return head + view.omni_head.w * pole_merge_factor(elevation, omni) * right;
+}
+
+// Moves `v` so that the projection from C = view.eye_position draws it where the ray e→v meets
+// the wall plane. Similar triangles: v' = v − (s(v)/s(e))·(e − C).
+fn omni_warp(v: vec3<f32>, e: vec3<f32>, view: ViewUniforms, variant: f32) -> vec3<f32> {
+    let c = view.eye_position.xyz;
+    let n = view.wall_plane.xyz;
+    let sv = dot(n, v) + view.wall_plane.w;
+    let se = dot(n, e) + view.wall_plane.w;
+    if variant < 1.5 {
+        return v - (sv / max(se, 1e-6)) * (e - c);
+    }
+    // Intersection point (unguarded on purpose: the unstable form kept for comparison).
+    let i = e + (se / (se - sv)) * (v - e);
+    return c + normalize(i - c) * length(v - c);
 }
 
 // Blinn-Phong lighting of a surface point, all vectors in CAVE space.

@@ -34,12 +34,20 @@ struct VertexOutput {
 @vertex
 fn vs_main(in: VertexInput) -> VertexOutput {
     let p = (frame.cave_from_world * vec4<f32>(in.position, 1.0)).xyz;
+    var eye = view.eye_position.xyz;
+    var projected = p;
+    if frame.omni.x > 0.5 {
+        // Omnistereo: this vertex's own eye, and the warp that makes the projection from C
+        // draw it where that eye sees it. Lighting uses the same eye (thesis 5.3).
+        eye = omni_eye(p, view, frame.omni);
+        projected = omni_warp(p, eye, view, frame.omni.x);
+    }
     var out: VertexOutput;
-    out.clip = view.clip_from_cave * vec4<f32>(p, 1.0);
+    out.clip = view.clip_from_cave * vec4<f32>(projected, 1.0);
     out.cave_position = p;
     out.normal = (frame.normal_from_world * vec4<f32>(in.normal, 0.0)).xyz;
     out.uv = in.uv;
-    out.eye = view.eye_position.xyz;
+    out.eye = eye;
     return out;
 }
 

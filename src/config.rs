@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Quat, Vec3};
 use serde::Deserialize;
 
+use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
 
 /// Everything that can be wrong with a config file.
@@ -43,6 +44,8 @@ pub struct ConfigFile {
     pub scene: SceneSection,
     #[serde(default)]
     pub lighting: LightingSection,
+    #[serde(default)]
+    pub omnistereo: OmnistereoSection,
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
@@ -60,6 +63,9 @@ pub struct CaveSection {
     /// View direction assumed by fixed-direction stereo; default −z (⟂ the front wall).
     #[serde(default = "default_view_direction")]
     pub stereo_view_direction: [f32; 3],
+    /// Projective viewpoint of the on-axis omnistereo warp; default: the room's centre.
+    #[serde(default)]
+    pub projection_centre: Option<[f32; 3]>,
 }
 
 impl Default for CaveSection {
@@ -69,8 +75,49 @@ impl Default for CaveSection {
             near: default_near(),
             far: default_far(),
             stereo_view_direction: default_view_direction(),
+            projection_centre: None,
         }
     }
+}
+
+/// Omnistereo settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OmnistereoSection {
+    /// `similar-triangles` (stable) or `intersection-point` (only to show where it breaks).
+    #[serde(default = "default_warp")]
+    pub warp: String,
+    /// Fade the eye separation to zero near the vertical axis through the head.
+    #[serde(default = "yes")]
+    pub pole_merge: bool,
+    #[serde(default = "default_pole_start")]
+    pub pole_merge_start_degrees: f32,
+    #[serde(default = "default_pole_end")]
+    pub pole_merge_end_degrees: f32,
+}
+
+impl Default for OmnistereoSection {
+    fn default() -> Self {
+        Self {
+            warp: default_warp(),
+            pole_merge: true,
+            pole_merge_start_degrees: default_pole_start(),
+            pole_merge_end_degrees: default_pole_end(),
+        }
+    }
+}
+
+fn default_warp() -> String {
+    WarpVariant::default().name().into()
+}
+fn yes() -> bool {
+    true
+}
+fn default_pole_start() -> f32 {
+    PoleMerge::default().start_degrees
+}
+fn default_pole_end() -> f32 {
+    PoleMerge::default().end_degrees
 }
 
 fn default_ipd() -> f32 {
@@ -340,6 +387,7 @@ pub struct Config {
     pub scene_path: Option<PathBuf>,
     pub world_from_cave: Mat4,
     pub lighting: Lighting,
+    pub omni: OmniSettings,
 }
 
 impl Config {
@@ -437,6 +485,53 @@ impl ConfigFile {
             ));
         }
 
+        let projection_centre = match c.projection_centre {
+            Some(p) => ck.finite3("cave.projection_centre", p)?,
+            None => Cave::default_projection_centre(&walls),
+        };
+        // The on-axis warp projects every wall from this point: it must see each wall's front.
+        for (i, w) in walls.iter().enumerate() {
+            if w.signed_distance(projection_centre) < 0.01 {
+                return Err(ck.fail(
+                    "cave.projection_centre",
+                    projection_centre.to_array(),
+                    &format!(
+                        "must lie at least 1 cm in front of every wall; wall[{i}] ({}) is not",
+                        w.name
+                    ),
+                ));
+            }
+        }
+
+        let o = &self.omnistereo;
+        let warp = WarpVariant::from_name(&o.warp).ok_or_else(|| {
+            let names: Vec<_> = WarpVariant::ALL.iter().map(|w| w.name()).collect();
+            ck.fail(
+                "omnistereo.warp",
+                &o.warp,
+                &format!("must be one of {}", names.join(", ")),
+            )
+        })?;
+        let start = ck.range(
+            "omnistereo.pole_merge_start_degrees",
+            o.pole_merge_start_degrees,
+            0.0,
+            90.0,
+        )?;
+        let end = ck.range(
+            "omnistereo.pole_merge_end_degrees",
+            o.pole_merge_end_degrees,
+            start,
+            90.0,
+        )?;
+        let omni = OmniSettings {
+            warp,
+            pole_merge: o.pole_merge.then_some(PoleMerge {
+                start_degrees: start,
+                end_degrees: end,
+            }),
+        };
+
         let h = &self.head;
         let head_pos = ck.finite3("head.position", h.position)?;
         for (field, v) in [
@@ -513,6 +608,7 @@ impl ConfigFile {
                 near,
                 far,
                 stereo_view_direction: view_dir,
+                projection_centre,
             },
             head: Head {
                 position: head_pos,
@@ -530,6 +626,7 @@ impl ConfigFile {
             scene_path,
             world_from_cave,
             lighting: l.to_lighting(),
+            omni,
         })
     }
 }

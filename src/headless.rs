@@ -35,6 +35,9 @@ pub struct Overrides {
     pub size: Option<[u32; 2]>,
     pub msaa: Option<u32>,
     pub wireframe: bool,
+    pub warp: Option<crate::cave::omni::WarpVariant>,
+    /// `Some(None)` switches pole merging off; `Some(Some(..))` sets its angles.
+    pub pole_merge: Option<Option<crate::cave::omni::PoleMerge>>,
 }
 
 impl Overrides {
@@ -64,6 +67,12 @@ impl Overrides {
             config.msaa = msaa;
         }
         config.wireframe |= self.wireframe;
+        if let Some(warp) = self.warp {
+            config.omni.warp = warp;
+        }
+        if let Some(pole) = self.pole_merge {
+            config.omni.pole_merge = pole;
+        }
     }
 }
 
@@ -96,6 +105,7 @@ pub fn frame_params(config: &Config) -> FrameParams<'_> {
         world_from_cave: config.world_from_cave,
         lighting: config.lighting,
         background: config.background,
+        omni: config.omni,
     }
 }
 

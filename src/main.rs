@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use glam::Vec3;
 
 use omnicave::cave::RenderMode;
+use omnicave::cave::omni::{PoleMerge, WarpVariant};
 use omnicave::headless::{self, Overrides};
 
 #[derive(Debug, Parser)]
@@ -35,7 +36,7 @@ struct RenderArgs {
     /// glTF scene (.gltf or .glb); default: the config's [scene] path.
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// Render mode: mono, stereo, tracked-stereo; default: the config's.
+    /// Render mode: mono, stereo, tracked-stereo, omni-onaxis, omni-offaxis; default: the config's.
     #[arg(long, value_parser = parse_mode)]
     mode: Option<RenderMode>,
     /// Head position in CAVE space, metres: X,Y,Z.
@@ -56,6 +57,12 @@ struct RenderArgs {
     /// Draw the wireframe overlay.
     #[arg(long)]
     wireframe: bool,
+    /// Omnistereo warp: similar-triangles (stable) or intersection-point (to show its failures).
+    #[arg(long, value_parser = parse_warp)]
+    warp: Option<WarpVariant>,
+    /// Omnistereo pole merge: START,END elevation in degrees (e.g. 60,75), or "off".
+    #[arg(long, value_parser = parse_pole_merge)]
+    pole_merge: Option<PoleMergeArg>,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -66,6 +73,38 @@ fn parse_mode(s: &str) -> Result<RenderMode, String> {
         let names: Vec<_> = RenderMode::ALL.iter().map(|m| m.name()).collect();
         format!("unknown mode '{s}'; expected one of: {}", names.join(", "))
     })
+}
+
+fn parse_warp(s: &str) -> Result<WarpVariant, String> {
+    WarpVariant::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = WarpVariant::ALL.iter().map(|w| w.name()).collect();
+        format!("unknown warp '{s}'; expected one of: {}", names.join(", "))
+    })
+}
+
+/// `--pole-merge` value: angles, or `None` for "off" (a newtype, because clap reads
+/// `Option<Option<T>>` as a flag with an optional value).
+#[derive(Debug, Clone, Copy)]
+struct PoleMergeArg(Option<PoleMerge>);
+
+fn parse_pole_merge(s: &str) -> Result<PoleMergeArg, String> {
+    if s.trim() == "off" {
+        return Ok(PoleMergeArg(None));
+    }
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected START,END in degrees or 'off', got '{s}'"))?;
+    let start = parse_finite(a, "degrees")?;
+    let end = parse_finite(b, "degrees")?;
+    if !(0.0..=90.0).contains(&start) || !(start..=90.0).contains(&end) {
+        return Err(format!(
+            "pole merge needs 0 <= START <= END <= 90 degrees, got {start},{end}"
+        ));
+    }
+    Ok(PoleMergeArg(Some(PoleMerge {
+        start_degrees: start,
+        end_degrees: end,
+    })))
 }
 
 fn parse_finite(s: &str, what: &str) -> Result<f32, String> {
@@ -164,6 +203,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 size: args.size,
                 msaa: args.msaa,
                 wireframe: args.wireframe,
+                warp: args.warp,
+                pole_merge: args.pole_merge.map(|p| p.0),
             };
             let written = headless::render_to_dir(&args.config, &overrides, &args.out)
                 .context("render failed")?;

@@ -3,11 +3,12 @@
 //! Conventions (shared with config, CLI and tests): CAVE space is right-handed, in metres, origin
 //! at the centre of the CAVE floor, +x towards the right wall, +y up, −z towards the front wall.
 
+pub mod omni;
 mod projection;
 
 pub use projection::{WallProjection, off_axis_projection};
 
-use glam::{Mat4, Quat, Vec2, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3, Vec4};
 
 /// World up in CAVE space.
 pub const UP: Vec3 = Vec3::Y;
@@ -118,9 +119,45 @@ pub struct Cave {
     pub far: f32,
     /// Horizontal view direction assumed by fixed-direction stereo (normally ⟂ the front wall).
     pub stereo_view_direction: Vec3,
+    /// Fixed projective viewpoint of the on-axis omnistereo warp (normally the CAVE's centre).
+    pub projection_centre: Vec3,
 }
 
 impl Cave {
+    /// The default on-axis projective viewpoint: the centre of the walls' bounding box (the
+    /// room's centre) when it lies at least 1 cm in front of every wall; otherwise (a single
+    /// wall, walls in a row) the mean of the points half a wall-width in front of each wall's
+    /// centre.
+    pub fn default_projection_centre(walls: &[Wall]) -> Vec3 {
+        let centre = Self::bounding_centre(walls);
+        if walls.iter().all(|w| w.signed_distance(centre) >= 0.01) {
+            return centre;
+        }
+        let sum: Vec3 = walls
+            .iter()
+            .map(|w| w.centre() + 0.5 * w.size_m().x * w.normal())
+            .sum();
+        sum / walls.len().max(1) as f32
+    }
+
+    /// Centre of the walls' bounding box.
+    pub fn bounding_centre(walls: &[Wall]) -> Vec3 {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for w in walls {
+            let far = w.lower_right + (w.upper_left - w.lower_left);
+            for p in [w.lower_left, w.lower_right, w.upper_left, far] {
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        if walls.is_empty() {
+            Vec3::ZERO
+        } else {
+            0.5 * (lo + hi)
+        }
+    }
+
     /// Index of the wall with this name.
     pub fn wall_index(&self, name: &str) -> Option<usize> {
         self.walls.iter().position(|w| w.name == name)
@@ -162,10 +199,22 @@ pub enum RenderMode {
     Stereo,
     /// Off-axis stereo with eyes placed by the tracked head orientation (classic CAVE).
     TrackedStereo,
+    /// Omnistereo: per-vertex eyes, warped towards the fixed CAVE centre, one on-axis
+    /// projection per wall for both eyes (thesis 5.1).
+    OmniOnAxis,
+    /// Omnistereo: per-vertex eyes, warped towards the fixed-direction stereo eyes, off-axis
+    /// projection per wall and eye (thesis 5.2).
+    OmniOffAxis,
 }
 
 impl RenderMode {
-    pub const ALL: [RenderMode; 3] = [Self::Mono, Self::Stereo, Self::TrackedStereo];
+    pub const ALL: [RenderMode; 5] = [
+        Self::Mono,
+        Self::Stereo,
+        Self::TrackedStereo,
+        Self::OmniOnAxis,
+        Self::OmniOffAxis,
+    ];
 
     /// The name used by the CLI and the config.
     pub fn name(self) -> &'static str {
@@ -173,6 +222,8 @@ impl RenderMode {
             Self::Mono => "mono",
             Self::Stereo => "stereo",
             Self::TrackedStereo => "tracked-stereo",
+            Self::OmniOnAxis => "omni-onaxis",
+            Self::OmniOffAxis => "omni-offaxis",
         }
     }
 
@@ -184,6 +235,11 @@ impl RenderMode {
     /// Whether the two eyes see different images.
     pub fn is_stereo(self) -> bool {
         !matches!(self, Self::Mono)
+    }
+
+    /// Whether vertices get their own eyes (omnidirectional stereo).
+    pub fn is_omni(self) -> bool {
+        matches!(self, Self::OmniOnAxis | Self::OmniOffAxis)
     }
 }
 
@@ -240,7 +296,9 @@ pub fn eye_positions(
     let half = 0.5 * ipd;
     match mode {
         RenderMode::Mono => [head.position; 2],
-        RenderMode::Stereo => {
+        // Omnistereo eyes are per vertex; these are the fixed-direction eyes, which the
+        // off-axis warp uses as its projective viewpoints.
+        RenderMode::Stereo | RenderMode::OmniOnAxis | RenderMode::OmniOffAxis => {
             // Config validation guarantees a horizontal direction; fall back to −z regardless.
             let left = left_of(stereo_view_direction).unwrap_or(Vec3::NEG_X);
             [head.position + half * left, head.position - half * left]
@@ -252,16 +310,27 @@ pub fn eye_positions(
     }
 }
 
-/// One image to render: a wall seen from one eye position.
+/// One image to render: a wall seen from one centre of projection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ViewSetup {
     pub wall: usize,
     /// `None` in mono (one image serves both eyes).
     pub eye: Option<Eye>,
-    /// Centre of projection in CAVE space.
+    /// Centre of projection in CAVE space (in omnistereo: the projective viewpoint C).
     pub eye_position: Vec3,
     /// Clip space from CAVE space (wgpu conventions: depth 0..1, y up in NDC).
     pub clip_from_cave: Mat4,
+    /// In omnistereo: what the per-vertex eyes and the warp need.
+    pub omni: Option<OmniView>,
+}
+
+/// Per-view data of the omnistereo warp.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OmniView {
+    pub head: Vec3,
+    pub ipd: f32,
+    /// The wall plane (n, d), s(X) = n·X + d, n towards the viewer.
+    pub wall_plane: Vec4,
 }
 
 /// The list of images a frame needs: per wall one (mono) or two (stereo) views.
@@ -269,25 +338,27 @@ pub fn view_setups(cave: &Cave, head: &Head, mode: RenderMode, ipd: f32) -> Vec<
     let eyes = eye_positions(mode, head, ipd, cave.stereo_view_direction);
     let mut views = Vec::with_capacity(cave.walls.len() * 2);
     for (wall_index, wall) in cave.walls.iter().enumerate() {
+        let view = |eye: Option<Eye>, centre: Vec3| ViewSetup {
+            wall: wall_index,
+            eye,
+            eye_position: centre,
+            clip_from_cave: off_axis_projection(wall, centre, cave.near, cave.far).clip_from_cave,
+            omni: mode.is_omni().then(|| OmniView {
+                head: head.position,
+                ipd,
+                wall_plane: omni::wall_plane(wall),
+            }),
+        };
         if mode.is_stereo() {
             for eye in Eye::BOTH {
-                let eye_position = eyes[eye as usize];
-                views.push(ViewSetup {
-                    wall: wall_index,
-                    eye: Some(eye),
-                    eye_position,
-                    clip_from_cave: off_axis_projection(wall, eye_position, cave.near, cave.far)
-                        .clip_from_cave,
-                });
+                let centre = match mode {
+                    RenderMode::OmniOnAxis => cave.projection_centre,
+                    _ => eyes[eye as usize],
+                };
+                views.push(view(Some(eye), centre));
             }
         } else {
-            views.push(ViewSetup {
-                wall: wall_index,
-                eye: None,
-                eye_position: head.position,
-                clip_from_cave: off_axis_projection(wall, head.position, cave.near, cave.far)
-                    .clip_from_cave,
-            });
+            views.push(view(None, head.position));
         }
     }
     views
@@ -300,30 +371,32 @@ pub fn thesis_cave() -> Cave {
     let h = 1.65;
     let top = 2.9;
     let res = [1280, 720];
+    let walls = vec![
+        Wall {
+            name: "left".into(),
+            lower_left: Vec3::new(-h, 0.0, h),
+            lower_right: Vec3::new(-h, 0.0, -h),
+            upper_left: Vec3::new(-h, top, h),
+            resolution: res,
+        },
+        Wall {
+            name: "front".into(),
+            lower_left: Vec3::new(-h, 0.0, -h),
+            lower_right: Vec3::new(h, 0.0, -h),
+            upper_left: Vec3::new(-h, top, -h),
+            resolution: res,
+        },
+        Wall {
+            name: "right".into(),
+            lower_left: Vec3::new(h, 0.0, -h),
+            lower_right: Vec3::new(h, 0.0, h),
+            upper_left: Vec3::new(h, top, -h),
+            resolution: res,
+        },
+    ];
     Cave {
-        walls: vec![
-            Wall {
-                name: "left".into(),
-                lower_left: Vec3::new(-h, 0.0, h),
-                lower_right: Vec3::new(-h, 0.0, -h),
-                upper_left: Vec3::new(-h, top, h),
-                resolution: res,
-            },
-            Wall {
-                name: "front".into(),
-                lower_left: Vec3::new(-h, 0.0, -h),
-                lower_right: Vec3::new(h, 0.0, -h),
-                upper_left: Vec3::new(-h, top, -h),
-                resolution: res,
-            },
-            Wall {
-                name: "right".into(),
-                lower_left: Vec3::new(h, 0.0, -h),
-                lower_right: Vec3::new(h, 0.0, h),
-                upper_left: Vec3::new(h, top, -h),
-                resolution: res,
-            },
-        ],
+        projection_centre: Cave::default_projection_centre(&walls),
+        walls,
         near: 0.05,
         far: 2000.0,
         stereo_view_direction: Vec3::NEG_Z,
@@ -345,6 +418,19 @@ mod tests {
                 wall.name
             );
         }
+    }
+
+    #[test]
+    fn thesis_projection_centre_is_the_room_centre() {
+        let c = thesis_cave().projection_centre;
+        assert!((c - Vec3::new(0.0, 1.45, 0.0)).length() < 1e-6, "{c}");
+    }
+
+    #[test]
+    fn a_single_wall_gets_a_projection_centre_in_front_of_it() {
+        let front = thesis_cave().walls[1].clone();
+        let c = Cave::default_projection_centre(std::slice::from_ref(&front));
+        assert!((front.signed_distance(c) - 1.65).abs() < 1e-5, "{c}");
     }
 
     #[test]

@@ -14,6 +14,7 @@ use scene_pass::{SceneGpu, ScenePass};
 use targets::WallTargets;
 use uniforms::{FrameUniforms, ViewUniforms};
 
+use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, view_setups};
 use crate::config::Lighting;
 use crate::scene::Scene;
@@ -61,6 +62,8 @@ pub struct FrameParams<'a> {
     pub lighting: Lighting,
     /// Clear colour, sRGB 0..1.
     pub background: [f32; 3],
+    /// Warp variant and pole merge (used by the omnistereo modes).
+    pub omni: OmniSettings,
 }
 
 /// Counts from the last frame.
@@ -175,7 +178,11 @@ impl Renderer {
     pub fn render(&mut self, frame: &FrameParams<'_>) -> FrameStats {
         self.sync_walls(frame.cave);
         let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
-        let frame_uniforms = FrameUniforms::new(frame.world_from_cave, &frame.lighting);
+        let frame_uniforms = FrameUniforms::new(
+            frame.world_from_cave,
+            &frame.lighting,
+            frame.mode.is_omni().then_some(frame.omni),
+        );
         self.scene_pass.write_uniforms(
             &self.queue,
             &frame_uniforms,

@@ -4,6 +4,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
 use crate::cave::ViewSetup;
+use crate::cave::omni::{OmniSettings, WarpVariant};
 use crate::config::Lighting;
 use crate::scene::Material;
 
@@ -19,11 +20,13 @@ pub struct FrameUniforms {
     pub point_color: [f32; 4],
     pub ambient: [f32; 4],
     pub wire_color: [f32; 4],
+    pub omni: [f32; 4],
 }
 
 impl FrameUniforms {
-    /// Lighting is given in scene (world) space and moved into CAVE space here.
-    pub fn new(world_from_cave: Mat4, lighting: &Lighting) -> Self {
+    /// Lighting is given in scene (world) space and moved into CAVE space here. `omni` is
+    /// `Some` in the omnistereo modes.
+    pub fn new(world_from_cave: Mat4, lighting: &Lighting, omni: Option<OmniSettings>) -> Self {
         let cave_from_world = world_from_cave.inverse();
         // Normals transform with the inverse transpose of the linear part.
         let normal_from_world =
@@ -43,6 +46,24 @@ impl FrameUniforms {
             point_color: lighting.point_color.extend(0.0).to_array(),
             ambient: lighting.ambient.extend(0.0).to_array(),
             wire_color: [0.9, 0.9, 0.9, 1.0],
+            omni: match omni {
+                None => [0.0; 4],
+                Some(o) => {
+                    let warp = match o.warp {
+                        WarpVariant::SimilarTriangles => 1.0,
+                        WarpVariant::IntersectionPoint => 2.0,
+                    };
+                    match o.pole_merge {
+                        Some(p) => [
+                            warp,
+                            p.start_degrees.to_radians(),
+                            p.end_degrees.to_radians(),
+                            1.0,
+                        ],
+                        None => [warp, 0.0, 0.0, 0.0],
+                    }
+                }
+            },
         }
     }
 }
@@ -53,13 +74,24 @@ impl FrameUniforms {
 pub struct ViewUniforms {
     pub clip_from_cave: [[f32; 4]; 4],
     pub eye_position: [f32; 4],
+    pub wall_plane: [f32; 4],
+    pub omni_head: [f32; 4],
 }
 
 impl From<&ViewSetup> for ViewUniforms {
     fn from(view: &ViewSetup) -> Self {
+        let (wall_plane, omni_head) = match (view.omni, view.eye) {
+            (Some(o), Some(eye)) => (
+                o.wall_plane.to_array(),
+                o.head.extend(eye.sign() * 0.5 * o.ipd).to_array(),
+            ),
+            _ => ([0.0; 4], [0.0; 4]),
+        };
         Self {
             clip_from_cave: view.clip_from_cave.to_cols_array_2d(),
             eye_position: view.eye_position.extend(1.0).to_array(),
+            wall_plane,
+            omni_head,
         }
     }
 }

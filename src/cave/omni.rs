@@ -1,0 +1,236 @@
+//! Omnidirectional stereo on the CPU: per-vertex eyes with pole merge, and the object warp of
+//! Meindl (2015) ch. 5 in both variants. The vertex shader (shaders/common.wgsl) computes the
+//! same; tests compare the GPU against these functions.
+//!
+//! Notation: V a vertex, H the head, E = E(V) the eye that should see V, C the projective
+//! viewpoint (centre of projection) of the wall's projection, s(X) the signed distance of X
+//! from the wall plane (positive on the viewer's side). The wall shows V where the ray E→V
+//! meets the plane, at I. The warp moves V to V' on the line C→I so that the ordinary
+//! projection from C draws it at I.
+//!
+//! Similar triangles (thesis eqs. 5.1–5.3, generalised from view space to any wall): the
+//! homothety about I that maps E to V has ratio k = s(V)/s(E) and maps C to V', so
+//! V' = V − k·(E − C). Only s(E) is divided by, and the eye is always well inside the CAVE, so
+//! this never blows up. The intersection-point variant computes I = E + λ(V − E) with
+//! λ = s(E)/(s(E) − s(V)) and places V' along C→I at V's distance from C: it fails when E→V is
+//! (nearly) parallel to the wall and puts points behind the eye on the wall.
+
+use glam::{Vec2, Vec3, Vec4};
+
+use super::{Eye, UP, Wall};
+
+/// Where the IPD fades to zero near the vertical axis through the head.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoleMerge {
+    /// Elevation (degrees above or below the horizontal) where fading starts.
+    pub start_degrees: f32,
+    /// Elevation where the eyes have merged into the head.
+    pub end_degrees: f32,
+}
+
+impl Default for PoleMerge {
+    /// 60°–75°, as offline ODS renderers (e.g. Cycles) default to.
+    fn default() -> Self {
+        Self {
+            start_degrees: 60.0,
+            end_degrees: 75.0,
+        }
+    }
+}
+
+/// How vertices are moved so the ordinary projection draws them where E(V) sees them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum WarpVariant {
+    /// Similar triangles (eqs. 5.1–5.3): stable everywhere. The default.
+    #[default]
+    SimilarTriangles,
+    /// Through the intersection point I: kept to demonstrate and measure its failures.
+    IntersectionPoint,
+}
+
+impl WarpVariant {
+    pub const ALL: [WarpVariant; 2] = [Self::SimilarTriangles, Self::IntersectionPoint];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::SimilarTriangles => "similar-triangles",
+            Self::IntersectionPoint => "intersection-point",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|w| w.name() == name)
+    }
+}
+
+/// The omnistereo settings of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct OmniSettings {
+    pub warp: WarpVariant,
+    /// `None` switches pole merging off (the eyes then flip across the pole).
+    pub pole_merge: Option<PoleMerge>,
+}
+
+/// Fraction of the IPD kept at elevation `elevation_rad` (1 below the start angle, 0 above the
+/// end angle, smoothstep between).
+pub fn pole_merge_factor(elevation_rad: f32, pole: Option<PoleMerge>) -> f32 {
+    let Some(pole) = pole else { return 1.0 };
+    let (a, b) = (
+        pole.start_degrees.to_radians(),
+        pole.end_degrees.to_radians(),
+    );
+    if b <= a {
+        return if elevation_rad < a { 1.0 } else { 0.0 };
+    }
+    let t = ((elevation_rad - a) / (b - a)).clamp(0.0, 1.0);
+    1.0 - t * t * (3.0 - 2.0 * t)
+}
+
+/// The eye that should see `v`: the head moved sideways by half the IPD, perpendicular to the
+/// horizontal direction from the head to `v` (left eye to the left), faded near the pole.
+pub fn omni_eye(head: Vec3, v: Vec3, ipd: f32, eye: Eye, pole: Option<PoleMerge>) -> Vec3 {
+    let d = v - head;
+    let horizontal = Vec2::new(d.x, d.z);
+    let len = horizontal.length();
+    let elevation = d.y.abs().atan2(len);
+    // Exactly on the axis the direction is undefined; any horizontal direction will do, and
+    // with pole merging on the offset is zero there anyway.
+    let dir = if len > 1e-12 {
+        Vec3::new(horizontal.x / len, 0.0, horizontal.y / len)
+    } else {
+        Vec3::NEG_Z
+    };
+    let right = dir.cross(UP);
+    head + eye.sign() * 0.5 * ipd * pole_merge_factor(elevation, pole) * right
+}
+
+/// The wall's plane as (n, d) with s(X) = n·X + d, n pointing towards the viewer.
+pub fn wall_plane(wall: &Wall) -> Vec4 {
+    let n = wall.normal();
+    n.extend(-n.dot(wall.lower_left))
+}
+
+fn signed_distance(plane: Vec4, x: Vec3) -> f32 {
+    plane.truncate().dot(x) + plane.w
+}
+
+/// Smallest eye-to-wall distance divided by (1 µm): keeps the warp finite for an eye on the
+/// wall plane, which only a broken tracker can produce.
+const MIN_EYE_DISTANCE: f32 = 1e-6;
+
+/// Similar-triangle warp: V' = V − (s(V)/s(E))·(E − C).
+pub fn warp_similar(v: Vec3, e: Vec3, c: Vec3, plane: Vec4) -> Vec3 {
+    let k = signed_distance(plane, v) / signed_distance(plane, e).max(MIN_EYE_DISTANCE);
+    v - k * (e - c)
+}
+
+/// Intersection-point warp: I from the ray E→V, then V' on C→I at |V − C| from C. Unguarded on
+/// purpose (it is the form the thesis reports as unstable); may return non-finite values.
+pub fn warp_intersection(v: Vec3, e: Vec3, c: Vec3, plane: Vec4) -> Vec3 {
+    let se = signed_distance(plane, e);
+    let sv = signed_distance(plane, v);
+    let lambda = se / (se - sv);
+    let i = e + lambda * (v - e);
+    c + (i - c).normalize() * (v - c).length()
+}
+
+/// Applies the chosen warp.
+pub fn warp(variant: WarpVariant, v: Vec3, e: Vec3, c: Vec3, plane: Vec4) -> Vec3 {
+    match variant {
+        WarpVariant::SimilarTriangles => warp_similar(v, e, c, plane),
+        WarpVariant::IntersectionPoint => warp_intersection(v, e, c, plane),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cave::{off_axis_projection, thesis_cave};
+
+    fn pixel(wall: &Wall, c: Vec3, p: Vec3) -> Option<Vec2> {
+        let m = off_axis_projection(wall, c, 0.05, 1000.0).clip_from_cave;
+        let clip = m * p.extend(1.0);
+        (clip.w > 0.0).then(|| {
+            let ndc = clip.truncate() / clip.w;
+            Vec2::new(
+                (ndc.x * 0.5 + 0.5) * wall.resolution[0] as f32,
+                (0.5 - ndc.y * 0.5) * wall.resolution[1] as f32,
+            )
+        })
+    }
+
+    #[test]
+    fn both_warps_put_a_vertex_where_its_eye_sees_it() {
+        let cave = thesis_cave();
+        let head = Vec3::new(0.3, 1.6, -0.4);
+        let c = Vec3::new(0.0, 1.45, 0.0);
+        for wall in &cave.walls {
+            let plane = wall_plane(wall);
+            for v in [
+                Vec3::new(-3.0, 2.0, -4.0),
+                Vec3::new(2.5, 0.5, 1.0),
+                Vec3::new(-0.5, 1.0, -1.0),
+            ] {
+                for eye in Eye::BOTH {
+                    let e = omni_eye(head, v, 0.064, eye, Some(PoleMerge::default()));
+                    let Some(expected) = wall.pixel_of_ray(e, v) else {
+                        continue;
+                    };
+                    for variant in WarpVariant::ALL {
+                        let got = pixel(wall, c, warp(variant, v, e, c, plane)).unwrap();
+                        assert!(
+                            (got - expected).length() < 0.05,
+                            "{variant:?} {v}: {got} vs {expected}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn eyes_are_split_perpendicular_to_the_view_direction() {
+        let head = Vec3::new(0.0, 1.7, 0.0);
+        // Looking at a point on the left (−x): the left eye is towards +z (behind).
+        let l = omni_eye(head, Vec3::new(-2.0, 1.7, 0.0), 0.064, Eye::Left, None);
+        assert!((l - Vec3::new(0.0, 1.7, 0.032)).length() < 1e-6, "{l}");
+        // Looking ahead (−z): left eye towards −x, as in fixed-direction stereo.
+        let l = omni_eye(head, Vec3::new(0.0, 1.0, -3.0), 0.064, Eye::Left, None);
+        assert!((l - Vec3::new(-0.032, 1.7, 0.0)).length() < 1e-6, "{l}");
+    }
+
+    #[test]
+    fn pole_merge_fades_the_eyes_together() {
+        let pole = Some(PoleMerge::default());
+        assert_eq!(pole_merge_factor(50f32.to_radians(), pole), 1.0);
+        assert_eq!(pole_merge_factor(80f32.to_radians(), pole), 0.0);
+        let mid = pole_merge_factor(67.5f32.to_radians(), pole);
+        assert!((mid - 0.5).abs() < 1e-4);
+        // Two points 2 cm apart on either side of the axis above the head.
+        let head = Vec3::new(0.0, 1.7, 0.0);
+        let a = Vec3::new(0.01, 2.7, 0.0);
+        let b = Vec3::new(-0.01, 2.7, 0.0);
+        let flip =
+            omni_eye(head, a, 0.064, Eye::Left, None) - omni_eye(head, b, 0.064, Eye::Left, None);
+        assert!(
+            (flip.length() - 0.064).abs() < 1e-5,
+            "without merging the eye flips by the IPD"
+        );
+        let merged =
+            omni_eye(head, a, 0.064, Eye::Left, pole) - omni_eye(head, b, 0.064, Eye::Left, pole);
+        assert!(merged.length() < 1e-6);
+    }
+
+    #[test]
+    fn intersection_variant_breaks_where_similar_triangles_do_not() {
+        let cave = thesis_cave();
+        let front = &cave.walls[1];
+        let plane = wall_plane(front);
+        let c = Vec3::new(0.0, 1.45, 0.0);
+        let e = Vec3::new(0.0, 1.7, 0.0);
+        // V at the eye's distance from the wall: E→V parallel to the wall.
+        let v = Vec3::new(1.0, 1.7, 0.0);
+        assert!(!warp_intersection(v, e, c, plane).is_finite());
+        assert!(warp_similar(v, e, c, plane).is_finite());
+    }
+}
