@@ -359,6 +359,18 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
             vec!["render", "--head-yaw", "720", "--out", out],
             "outside -360..360",
         ),
+        (
+            vec!["render", "--warp", "fast", "--out", out],
+            "unknown warp 'fast'",
+        ),
+        (
+            vec!["render", "--pole-merge", "75,60", "--out", out],
+            "0 <= START <= END <= 90",
+        ),
+        (
+            vec!["render", "--pole-merge", "on", "--out", out],
+            "expected START,END",
+        ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
         (
@@ -406,7 +418,9 @@ fn render_command_writes_every_wall_and_eye() {
         "--config",
         "config/cave.toml",
         "--mode",
-        "tracked-stereo",
+        "omni-offaxis",
+        "--pole-merge",
+        "55,70",
         "--head",
         "0.2,1.6,-0.3",
         "--head-yaw",

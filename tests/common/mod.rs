@@ -6,6 +6,7 @@ use std::sync::OnceLock;
 use glam::{Mat4, Vec2, Vec3};
 use image::RgbaImage;
 
+use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Cave, Head, RenderMode};
 use omnicave::config::Lighting;
 use omnicave::render::{FrameParams, Gpu, RenderSettings, Renderer, WallImages};
@@ -52,6 +53,34 @@ pub fn marker_scene(points: &[Vec3], viewer: Vec3, radius_per_metre: f32) -> Sce
     scene
 }
 
+/// Like [`marker_scene`], but each marker's radius is chosen so that its image on the wall it
+/// is seen through from `viewer` has about `radius_px` pixels of radius, however close the
+/// viewer stands to that wall (a fixed size would shrink to nothing 0.3 m from a wall).
+pub fn marker_scene_px(points: &[Vec3], viewer: Vec3, cave: &Cave, radius_px: f32) -> Scene {
+    let mut scene = Scene::default();
+    for (i, p) in points.iter().enumerate() {
+        let c = MARKER_COLOURS[i % MARKER_COLOURS.len()];
+        let m = scene.add_material(Material::unlit(
+            &format!("marker {i}"),
+            c.map(|v| f32::from(v) / 255.0),
+        ));
+        let distance = (*p - viewer).length();
+        // Metres per pixel at the wall, and how much nearer the wall is than the marker.
+        let seen_on = cave.walls.iter().find_map(|w| {
+            let px = w.pixel_of_ray(viewer, *p)?;
+            inside(px, w.resolution, 0.0).then(|| {
+                let m_per_px = w.size_m().x / w.resolution[0] as f32;
+                let wall_distance = (w.wall_point_of_pixel(px) - viewer).length();
+                radius_px * m_per_px * distance / wall_distance
+            })
+        });
+        let r = seen_on.unwrap_or(0.01 * distance);
+        let mesh = uv_sphere(r, 12, 16).transformed(Mat4::from_translation(*p));
+        scene.add_mesh(&mesh.vertices, &mesh.indices, m);
+    }
+    scene
+}
+
 /// Adds a mesh with an unlit colour to a scene.
 pub fn add_unlit(scene: &mut Scene, mesh: &MeshData, rgb: [u8; 3]) {
     let m = scene.add_material(Material::unlit("unlit", rgb.map(|v| f32::from(v) / 255.0)));
@@ -66,6 +95,18 @@ pub fn render(
     scene: &Scene,
     settings: RenderSettings,
 ) -> Vec<WallImages> {
+    render_omni(cave, head, mode, scene, settings, OmniSettings::default())
+}
+
+/// As [`render`], with explicit omnistereo settings.
+pub fn render_omni(
+    cave: &Cave,
+    head: Head,
+    mode: RenderMode,
+    scene: &Scene,
+    settings: RenderSettings,
+    omni: OmniSettings,
+) -> Vec<WallImages> {
     let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
     renderer.set_scene(scene);
     renderer.render(&FrameParams {
@@ -76,6 +117,7 @@ pub fn render(
         world_from_cave: Mat4::IDENTITY,
         lighting: Lighting::default(),
         background: BACKGROUND_SRGB,
+        omni,
     });
     renderer.read_images().expect("read back")
 }
