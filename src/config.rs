@@ -734,6 +734,12 @@ resolution = [1280, 720]
     }
 
     #[test]
+    fn omnistereo_defaults_match_the_library_defaults() {
+        let cfg = Config::from_toml(GOOD, Path::new("test.toml")).expect("valid");
+        assert_eq!(cfg.omni, OmniSettings::default());
+    }
+
+    #[test]
     fn unknown_key_is_named() {
         let e = err(&format!("{GOOD}\n[head]\nposition = [0,1,0]\nheigth = 3\n"));
         assert!(e.contains("test.toml") && e.contains("heigth"), "{e}");

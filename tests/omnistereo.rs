@@ -568,3 +568,86 @@ fn specular_highlights_are_lit_from_each_vertex_eye() {
     // And the two eyes see different highlights (stereo specularity).
     assert!((o[0] - o[1]).length() > 1.0);
 }
+
+#[test]
+fn floor_and_ceiling_walls_work_in_every_mode() {
+    // The thesis CAVE plus a floor and a ceiling screen (square pixels: 3.3 m at 600 px).
+    let mut cave = cave_at(600, 527);
+    let h = 1.65;
+    cave.walls.push(Wall {
+        name: "floor".into(),
+        lower_left: Vec3::new(-h, 0.0, h),
+        lower_right: Vec3::new(h, 0.0, h),
+        upper_left: Vec3::new(-h, 0.0, -h),
+        resolution: [600, 600],
+    });
+    cave.walls.push(Wall {
+        name: "ceiling".into(),
+        lower_left: Vec3::new(-h, 2.9, -h),
+        lower_right: Vec3::new(h, 2.9, -h),
+        upper_left: Vec3::new(-h, 2.9, h),
+        resolution: [600, 600],
+    });
+    cave.projection_centre = Cave::default_projection_centre(&cave.walls);
+    let points = [
+        Vec3::new(0.6, -1.0, -0.4),
+        Vec3::new(-1.2, -3.0, 0.9),
+        Vec3::new(0.2, 1.0, -0.3),
+        Vec3::new(0.9, 4.0, 0.5),
+        Vec3::new(-0.5, 6.0, -1.2),
+        Vec3::new(0.05, 0.4, 0.1),
+        Vec3::new(0.3, 1.4, -3.0),
+    ];
+    let pole = Some(PoleMerge::default());
+    let mut checked = [0usize; 2];
+    for head in [Vec3::new(0.0, 1.7, 0.0), Vec3::new(-0.8, 1.2, 0.9)] {
+        let scene = marker_scene_px(&points, head, &cave, 3.0);
+        for mode in [
+            RenderMode::Stereo,
+            RenderMode::OmniOnAxis,
+            RenderMode::OmniOffAxis,
+        ] {
+            let images = render(&cave, Head::at(head), mode, &scene, NO_MSAA);
+            let stereo_eyes = omnicave::cave::eye_positions(
+                mode,
+                &Head::at(head),
+                IPD,
+                cave.stereo_view_direction,
+            );
+            for (w, wall) in cave.walls.iter().enumerate().skip(3) {
+                for eye in Eye::BOTH {
+                    let found = centroids(images[w].eye(eye));
+                    for (i, p) in points.iter().enumerate() {
+                        let e = if mode.is_omni() {
+                            omni_eye(head, *p, IPD, eye, pole)
+                        } else {
+                            stereo_eyes[eye as usize]
+                        };
+                        let Some(expected) = wall.pixel_of_ray(e, *p) else {
+                            continue;
+                        };
+                        if !inside(expected, wall.resolution, 8.0) {
+                            continue;
+                        }
+                        let (got, _) = *found.get(&MARKER_COLOURS[i]).unwrap_or_else(|| {
+                            panic!("{mode} {} {}: marker {i} missing", wall.name, eye.name())
+                        });
+                        let err = (got - expected).length();
+                        assert!(
+                            err <= 1.0,
+                            "{mode} {} {}: marker {i} at {got}, expected {expected}",
+                            wall.name,
+                            eye.name()
+                        );
+                        checked[w - 3] += 1;
+                    }
+                }
+            }
+        }
+    }
+    println!(
+        "floor placements checked: {}, ceiling: {}",
+        checked[0], checked[1]
+    );
+    assert!(checked[0] >= 10 && checked[1] >= 10);
+}

@@ -64,11 +64,21 @@ impl WarpVariant {
 }
 
 /// The omnistereo settings of a frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OmniSettings {
     pub warp: WarpVariant,
     /// `None` switches pole merging off (the eyes then flip across the pole).
     pub pole_merge: Option<PoleMerge>,
+}
+
+impl Default for OmniSettings {
+    /// Similar triangles with pole merging on at 60°–75°, as the config defaults to.
+    fn default() -> Self {
+        Self {
+            warp: WarpVariant::default(),
+            pole_merge: Some(PoleMerge::default()),
+        }
+    }
 }
 
 /// Fraction of the IPD kept at elevation `elevation_rad` (1 below the start angle, 0 above the
