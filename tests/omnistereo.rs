@@ -4,8 +4,6 @@
 
 mod common;
 
-use std::collections::HashMap;
-
 use common::*;
 use glam::{Mat4, Vec2, Vec3};
 use image::RgbaImage;
@@ -14,26 +12,7 @@ use omnicave::cave::{Cave, Eye, Head, RenderMode, Wall, off_axis_projection};
 use omnicave::render::RenderSettings;
 use omnicave::scene::load_gltf;
 
-const NO_MSAA: RenderSettings = RenderSettings {
-    msaa: 1,
-    wireframe: false,
-};
 const IPD: f32 = 0.064;
-
-fn centroids(img: &RgbaImage) -> HashMap<[u8; 3], (Vec2, usize)> {
-    let mut acc: HashMap<[u8; 3], (Vec2, usize)> = HashMap::new();
-    for (x, y, p) in img.enumerate_pixels() {
-        let rgb = [p[0], p[1], p[2]];
-        if MARKER_COLOURS.contains(&rgb) {
-            let e = acc.entry(rgb).or_insert((Vec2::ZERO, 0));
-            e.0 += Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            e.1 += 1;
-        }
-    }
-    acc.into_iter()
-        .map(|(k, (sum, n))| (k, (sum / n as f32, n)))
-        .collect()
-}
 
 /// Markers in front of the walls (inside the CAVE), beside the viewer, behind the walls, near
 /// and far.
@@ -85,30 +64,17 @@ fn markers_land_where_their_own_eye_sees_them() {
                             absent_checked += 1;
                             continue;
                         }
-                        let expected = expected.unwrap();
-                        if !inside(expected, size, 8.0) {
-                            continue;
-                        }
-                        let (got, _) = *found.get(&colour).unwrap_or_else(|| {
-                            panic!(
-                                "{head_name} {mode} {} {}: marker {i} at {marker} expected at \
-                                 {expected} but not drawn",
-                                wall.name,
-                                eye.name()
-                            )
-                        });
-                        let err = (got - expected).length();
-                        worst = worst.max(err);
-                        // 1 px: the acceptance tolerance. Markers are ~3 px in radius on the wall;
-                        // a sphere's image centroid is offset from its centre's image by
-                        // (r/d)² × its distance from the image's principal point, < 0.3 px here.
-                        assert!(
-                            err <= 1.0,
-                            "{head_name} {mode} {} {}: marker {i} at {got}, expected {expected} \
-                             ({err:.2} px)",
+                        let what = format!(
+                            "{head_name} {mode} {} {}: marker {i} at {marker}",
                             wall.name,
                             eye.name()
                         );
+                        let Some(err) =
+                            assert_marker_at(&found, colour, expected.unwrap(), size, &what)
+                        else {
+                            continue;
+                        };
+                        worst = worst.max(err);
                         checked += 1;
                     }
                 }
@@ -626,19 +592,18 @@ fn floor_and_ceiling_walls_work_in_every_mode() {
                         let Some(expected) = wall.pixel_of_ray(e, *p) else {
                             continue;
                         };
-                        if !inside(expected, wall.resolution, 8.0) {
+                        let what = format!("{mode} {} {}: marker {i}", wall.name, eye.name());
+                        if assert_marker_at(
+                            &found,
+                            MARKER_COLOURS[i],
+                            expected,
+                            wall.resolution,
+                            &what,
+                        )
+                        .is_none()
+                        {
                             continue;
                         }
-                        let (got, _) = *found.get(&MARKER_COLOURS[i]).unwrap_or_else(|| {
-                            panic!("{mode} {} {}: marker {i} missing", wall.name, eye.name())
-                        });
-                        let err = (got - expected).length();
-                        assert!(
-                            err <= 1.0,
-                            "{mode} {} {}: marker {i} at {got}, expected {expected}",
-                            wall.name,
-                            eye.name()
-                        );
                         checked[w - 3] += 1;
                     }
                 }

@@ -4,8 +4,6 @@
 
 mod common;
 
-use std::collections::HashMap;
-
 use common::*;
 use glam::{Vec2, Vec3};
 use image::RgbaImage;
@@ -13,27 +11,6 @@ use omnicave::cave::{Eye, Head, RenderMode, eye_positions};
 use omnicave::render::RenderSettings;
 use omnicave::scene::Scene;
 use omnicave::scene::build::grid;
-
-const NO_MSAA: RenderSettings = RenderSettings {
-    msaa: 1,
-    wireframe: false,
-};
-
-/// Centroid and pixel count of every marker colour in one pass over the image.
-fn centroids(img: &RgbaImage) -> HashMap<[u8; 3], (Vec2, usize)> {
-    let mut acc: HashMap<[u8; 3], (Vec2, usize)> = HashMap::new();
-    for (x, y, p) in img.enumerate_pixels() {
-        let rgb = [p[0], p[1], p[2]];
-        if MARKER_COLOURS.contains(&rgb) {
-            let e = acc.entry(rgb).or_insert((Vec2::ZERO, 0));
-            e.0 += Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            e.1 += 1;
-        }
-    }
-    acc.into_iter()
-        .map(|(k, (sum, n))| (k, (sum / n as f32, n)))
-        .collect()
-}
 
 /// Markers around the CAVE: behind each wall, near and far, and inside the CAVE (in front of
 /// the screens, negative parallax).
@@ -81,30 +58,16 @@ fn markers_land_where_the_ray_from_the_eye_meets_the_wall() {
                         let Some(expected) = wall.pixel_of_ray(eye_pos, *marker) else {
                             continue;
                         };
-                        // Skip markers cut by the image border: their centroid is biased.
-                        if !inside(expected, size, 8.0) {
-                            continue;
-                        }
-                        let (got, _) = found.get(&colour).copied().unwrap_or_else(|| {
-                            panic!(
-                                "{head_name} {mode} {} {}: marker {i} at {marker} expected at \
-                                 {expected} but not drawn",
-                                wall.name,
-                                eye.name()
-                            )
-                        });
-                        let err = (got - expected).length();
-                        worst = worst.max(err);
-                        // 1 px: the acceptance tolerance. Markers are ~3 px in radius; a sphere's
-                        // image centroid is offset from its centre's image by (r/d)² × its
-                        // distance from the principal point, < 0.3 px here.
-                        assert!(
-                            err <= 1.0,
-                            "{head_name} {mode} {} {}: marker {i} at {got}, expected {expected} \
-                             (error {err:.2} px)",
+                        let what = format!(
+                            "{head_name} {mode} {} {}: marker {i} at {marker}",
                             wall.name,
                             eye.name()
                         );
+                        let Some(err) = assert_marker_at(&found, colour, expected, size, &what)
+                        else {
+                            continue;
+                        };
+                        worst = worst.max(err);
                         checked += 1;
                     }
                 }

@@ -117,16 +117,7 @@ fn gltf_node_hierarchy_unlit_and_emissive_render_where_and_how_expected() {
     let size = [960, 540];
     let cave = cave_at(size[0], size[1]);
     let head = Head::at(Vec3::new(0.0, 1.7, 0.0));
-    let images = render(
-        &cave,
-        head,
-        RenderMode::Mono,
-        &scene,
-        RenderSettings {
-            msaa: 1,
-            wireframe: false,
-        },
-    );
+    let images = render(&cave, head, RenderMode::Mono, &scene, NO_MSAA);
     let front = cave.wall_index("front").unwrap();
     let img = &images[front].left;
     let expected = cave.walls[front]

@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests: one GPU, marker scenes, pixel analysis.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
+use std::collections::HashMap;
 use std::sync::OnceLock;
 
 use glam::{Mat4, Vec2, Vec3};
@@ -36,9 +37,14 @@ pub const MARKER_COLOURS: [[u8; 3]; 7] = [
 
 pub const BACKGROUND_SRGB: [f32; 3] = [0.0, 0.0, 0.0];
 
-/// A small unlit sphere at each point, coloured `MARKER_COLOURS[i % 7]`. The radius grows
-/// with the distance from `viewer` so every marker covers about the same few pixels.
-pub fn marker_scene(points: &[Vec3], viewer: Vec3, radius_per_metre: f32) -> Scene {
+/// Settings for tests that match exact colours: no MSAA (edges would blend), no wireframe.
+pub const NO_MSAA: RenderSettings = RenderSettings {
+    msaa: 1,
+    wireframe: false,
+};
+
+/// A small unlit sphere of the given radius at each point, coloured `MARKER_COLOURS[i % 7]`.
+fn markers(points: &[Vec3], radius: impl Fn(Vec3) -> f32) -> Scene {
     let mut scene = Scene::default();
     for (i, p) in points.iter().enumerate() {
         let c = MARKER_COLOURS[i % MARKER_COLOURS.len()];
@@ -46,39 +52,50 @@ pub fn marker_scene(points: &[Vec3], viewer: Vec3, radius_per_metre: f32) -> Sce
             &format!("marker {i}"),
             c.map(|v| f32::from(v) / 255.0),
         ));
-        let r = radius_per_metre * (*p - viewer).length();
-        let mesh = uv_sphere(r, 12, 16).transformed(Mat4::from_translation(*p));
+        let mesh = uv_sphere(radius(*p), 12, 16).transformed(Mat4::from_translation(*p));
         scene.add_mesh(&mesh.vertices, &mesh.indices, m);
     }
     scene
+}
+
+/// Markers whose radius grows with the distance from `viewer`.
+pub fn marker_scene(points: &[Vec3], viewer: Vec3, radius_per_metre: f32) -> Scene {
+    markers(points, |p| radius_per_metre * (p - viewer).length())
 }
 
 /// Like [`marker_scene`], but each marker's radius is chosen so that its image on the wall it
 /// is seen through from `viewer` has about `radius_px` pixels of radius, however close the
 /// viewer stands to that wall (a fixed size would shrink to nothing 0.3 m from a wall).
 pub fn marker_scene_px(points: &[Vec3], viewer: Vec3, cave: &Cave, radius_px: f32) -> Scene {
-    let mut scene = Scene::default();
-    for (i, p) in points.iter().enumerate() {
-        let c = MARKER_COLOURS[i % MARKER_COLOURS.len()];
-        let m = scene.add_material(Material::unlit(
-            &format!("marker {i}"),
-            c.map(|v| f32::from(v) / 255.0),
-        ));
-        let distance = (*p - viewer).length();
+    markers(points, |p| {
+        let distance = (p - viewer).length();
         // Metres per pixel at the wall, and how much nearer the wall is than the marker.
         let seen_on = cave.walls.iter().find_map(|w| {
-            let px = w.pixel_of_ray(viewer, *p)?;
+            let px = w.pixel_of_ray(viewer, p)?;
             inside(px, w.resolution, 0.0).then(|| {
                 let m_per_px = w.size_m().x / w.resolution[0] as f32;
                 let wall_distance = (w.wall_point_of_pixel(px) - viewer).length();
                 radius_px * m_per_px * distance / wall_distance
             })
         });
-        let r = seen_on.unwrap_or(0.01 * distance);
-        let mesh = uv_sphere(r, 12, 16).transformed(Mat4::from_translation(*p));
-        scene.add_mesh(&mesh.vertices, &mesh.indices, m);
+        seen_on.unwrap_or(0.01 * distance)
+    })
+}
+
+/// Centroid and pixel count of every marker colour present, in one pass over the image.
+pub fn centroids(img: &RgbaImage) -> HashMap<[u8; 3], (Vec2, usize)> {
+    let mut acc: HashMap<[u8; 3], (Vec2, usize)> = HashMap::new();
+    for (x, y, p) in img.enumerate_pixels() {
+        let rgb = [p[0], p[1], p[2]];
+        if MARKER_COLOURS.contains(&rgb) {
+            let e = acc.entry(rgb).or_insert((Vec2::ZERO, 0));
+            e.0 += Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            e.1 += 1;
+        }
     }
-    scene
+    acc.into_iter()
+        .map(|(k, (sum, n))| (k, (sum / n as f32, n)))
+        .collect()
 }
 
 /// Adds a mesh with an unlit colour to a scene.
@@ -142,6 +159,33 @@ pub fn centroid_of(img: &RgbaImage, rgb: [u8; 3]) -> Option<(Vec2, usize)> {
         }
     }
     (n > 0).then(|| (sum / n as f32, n))
+}
+
+/// Checks that the marker of `colour` is drawn within 1 px of `expected` and returns the error
+/// in pixels; `None` (nothing checked) when `expected` is within 8 px of the border, where a
+/// cut-off disc's centroid is biased. Panics, naming `what`, if the marker is missing or off.
+pub fn assert_marker_at(
+    found: &HashMap<[u8; 3], (Vec2, usize)>,
+    colour: [u8; 3],
+    expected: Vec2,
+    size: [u32; 2],
+    what: &str,
+) -> Option<f32> {
+    if !inside(expected, size, 8.0) {
+        return None;
+    }
+    let (got, _) = *found
+        .get(&colour)
+        .unwrap_or_else(|| panic!("{what}: expected at {expected} but not drawn"));
+    let err = (got - expected).length();
+    // 1 px: the acceptance tolerance. Markers are ~3 px in radius on the wall; a sphere's image
+    // centroid is offset from its centre's image by (r/d)² × its distance from the principal
+    // point, < 0.3 px for the markers and walls used here.
+    assert!(
+        err <= 1.0,
+        "{what}: drawn at {got}, expected {expected} ({err:.2} px)"
+    );
+    Some(err)
 }
 
 /// Whether `p` lies at least `margin` pixels inside an image of `size`.
