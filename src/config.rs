@@ -534,6 +534,16 @@ impl ConfigFile {
 
         let h = &self.head;
         let head_pos = ck.finite3("head.position", h.position)?;
+        let cave_for_check = Cave {
+            walls: walls.clone(),
+            near,
+            far,
+            stereo_view_direction: view_dir,
+            projection_centre,
+        };
+        if let Some(problem) = cave_for_check.head_problem(head_pos) {
+            return Err(ck.fail("head.position", h.position, &problem));
+        }
         for (field, v) in [
             ("head.yaw_degrees", h.yaw_degrees),
             ("head.pitch_degrees", h.pitch_degrees),
@@ -603,13 +613,7 @@ impl ConfigFile {
 
         Ok(Config {
             source: path.to_owned(),
-            cave: Cave {
-                walls,
-                near,
-                far,
-                stereo_view_direction: view_dir,
-                projection_centre,
-            },
+            cave: cave_for_check,
             head: Head {
                 position: head_pos,
                 orientation: Head::orientation_from_degrees(

@@ -21,6 +21,11 @@ pub enum HeadlessError {
     Output(#[from] OutputError),
     #[error("no scene given: pass --scene or set [scene] path in {0}")]
     NoScene(PathBuf),
+    #[error("head position {position} {problem}")]
+    Head {
+        position: glam::Vec3,
+        problem: String,
+    },
 }
 
 /// Per-run overrides of the config (what the CLI flags set).
@@ -124,6 +129,12 @@ pub fn render_to_dir(
 ) -> Result<Written, HeadlessError> {
     let mut config = Config::load(config_path)?;
     overrides.apply(&mut config);
+    if let Some(problem) = config.cave.head_problem(config.head.position) {
+        return Err(HeadlessError::Head {
+            position: config.head.position,
+            problem,
+        });
+    }
     let scene_path = overrides
         .scene
         .clone()

@@ -371,6 +371,10 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
             vec!["render", "--pole-merge", "on", "--out", out],
             "expected START,END",
         ),
+        (
+            vec!["render", "--head", "0,1.7,-2", "--out", out],
+            "behind or on wall 'front'",
+        ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
         (

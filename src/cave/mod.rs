@@ -158,6 +158,24 @@ impl Cave {
         }
     }
 
+    /// Why a head at `p` cannot be rendered for, if it cannot: it must be in front of every
+    /// wall (for a closed CAVE: inside it), or that wall's image has no meaning.
+    pub fn head_problem(&self, p: Vec3) -> Option<String> {
+        if !p.is_finite() {
+            return Some("is not finite".into());
+        }
+        self.walls
+            .iter()
+            .find(|w| w.signed_distance(p) <= 0.0)
+            .map(|w| {
+                format!(
+                    "is behind or on wall '{}' ({:.3} m); the head must be in front of every wall",
+                    w.name,
+                    w.signed_distance(p)
+                )
+            })
+    }
+
     /// Index of the wall with this name.
     pub fn wall_index(&self, name: &str) -> Option<usize> {
         self.walls.iter().position(|w| w.name == name)
