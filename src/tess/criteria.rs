@@ -1,0 +1,209 @@
+//! When to split an edge: uniform depth, screen-space edge length, sphere-projected length, or
+//! the projected error of the warped midpoint. Each decision depends on the edge alone.
+
+use glam::Vec3;
+
+use super::{Bary, TessView, point_position, project};
+
+/// A split criterion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Criterion {
+    /// Split every edge until depth N.
+    Uniform(u32),
+    /// Split while the projected edge is longer than this many pixels (Doggett & Hirche);
+    /// x-length only on vertical walls, as the thesis does, full length on floor/ceiling.
+    Edge(f32),
+    /// Split while the projected diameter of the edge's bounding sphere exceeds this many
+    /// pixels (Cantlay).
+    Sphere(f32),
+    /// Split while the warped, projected midpoint lies more than this many pixels from the
+    /// midpoint of the projected endpoints: bounds the error the viewer sees.
+    Error(f32),
+}
+
+impl Criterion {
+    /// Code used in the GPU uniforms (keep in sync with shaders/tessellate.wgsl).
+    pub fn gpu_code(self) -> (u32, f32) {
+        match self {
+            Criterion::Uniform(n) => (1, n as f32),
+            Criterion::Edge(px) => (2, px),
+            Criterion::Sphere(px) => (3, px),
+            Criterion::Error(px) => (4, px),
+        }
+    }
+}
+
+impl std::fmt::Display for Criterion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Criterion::Uniform(n) => write!(f, "uniform:{n}"),
+            Criterion::Edge(px) => write!(f, "edge:{px}"),
+            Criterion::Sphere(px) => write!(f, "sphere:{px}"),
+            Criterion::Error(px) => write!(f, "error:{px}"),
+        }
+    }
+}
+
+/// Parses `none`, `uniform:N`, `edge:PX`, `sphere:PX` or `error:PX`.
+pub fn parse_criterion(s: &str) -> Result<Option<Criterion>, String> {
+    let s = s.trim();
+    if s == "none" {
+        return Ok(None);
+    }
+    let (kind, value) = s.split_once(':').ok_or_else(|| {
+        format!("expected none, uniform:N, edge:PX, sphere:PX or error:PX, got '{s}'")
+    })?;
+    let px = || -> Result<f32, String> {
+        let v: f32 = value
+            .parse()
+            .map_err(|_| format!("'{value}' is not a number of pixels in '{s}'"))?;
+        if v.is_finite() && (0.01..=10_000.0).contains(&v) {
+            Ok(v)
+        } else {
+            Err(format!("{v} pixels is outside 0.01..=10000 in '{s}'"))
+        }
+    };
+    match kind {
+        "uniform" => {
+            let n: u32 = value
+                .parse()
+                .map_err(|_| format!("'{value}' is not a whole number of levels in '{s}'"))?;
+            if n > super::MAX_DEPTH_LIMIT {
+                return Err(format!(
+                    "uniform level {n} exceeds the limit of {}",
+                    super::MAX_DEPTH_LIMIT
+                ));
+            }
+            Ok(Some(Criterion::Uniform(n)))
+        }
+        "edge" => Ok(Some(Criterion::Edge(px()?))),
+        "sphere" => Ok(Some(Criterion::Sphere(px()?))),
+        "error" => Ok(Some(Criterion::Error(px()?))),
+        _ => Err(format!(
+            "unknown criterion '{kind}' in '{s}'; expected none, uniform, edge, sphere or error"
+        )),
+    }
+}
+
+/// Tessellation settings of a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TessSettings {
+    /// `None`: no tessellation (the plain warp).
+    pub criterion: Option<Criterion>,
+    /// Deepest subdivision: 6 gives up to 64 segments per edge, like hardware tessellators.
+    pub max_depth: u32,
+    pub backface_cull: bool,
+    pub frustum_cull: bool,
+}
+
+impl Default for TessSettings {
+    fn default() -> Self {
+        Self {
+            criterion: None,
+            max_depth: 6,
+            backface_cull: true,
+            frustum_cull: true,
+        }
+    }
+}
+
+/// Whether the wall counts as vertical (then edge lengths are measured along x only).
+pub fn is_vertical_wall(tv: &TessView<'_>) -> bool {
+    wall_is_vertical(tv.wall)
+}
+
+/// A wall whose normal is closer to horizontal than to vertical (not a floor or ceiling).
+pub fn wall_is_vertical(wall: &crate::cave::Wall) -> bool {
+    wall.normal().y.abs() < 0.5
+}
+
+/// Decides whether the edge `a`→`b` of a source triangle with scene-space corners `p` is
+/// split in round `depth`. A pure function of the edge: both triangles sharing it agree.
+pub fn split_edge(
+    tv: &TessView<'_>,
+    criterion: &Criterion,
+    depth: u32,
+    p: [Vec3; 3],
+    a: Bary,
+    b: Bary,
+) -> bool {
+    if let Criterion::Uniform(n) = criterion {
+        return depth < *n;
+    }
+    let pa = point_position(p, a);
+    let pb = point_position(p, b);
+    let ja = project(tv, pa);
+    let jb = project(tv, pb);
+    let (va, vb) = (ja.clip.w > tv.near, jb.clip.w > tv.near);
+    if !va && !vb {
+        // Wholly behind the projective viewpoint: invisible on this wall.
+        return false;
+    }
+    if va != vb {
+        // Crosses behind the viewpoint: refine towards the clip boundary.
+        return true;
+    }
+    let mid = project(tv, point_position(p, a.midpoint(b)));
+    if super::all_outside(&[ja.clip, jb.clip, mid.clip], tv.near) {
+        // Entirely beyond one side of the view: invisible, whatever its (huge, near the
+        // viewpoint's plane) projected size. Without this every criterion refines what
+        // nobody sees until the budget runs out.
+        return false;
+    }
+    match criterion {
+        Criterion::Uniform(_) => unreachable!("handled above"),
+        Criterion::Edge(px) => {
+            let d = jb.pixel - ja.pixel;
+            let len = if is_vertical_wall(tv) {
+                d.x.abs()
+            } else {
+                d.length()
+            };
+            len > *px
+        }
+        Criterion::Sphere(px) => {
+            let (ca, cb) = (
+                tv.cave_from_world.transform_point3(pa),
+                tv.cave_from_world.transform_point3(pb),
+            );
+            let radius = 0.5 * (cb - ca).length();
+            let centre = project(tv, 0.5 * (pa + pb));
+            if centre.clip.w <= tv.near {
+                return true;
+            }
+            let px_per_m = tv.wall.resolution[0] as f32 / tv.wall.size_m().x;
+            let wall_distance = tv.wall.signed_distance(tv.view.eye_position);
+            2.0 * radius * wall_distance / centre.clip.w * px_per_m > *px
+        }
+        Criterion::Error(px) => {
+            if mid.clip.w <= tv.near {
+                return true;
+            }
+            (mid.pixel - 0.5 * (ja.pixel + jb.pixel)).length() > *px
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn criteria_parse_and_print() {
+        for s in ["uniform:3", "edge:8", "sphere:12.5", "error:0.5"] {
+            let c = parse_criterion(s).expect(s).expect("some");
+            assert_eq!(c.to_string(), s);
+        }
+        assert_eq!(parse_criterion("none"), Ok(None));
+        for bad in [
+            "error",
+            "error:-1",
+            "error:nan",
+            "uniform:99",
+            "blob:3",
+            "edge:x",
+        ] {
+            assert!(parse_criterion(bad).is_err(), "{bad}");
+        }
+    }
+}

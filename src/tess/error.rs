@@ -1,0 +1,182 @@
+//! Accuracy of a tessellation as the viewer sees it (no GPU): the geometric error between the
+//! exact omnistereo image of each drawn edge and the straight segment the rasteriser draws,
+//! and the jump of scene edges where they cross from one wall to the next.
+
+use glam::{Vec2, Vec3};
+
+use super::{Bary, Projected, TessOutput, TessView, point_position, project};
+use crate::scene::Scene;
+
+/// Geometric error statistics in pixels.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ErrorStats {
+    pub max: f32,
+    pub p99: f32,
+    pub samples: usize,
+}
+
+impl ErrorStats {
+    /// Statistics of a set of per-sample errors.
+    pub fn from_samples(mut errors: Vec<f32>) -> Self {
+        if errors.is_empty() {
+            return Self::default();
+        }
+        errors.sort_by(f32::total_cmp);
+        let p99 = errors[((errors.len() - 1) as f32 * 0.99).round() as usize];
+        Self {
+            max: errors[errors.len() - 1],
+            p99,
+            samples: errors.len(),
+        }
+    }
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub fn point_segment_distance(p: Vec2, a: Vec2, b: Vec2) -> f32 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    let t = if len2 > 0.0 {
+        ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + t * ab - p).length()
+}
+
+/// The drawn part of a segment between two projected points, clipped at the near plane in
+/// clip space as the rasteriser does (straight in clip space, so straight on screen).
+fn drawn_segment(a: Projected, b: Projected, tv: &TessView<'_>) -> Option<(Vec2, Vec2)> {
+    let near = tv.near;
+    let (va, vb) = (a.clip.w > near, b.clip.w > near);
+    let to_pixel = |c: glam::Vec4| {
+        let [w, h] = tv.wall.resolution.map(|v| v as f32);
+        Vec2::new((c.x / c.w * 0.5 + 0.5) * w, (0.5 - c.y / c.w * 0.5) * h)
+    };
+    match (va, vb) {
+        (true, true) => Some((a.pixel, b.pixel)),
+        (false, false) => None,
+        _ => {
+            let t = (near - a.clip.w) / (b.clip.w - a.clip.w);
+            let cut = to_pixel(a.clip + t * (b.clip - a.clip));
+            Some(if va { (a.pixel, cut) } else { (cut, b.pixel) })
+        }
+    }
+}
+
+fn source_positions(scene: &Scene, t: u32) -> [Vec3; 3] {
+    [0, 1, 2]
+        .map(|k| Vec3::from(scene.vertices[scene.indices[3 * t as usize + k] as usize].position))
+}
+
+fn lerp_bary(a: Bary, b: Bary, s: f32) -> (f32, f32) {
+    (
+        a.b1 as f32 + s * (b.b1 as f32 - a.b1 as f32),
+        a.b2 as f32 + s * (b.b2 as f32 - a.b2 as f32),
+    )
+}
+
+/// Per-sample errors of every drawn edge of `out` in view `tv`: for each edge of each output
+/// triangle, the exact image of points along it (each seen from its own eye) against the
+/// straight segment the rasteriser draws between its endpoints (clipped at the near plane).
+/// Samples outside the image or behind the projective viewpoint are skipped; occlusion is not
+/// considered.
+pub fn edge_errors(
+    scene: &Scene,
+    tv: &TessView<'_>,
+    out: &TessOutput,
+    samples_per_edge: u32,
+) -> Vec<f32> {
+    let [w, h] = tv.wall.resolution.map(|v| v as f32);
+    let mut per_edge: std::collections::HashMap<(u32, usize), f32> =
+        std::collections::HashMap::new();
+    for tri in &out.triangles {
+        let p = source_positions(scene, tri.source);
+        let corners = tri.corners.map(|c| project(tv, point_position(p, c)));
+        for k in 0..3 {
+            let (a, b) = (tri.corners[k], tri.corners[(k + 1) % 3]);
+            // Only sub-edges lying on a source edge (same zero weight at both ends).
+            let zero = |c: Bary| [c.b0() == 0, c.b1 == 0, c.b2 == 0];
+            let Some(z) = (0..3).find(|&i| zero(a)[i] && zero(b)[i]) else {
+                continue;
+            };
+            let Some((da, db)) = drawn_segment(corners[k], corners[(k + 1) % 3], tv) else {
+                continue;
+            };
+            for i in 1..samples_per_edge {
+                let s = i as f32 / samples_per_edge as f32;
+                let (b1, b2) = lerp_bary(a, b, s);
+                let inv = 1.0 / super::BARY_ONE as f32;
+                let (w1, w2) = (b1 * inv, b2 * inv);
+                let world = (1.0 - w1 - w2) * p[0] + w1 * p[1] + w2 * p[2];
+                let exact = project(tv, world);
+                if exact.clip.w <= tv.near {
+                    continue;
+                }
+                let q = exact.pixel;
+                if q.x < 0.0 || q.y < 0.0 || q.x > w || q.y > h {
+                    continue;
+                }
+                let e = point_segment_distance(q, da, db);
+                let slot = per_edge.entry((tri.source, z)).or_insert(0.0);
+                *slot = slot.max(e);
+            }
+        }
+    }
+    per_edge.into_values().collect()
+}
+
+/// Where the rasteriser draws the scene point `world`, which lies on source triangle `source`
+/// at barycentric weights (w1, w2): inside the output triangle that contains it, the point is
+/// interpolated linearly between the *warped* corners (perspective-correct interpolation is
+/// linear in the space the projection is applied to), then projected. `None` if no output
+/// triangle of that source contains it or it lies behind the projective viewpoint.
+pub fn drawn_point(
+    scene: &Scene,
+    tv: &TessView<'_>,
+    out: &TessOutput,
+    source: u32,
+    w1: f32,
+    w2: f32,
+) -> Option<Vec2> {
+    let p = source_positions(scene, source);
+    let one = super::BARY_ONE as f32;
+    let q = Vec2::new(w1 * one, w2 * one);
+    for tri in out.triangles.iter().filter(|t| t.source == source) {
+        let c = tri.corners.map(|b| Vec2::new(b.b1 as f32, b.b2 as f32));
+        let area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
+        if area == 0.0 {
+            continue;
+        }
+        let l1 = (q - c[0]).perp_dot(c[2] - c[0]) / area;
+        let l2 = (c[1] - c[0]).perp_dot(q - c[0]) / area;
+        let l0 = 1.0 - l1 - l2;
+        let eps = -1e-4;
+        if l0 < eps || l1 < eps || l2 < eps {
+            continue;
+        }
+        let warped = tri.corners.map(|b| warped_point(tv, point_position(p, b)));
+        let v = l0 * warped[0] + l1 * warped[1] + l2 * warped[2];
+        let clip = tv.view.clip_from_cave * v.extend(1.0);
+        if clip.w <= tv.near {
+            return None;
+        }
+        let [w, h] = tv.wall.resolution.map(|v| v as f32);
+        return Some(Vec2::new(
+            (clip.x / clip.w * 0.5 + 0.5) * w,
+            (0.5 - clip.y / clip.w * 0.5) * h,
+        ));
+    }
+    None
+}
+
+/// The CAVE-space point the vertex shader hands to the projection (after the warp).
+fn warped_point(tv: &TessView<'_>, world: Vec3) -> Vec3 {
+    let p = tv.cave_from_world.transform_point3(world);
+    match (tv.omni, tv.view.omni, tv.view.eye) {
+        (Some(settings), Some(o), Some(eye)) => {
+            let e = crate::cave::omni::omni_eye(o.head, p, o.ipd, eye, settings.pole_merge);
+            crate::cave::omni::warp(settings.warp, p, e, tv.view.eye_position, o.wall_plane)
+        }
+        _ => p,
+    }
+}

@@ -1,0 +1,449 @@
+//! Adaptive tessellation before the omnistereo warp by conforming edge bisection (no GPU):
+//! split criteria, culling, and the CPU twin of the compute tessellator
+//! (src/render/tessellator.rs + shaders/tessellate.wgsl), which tests compare bit for bit.
+//!
+//! Every round, each live triangle decides for each of its edges, from that edge alone, whether
+//! to split it at its midpoint; 0 split edges finish the triangle, 1, 2 or 3 give 2, 3 or 4
+//! children. A shared edge is judged identically by both triangles and halved at the same
+//! point, so neighbours always agree: no T-junctions, no cracks, at any depth. Points are kept
+//! as exact fixed-point barycentric coordinates of their source triangle; points on a source
+//! edge are interpolated between the edge's two vertices in a canonical order, so triangles of
+//! different primitives that share positions compute bit-identical points.
+
+pub mod criteria;
+pub mod error;
+
+pub use criteria::{Criterion, TessSettings, parse_criterion};
+
+use glam::{Mat4, Vec2, Vec3, Vec4};
+
+use crate::cave::omni::{OmniSettings, omni_eye, warp};
+use crate::cave::{Eye, ViewSetup, Wall};
+use crate::scene::Scene;
+
+/// Fixed-point 1.0 of barycentric coordinates: depth ≤ 16 halvings stay exact.
+pub const BARY_ONE: u32 = 1 << 16;
+/// Deepest subdivision supported (2^16 segments per edge).
+pub const MAX_DEPTH_LIMIT: u32 = 16;
+
+/// A point of a source triangle: weights of its vertices 1 and 2 (vertex 0 gets the rest), in
+/// units of 1/BARY_ONE.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Bary {
+    pub b1: u32,
+    pub b2: u32,
+}
+
+impl Bary {
+    pub const V0: Bary = Bary { b1: 0, b2: 0 };
+    pub const V1: Bary = Bary {
+        b1: BARY_ONE,
+        b2: 0,
+    };
+    pub const V2: Bary = Bary {
+        b1: 0,
+        b2: BARY_ONE,
+    };
+
+    pub fn b0(self) -> u32 {
+        BARY_ONE - self.b1 - self.b2
+    }
+
+    /// Exact midpoint (both coordinates are multiples of 2^-depth with depth < 16).
+    pub fn midpoint(self, other: Bary) -> Bary {
+        Bary {
+            b1: (self.b1 + other.b1) / 2,
+            b2: (self.b2 + other.b2) / 2,
+        }
+    }
+}
+
+/// One output triangle: which source triangle, and its corners in that triangle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct TessTriangle {
+    pub source: u32,
+    pub corners: [Bary; 3],
+}
+
+/// Per-view counts.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TessStats {
+    pub input: u32,
+    pub culled_backface: u32,
+    pub culled_frustum: u32,
+    pub emitted: u32,
+    /// The output budget ran out: some triangles were drawn less refined than asked.
+    pub overflowed: bool,
+}
+
+/// Everything about one wall/eye view the criteria and culling need.
+#[derive(Debug, Clone, Copy)]
+pub struct TessView<'a> {
+    pub view: &'a ViewSetup,
+    pub wall: &'a Wall,
+    pub cave_from_world: Mat4,
+    /// `Some` in the omnistereo modes.
+    pub omni: Option<OmniSettings>,
+    pub near: f32,
+}
+
+/// Interpolates a source triangle's attribute at a barycentric point, canonically: a vertex is
+/// returned as is; a point on an edge is `a + t·(b − a)` with `a` the edge endpoint whose
+/// position sorts first; an interior point uses the fixed vertex order 0, 1, 2.
+pub fn interpolate<T>(
+    values: [T; 3],
+    positions: [Vec3; 3],
+    at: Bary,
+    lerp: impl Fn(T, T, f32) -> T,
+    weighted: impl Fn([T; 3], [f32; 3]) -> T,
+) -> T
+where
+    T: Copy,
+{
+    let w = [at.b0(), at.b1, at.b2];
+    let zeros = w.iter().filter(|&&x| x == 0).count();
+    if zeros == 2 {
+        let i = w.iter().position(|&x| x != 0).unwrap_or(0);
+        return values[i];
+    }
+    if zeros == 1 {
+        let z = w.iter().position(|&x| x == 0).unwrap_or(0);
+        let (mut i, mut j) = ((z + 1) % 3, (z + 2) % 3);
+        if position_order(positions[j], positions[i]) {
+            std::mem::swap(&mut i, &mut j);
+        }
+        let t = w[j] as f32 / BARY_ONE as f32;
+        return lerp(values[i], values[j], t);
+    }
+    let inv = 1.0 / BARY_ONE as f32;
+    weighted(
+        values,
+        [w[0] as f32 * inv, w[1] as f32 * inv, w[2] as f32 * inv],
+    )
+}
+
+/// Canonical order of positions: lexicographic on (x, y, z); `true` if `a` sorts before `b`.
+pub fn position_order(a: Vec3, b: Vec3) -> bool {
+    (a.x, a.y, a.z) < (b.x, b.y, b.z)
+}
+
+/// Position (scene space) of a point of a source triangle, computed canonically.
+pub fn point_position(p: [Vec3; 3], at: Bary) -> Vec3 {
+    interpolate(
+        p,
+        p,
+        at,
+        |a, b, t| a + t * (b - a),
+        |v, w| w[0] * v[0] + w[1] * v[1] + w[2] * v[2],
+    )
+}
+
+/// A point as drawn: clip coordinates after the (optional) omnistereo warp, and its pixel.
+#[derive(Debug, Clone, Copy)]
+pub struct Projected {
+    pub clip: Vec4,
+    /// Pixel coordinates (x right, y down); meaningful only when `clip.w > 0`.
+    pub pixel: Vec2,
+}
+
+/// Projects a scene-space point the way the vertex shader does: CAVE space, per-vertex eye and
+/// warp in omnistereo, then the view's projection.
+pub fn project(tv: &TessView<'_>, world: Vec3) -> Projected {
+    let p = tv.cave_from_world.transform_point3(world);
+    let warped = match (tv.omni, tv.view.omni, tv.view.eye) {
+        (Some(settings), Some(o), Some(eye)) => {
+            let e = omni_eye(o.head, p, o.ipd, eye, settings.pole_merge);
+            warp(settings.warp, p, e, tv.view.eye_position, o.wall_plane)
+        }
+        _ => p,
+    };
+    let clip = tv.view.clip_from_cave * warped.extend(1.0);
+    let [w, h] = tv.wall.resolution.map(|v| v as f32);
+    let pixel = Vec2::new(
+        (clip.x / clip.w * 0.5 + 0.5) * w,
+        (0.5 - clip.y / clip.w * 0.5) * h,
+    );
+    Projected { clip, pixel }
+}
+
+/// The eye position(s) of a view for back-face culling: a point and a radius within which
+/// every eye of the view lies (the head and IPD/2 in omnistereo, the eye itself otherwise).
+fn eye_ball(tv: &TessView<'_>) -> (Vec3, f32) {
+    match (tv.omni, tv.view.omni) {
+        (Some(_), Some(o)) => (o.head, 0.5 * o.ipd),
+        _ => (tv.view.eye_position, 0.0),
+    }
+}
+
+/// Slack for back-face culling (metres): a face must be this clearly turned away.
+pub const BACKFACE_EPSILON: f32 = 1e-4;
+
+/// Whether a single-sided source triangle (CAVE-space corners) faces away from every eye of
+/// the view: conservative, so the warp (which may turn faces slightly) never loses one.
+pub fn is_backfacing(tv: &TessView<'_>, cave: [Vec3; 3]) -> bool {
+    let n = (cave[1] - cave[0]).cross(cave[2] - cave[0]);
+    let len = n.length();
+    if len <= 0.0 {
+        return false;
+    }
+    let (centre, radius) = eye_ball(tv);
+    n.dot(centre - cave[0]) / len < -(radius + BACKFACE_EPSILON)
+}
+
+/// Whether points (clip space) all lie outside one frustum plane (or all behind the eye).
+pub fn all_outside(points: &[Vec4], near: f32) -> bool {
+    if points.iter().all(|c| c.w < near) {
+        return true;
+    }
+    if points.iter().any(|c| c.w <= 0.0) {
+        return false;
+    }
+    let tests: [fn(&Vec4) -> bool; 4] =
+        [|c| c.x > c.w, |c| c.x < -c.w, |c| c.y > c.w, |c| c.y < -c.w];
+    tests.iter().any(|t| points.iter().all(t))
+}
+
+/// Result of tessellating all of a scene's triangles for one view.
+#[derive(Debug, Clone, Default)]
+pub struct TessOutput {
+    pub triangles: Vec<TessTriangle>,
+    pub stats: TessStats,
+}
+
+/// The CPU twin of the compute tessellator: culls, then splits round by round.
+/// `double_sided[t]` says whether source triangle `t` may be seen from behind; `capacity`
+/// bounds the live triangles of a round and, separately, the output, as the GPU's buffers do.
+pub fn tessellate(
+    scene: &Scene,
+    double_sided: &[bool],
+    tv: &TessView<'_>,
+    settings: &TessSettings,
+    capacity: usize,
+) -> TessOutput {
+    let mut out = TessOutput::default();
+    let tri_count = scene.triangle_count();
+    out.stats.input = tri_count as u32;
+    let positions = |t: usize| -> [Vec3; 3] {
+        [0, 1, 2].map(|k| Vec3::from(scene.vertices[scene.indices[3 * t + k] as usize].position))
+    };
+    let root = [Bary::V0, Bary::V1, Bary::V2];
+    let mut live: Vec<TessTriangle> = Vec::new();
+    // Triangles in flight (finished + live); splitting keeps it within `capacity`, so every
+    // triangle gets an output slot and an exhausted budget only means less refinement.
+    let mut budget = 0usize;
+    for t in 0..tri_count {
+        let p = positions(t);
+        if settings.backface_cull && !double_sided.get(t).copied().unwrap_or(true) {
+            let cave = p.map(|q| tv.cave_from_world.transform_point3(q));
+            if is_backfacing(tv, cave) {
+                out.stats.culled_backface += 1;
+                continue;
+            }
+        }
+        if settings.frustum_cull {
+            let mut pts = [Vec4::ZERO; 6];
+            for k in 0..3 {
+                pts[k] = project(tv, p[k]).clip;
+                pts[k + 3] =
+                    project(tv, point_position(p, root[k].midpoint(root[(k + 1) % 3]))).clip;
+            }
+            if all_outside(&pts, tv.near) {
+                out.stats.culled_frustum += 1;
+                continue;
+            }
+        }
+        // Every kept triangle will be drawn at least once: it takes budget now.
+        if budget >= capacity {
+            out.stats.overflowed = true;
+            continue;
+        }
+        budget += 1;
+        let tri = TessTriangle {
+            source: t as u32,
+            corners: root,
+        };
+        if settings.criterion.is_none() || settings.max_depth == 0 {
+            emit(&mut out, tri, capacity);
+        } else if live.len() < capacity {
+            live.push(tri);
+        } else {
+            out.stats.overflowed = true;
+            emit(&mut out, tri, capacity);
+        }
+    }
+
+    let Some(criterion) = settings.criterion else {
+        out.stats.emitted = out.triangles.len() as u32;
+        return out;
+    };
+    let max_depth = settings.max_depth.min(MAX_DEPTH_LIMIT);
+    for depth in 0..max_depth {
+        if live.is_empty() {
+            break;
+        }
+        let mut next = Vec::with_capacity(live.len() * 2);
+        for tri in live {
+            let p = positions(tri.source as usize);
+            let c = tri.corners;
+            let split = [0, 1, 2]
+                .map(|k| criteria::split_edge(tv, &criterion, depth, p, c[k], c[(k + 1) % 3]));
+            let n_split = split.iter().filter(|&&s| s).count();
+            if n_split == 0 {
+                emit(&mut out, tri, capacity);
+                continue;
+            }
+            let kids = children(c, split);
+            let extra = kids.len() - 1;
+            if budget + extra > capacity {
+                // Budget: stop refining this triangle and draw it as it is.
+                out.stats.overflowed = true;
+                emit(&mut out, tri, capacity);
+                continue;
+            }
+            budget += extra;
+            next.extend(kids.into_iter().map(|corners| TessTriangle {
+                source: tri.source,
+                corners,
+            }));
+        }
+        live = next;
+    }
+    for tri in live {
+        emit(&mut out, tri, capacity);
+    }
+    out.stats.emitted = out.triangles.len() as u32;
+    out
+}
+
+/// Appends a finished triangle, or drops it (flagging overflow) when the output is full.
+fn emit(out: &mut TessOutput, tri: TessTriangle, capacity: usize) {
+    if out.triangles.len() < capacity {
+        out.triangles.push(tri);
+    } else {
+        out.stats.overflowed = true;
+    }
+}
+
+/// Children of a triangle with corners `c` whose edges k (c[k]→c[k+1]) are split as given.
+/// The same table is in shaders/tessellate.wgsl.
+pub fn children(c: [Bary; 3], split: [bool; 3]) -> Vec<[Bary; 3]> {
+    let m = [0, 1, 2].map(|k| c[k].midpoint(c[(k + 1) % 3]));
+    match split {
+        [false, false, false] => vec![c],
+        [true, true, true] => vec![
+            [c[0], m[0], m[2]],
+            [m[0], c[1], m[1]],
+            [m[2], m[1], c[2]],
+            [m[0], m[1], m[2]],
+        ],
+        _ => {
+            // Rotate so the split edges start at edge 0: one split → edge 0; two → edges 0, 1.
+            let n = split.iter().filter(|&&s| s).count();
+            let r = (0..3)
+                .find(|&r| {
+                    if n == 1 {
+                        split[r]
+                    } else {
+                        split[r] && split[(r + 1) % 3]
+                    }
+                })
+                .unwrap_or(0);
+            let (a, b, cc) = (c[r], c[(r + 1) % 3], c[(r + 2) % 3]);
+            let (m0, m1) = (m[r], m[(r + 1) % 3]);
+            if n == 1 {
+                vec![[a, m0, cc], [m0, b, cc]]
+            } else {
+                vec![[a, m0, cc], [m0, b, m1], [m0, m1, cc]]
+            }
+        }
+    }
+}
+
+/// One view's context from the usual renderer inputs.
+pub fn tess_view<'a>(
+    view: &'a ViewSetup,
+    wall: &'a Wall,
+    world_from_cave: Mat4,
+    omni: Option<OmniSettings>,
+    near: f32,
+) -> TessView<'a> {
+    TessView {
+        view,
+        wall,
+        cave_from_world: world_from_cave.inverse(),
+        omni,
+        near,
+    }
+}
+
+/// Per source triangle: whether its material is double-sided (never back-face culled).
+pub fn double_sided_flags(scene: &Scene) -> Vec<bool> {
+    let mut flags = vec![true; scene.triangle_count()];
+    for d in &scene.draws {
+        let ds = scene
+            .materials
+            .get(d.material)
+            .is_none_or(|m| m.double_sided);
+        let first = d.first_index as usize / 3;
+        for f in flags
+            .iter_mut()
+            .skip(first)
+            .take(d.index_count as usize / 3)
+        {
+            *f = ds;
+        }
+    }
+    flags
+}
+
+/// The eye a view is for (left in mono).
+pub fn view_eye(view: &ViewSetup) -> Eye {
+    view.eye.unwrap_or(Eye::Left)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn children_cover_the_parent_with_matching_winding() {
+        let c = [Bary::V0, Bary::V1, Bary::V2];
+        let area = |t: [Bary; 3]| {
+            let p = t.map(|b| glam::DVec2::new(f64::from(b.b1), f64::from(b.b2)));
+            (p[1] - p[0]).perp_dot(p[2] - p[0])
+        };
+        for mask in 0..8u8 {
+            let split = [mask & 1 != 0, mask & 2 != 0, mask & 4 != 0];
+            let kids = children(c, split);
+            let n = split.iter().filter(|&&s| s).count();
+            assert_eq!(kids.len(), [1, 2, 3, 4][n], "{split:?}");
+            let total: f64 = kids.iter().map(|&k| area(k)).sum();
+            assert_eq!(total, area(c), "{split:?} children do not tile the parent");
+            for k in &kids {
+                assert!(area(*k) > 0.0, "{split:?}: child {k:?} is flipped or empty");
+            }
+        }
+    }
+
+    #[test]
+    fn shared_edge_points_are_bit_identical_from_either_side() {
+        // Two triangles sharing the edge a–b, listing it in opposite directions.
+        let a = Vec3::new(0.1, 0.2, 0.3);
+        let b = Vec3::new(1.7, -0.4, 2.9);
+        let t1 = [a, b, Vec3::new(0.0, 5.0, 0.0)];
+        let t2 = [b, a, Vec3::new(3.0, -5.0, 1.0)];
+        for k in 1..64u32 {
+            let s = k * (BARY_ONE / 64);
+            // Point at parameter s along a→b: in t1 it is (b0 = 1 − s, b1 = s); in t2 b0 = s.
+            let p1 = point_position(t1, Bary { b1: s, b2: 0 });
+            let p2 = point_position(
+                t2,
+                Bary {
+                    b1: BARY_ONE - s,
+                    b2: 0,
+                },
+            );
+            assert_eq!(p1, p2, "k = {k}");
+        }
+    }
+}
