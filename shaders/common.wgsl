@@ -115,3 +115,103 @@ fn blinn_phong(
     }
     return albedo * diffuse + specular_strength * specular;
 }
+
+// Tessellation, shared by shaders/tessellate.wgsl (splitting) and shaders/scene.wgsl (drawing);
+// mirrored on the CPU by src/tess/mod.rs.
+
+// Fixed-point 1.0 of barycentric coordinates.
+const BARY_ONE: u32 = 65536u;
+
+// A triangle inside a source triangle: corners as fixed-point barycentrics (b1, b2 per
+// corner; b0 = BARY_ONE − b1 − b2). Keep in sync with `GpuTessEntry` in
+// src/render/tessellator.rs.
+struct TessEntry {
+    source: u32,
+    // Round in which it was made; 0xffffffff marks a padding slot left by an overflow.
+    depth: u32,
+    c0: vec2<u32>,
+    c1: vec2<u32>,
+    c2: vec2<u32>,
+}
+
+// Lexicographic (x, y, z) order: true if a sorts before b.
+fn sorts_before(a: vec3<f32>, b: vec3<f32>) -> bool {
+    if a.x != b.x {
+        return a.x < b.x;
+    }
+    if a.y != b.y {
+        return a.y < b.y;
+    }
+    return a.z < b.z;
+}
+
+// How to interpolate at a barycentric point, canonically: a corner as is; a point on an edge
+// as v[i] + t·(v[j] − v[i]) with i the endpoint whose position sorts first (so triangles
+// sharing the edge compute bit-identical points); an interior point with weights w.
+struct InterpPlan {
+    // 0: corner i; 1: edge i→j at t; 2: interior with weights w.
+    mode: u32,
+    i: u32,
+    j: u32,
+    t: f32,
+    w: vec3<f32>,
+}
+
+fn interp_plan(p: array<vec3<f32>, 3>, b: vec2<u32>) -> InterpPlan {
+    let w = array<u32, 3>(BARY_ONE - b.x - b.y, b.x, b.y);
+    var plan: InterpPlan;
+    var zeros = 0u;
+    var z = 0u;
+    var nz = 0u;
+    for (var k = 0u; k < 3u; k++) {
+        if w[k] == 0u {
+            zeros += 1u;
+            z = k;
+        } else {
+            nz = k;
+        }
+    }
+    if zeros == 2u {
+        plan.mode = 0u;
+        plan.i = nz;
+        return plan;
+    }
+    if zeros == 1u {
+        var i = (z + 1u) % 3u;
+        var j = (z + 2u) % 3u;
+        if sorts_before(p[j], p[i]) {
+            let s = i;
+            i = j;
+            j = s;
+        }
+        plan.mode = 1u;
+        plan.i = i;
+        plan.j = j;
+        plan.t = f32(w[j]) / f32(BARY_ONE);
+        return plan;
+    }
+    let inv = 1.0 / f32(BARY_ONE);
+    plan.mode = 2u;
+    plan.w = vec3<f32>(f32(w[0]) * inv, f32(w[1]) * inv, f32(w[2]) * inv);
+    return plan;
+}
+
+fn interp3(plan: InterpPlan, v: array<vec3<f32>, 3>) -> vec3<f32> {
+    if plan.mode == 0u {
+        return v[plan.i];
+    }
+    if plan.mode == 1u {
+        return v[plan.i] + plan.t * (v[plan.j] - v[plan.i]);
+    }
+    return plan.w.x * v[0] + plan.w.y * v[1] + plan.w.z * v[2];
+}
+
+fn interp2(plan: InterpPlan, v: array<vec2<f32>, 3>) -> vec2<f32> {
+    if plan.mode == 0u {
+        return v[plan.i];
+    }
+    if plan.mode == 1u {
+        return v[plan.i] + plan.t * (v[plan.j] - v[plan.i]);
+    }
+    return plan.w.x * v[0] + plan.w.y * v[1] + plan.w.z * v[2];
+}

@@ -10,6 +10,7 @@ use serde::Deserialize;
 
 use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
+use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, parse_criterion};
 
 /// Everything that can be wrong with a config file.
 #[derive(Debug, thiserror::Error)]
@@ -46,6 +47,8 @@ pub struct ConfigFile {
     pub lighting: LightingSection,
     #[serde(default)]
     pub omnistereo: OmnistereoSection,
+    #[serde(default)]
+    pub tessellation: TessellationSection,
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
@@ -105,6 +108,39 @@ impl Default for OmnistereoSection {
             pole_merge_end_degrees: default_pole_end(),
         }
     }
+}
+
+/// Adaptive tessellation before the omnistereo warp.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TessellationSection {
+    /// `none`, `uniform:N`, `edge:PX`, `sphere:PX` or `error:PX`.
+    #[serde(default = "default_criterion")]
+    pub criterion: String,
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
+    #[serde(default = "yes")]
+    pub backface_cull: bool,
+    #[serde(default = "yes")]
+    pub frustum_cull: bool,
+}
+
+impl Default for TessellationSection {
+    fn default() -> Self {
+        Self {
+            criterion: default_criterion(),
+            max_depth: default_max_depth(),
+            backface_cull: true,
+            frustum_cull: true,
+        }
+    }
+}
+
+fn default_criterion() -> String {
+    "none".into()
+}
+fn default_max_depth() -> u32 {
+    TessSettings::default().max_depth
 }
 
 fn default_warp() -> String {
@@ -388,6 +424,7 @@ pub struct Config {
     pub world_from_cave: Mat4,
     pub lighting: Lighting,
     pub omni: OmniSettings,
+    pub tess: TessSettings,
 }
 
 impl Config {
@@ -532,6 +569,23 @@ impl ConfigFile {
             }),
         };
 
+        let t = &self.tessellation;
+        let criterion = parse_criterion(&t.criterion)
+            .map_err(|reason| ck.fail("tessellation.criterion", &t.criterion, &reason))?;
+        if t.max_depth > MAX_DEPTH_LIMIT {
+            return Err(ck.fail(
+                "tessellation.max_depth",
+                t.max_depth,
+                &format!("must be at most {MAX_DEPTH_LIMIT}"),
+            ));
+        }
+        let tess = TessSettings {
+            criterion,
+            max_depth: t.max_depth,
+            backface_cull: t.backface_cull,
+            frustum_cull: t.frustum_cull,
+        };
+
         let h = &self.head;
         let head_pos = ck.finite3("head.position", h.position)?;
         let cave_for_check = Cave {
@@ -631,6 +685,7 @@ impl ConfigFile {
             world_from_cave,
             lighting: l.to_lighting(),
             omni,
+            tess,
         })
     }
 }

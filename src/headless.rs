@@ -43,6 +43,9 @@ pub struct Overrides {
     pub warp: Option<crate::cave::omni::WarpVariant>,
     /// `Some(None)` switches pole merging off; `Some(Some(..))` sets its angles.
     pub pole_merge: Option<Option<crate::cave::omni::PoleMerge>>,
+    /// `Some(None)` switches tessellation off.
+    pub tess: Option<Option<crate::tess::Criterion>>,
+    pub tess_max_depth: Option<u32>,
 }
 
 impl Overrides {
@@ -78,6 +81,12 @@ impl Overrides {
         if let Some(pole) = self.pole_merge {
             config.omni.pole_merge = pole;
         }
+        if let Some(criterion) = self.tess {
+            config.tess.criterion = criterion;
+        }
+        if let Some(depth) = self.tess_max_depth {
+            config.tess.max_depth = depth;
+        }
     }
 }
 
@@ -96,7 +105,27 @@ pub fn render_images(
         },
     )?;
     renderer.set_scene(scene);
-    renderer.render(&frame_params(config));
+    renderer.render(&frame_params(config))?;
+    for (view, stats) in renderer
+        .last_views()
+        .iter()
+        .zip(renderer.read_tess_stats()?)
+    {
+        tracing::info!(
+            "tessellation {} {}: {} input, {} back-face culled, {} frustum culled, {} emitted{}",
+            config.cave.walls[view.wall].name,
+            view.eye.map_or("mono", |e| e.name()),
+            stats.input,
+            stats.culled_backface,
+            stats.culled_frustum,
+            stats.emitted,
+            if stats.overflowed {
+                " (budget exceeded: less refined than asked)"
+            } else {
+                ""
+            }
+        );
+    }
     renderer.read_images()
 }
 
@@ -111,6 +140,7 @@ pub fn frame_params(config: &Config) -> FrameParams<'_> {
         lighting: config.lighting,
         background: config.background,
         omni: config.omni,
+        tess: config.tess,
     }
 }
 

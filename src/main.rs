@@ -10,6 +10,7 @@ use glam::Vec3;
 use omnicave::cave::RenderMode;
 use omnicave::cave::omni::{PoleMerge, WarpVariant};
 use omnicave::headless::{self, Overrides};
+use omnicave::tess::{Criterion, MAX_DEPTH_LIMIT, parse_criterion};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -63,6 +64,12 @@ struct RenderArgs {
     /// Omnistereo pole merge: START,END elevation in degrees (e.g. 60,75), or "off".
     #[arg(long, value_parser = parse_pole_merge)]
     pole_merge: Option<PoleMergeArg>,
+    /// Adaptive tessellation before the warp: none, uniform:N, edge:PX, sphere:PX or error:PX.
+    #[arg(long, value_parser = parse_tess)]
+    tess: Option<TessArg>,
+    /// Deepest subdivision (6 = 64 segments per edge, like hardware tessellators).
+    #[arg(long, value_parser = parse_depth)]
+    tess_max_depth: Option<u32>,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -105,6 +112,25 @@ fn parse_pole_merge(s: &str) -> Result<PoleMergeArg, String> {
         start_degrees: start,
         end_degrees: end,
     })))
+}
+
+/// `--tess` value (a newtype: clap reads `Option<Option<T>>` as an optional-value flag).
+#[derive(Debug, Clone, Copy)]
+struct TessArg(Option<Criterion>);
+
+fn parse_tess(s: &str) -> Result<TessArg, String> {
+    parse_criterion(s).map(TessArg)
+}
+
+fn parse_depth(s: &str) -> Result<u32, String> {
+    let d: u32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a whole number of levels"))?;
+    if d > MAX_DEPTH_LIMIT {
+        return Err(format!("depth {d} exceeds the limit of {MAX_DEPTH_LIMIT}"));
+    }
+    Ok(d)
 }
 
 fn parse_finite(s: &str, what: &str) -> Result<f32, String> {
@@ -205,6 +231,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 wireframe: args.wireframe,
                 warp: args.warp,
                 pole_merge: args.pole_merge.map(|p| p.0),
+                tess: args.tess.map(|t| t.0),
+                tess_max_depth: args.tess_max_depth,
             };
             let written = headless::render_to_dir(&args.config, &overrides, &args.out)
                 .context("render failed")?;

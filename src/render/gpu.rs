@@ -13,6 +13,9 @@ pub struct Gpu {
     pub wireframe_supported: bool,
 }
 
+/// Storage buffers the compute tessellator binds in one stage.
+pub const TESSELLATOR_STORAGE_BUFFERS: u32 = 11;
+
 impl Gpu {
     /// Opens the default adapter without a window (honours `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`).
     pub fn headless() -> Result<Self, RenderError> {
@@ -40,10 +43,17 @@ impl Gpu {
     ) -> Result<Self, RenderError> {
         let wanted = wgpu::Features::POLYGON_MODE_LINE;
         let features = adapter.features() & wanted;
+        // The tessellator binds 11 storage buffers in one compute stage; WebGPU's default is 8
+        // but desktop adapters (and lavapipe) offer far more.
+        let mut limits = wgpu::Limits::default().using_resolution(adapter.limits());
+        limits.max_storage_buffers_per_shader_stage = adapter
+            .limits()
+            .max_storage_buffers_per_shader_stage
+            .clamp(limits.max_storage_buffers_per_shader_stage, 16);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("omnicave device"),
             required_features: features,
-            required_limits: wgpu::Limits::default().using_resolution(adapter.limits()),
+            required_limits: limits,
             ..Default::default()
         }))
         .map_err(|e| RenderError::Device(e.to_string()))?;
@@ -62,6 +72,11 @@ impl Gpu {
             queue,
             wireframe_supported: features.contains(wgpu::Features::POLYGON_MODE_LINE),
         })
+    }
+
+    /// Whether the device can run the compute tessellator.
+    pub fn tessellation_supported(&self) -> bool {
+        self.device.limits().max_storage_buffers_per_shader_stage >= TESSELLATOR_STORAGE_BUFFERS
     }
 
     /// "name (backend)" of the adapter, for logs and reports.

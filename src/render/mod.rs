@@ -4,6 +4,7 @@ pub mod gpu;
 pub mod scene_pass;
 pub mod shaders;
 pub mod targets;
+pub mod tessellator;
 pub mod uniforms;
 
 use glam::Mat4;
@@ -12,12 +13,14 @@ use image::RgbaImage;
 pub use gpu::Gpu;
 use scene_pass::{SceneGpu, ScenePass};
 use targets::WallTargets;
+use tessellator::{TessBuffers, TessUniforms, Tessellator};
 use uniforms::{FrameUniforms, ViewUniforms};
 
 use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, view_setups};
 use crate::config::Lighting;
 use crate::scene::Scene;
+use crate::tess::{TessSettings, TessStats};
 
 /// Everything that can go wrong in the render layer.
 #[derive(Debug, thiserror::Error)]
@@ -32,6 +35,8 @@ pub enum RenderError {
     Readback(String),
     #[error("MSAA ×{0} is not supported here (use 1 or 4)")]
     Msaa(u32),
+    #[error(transparent)]
+    Tessellation(#[from] tessellator::TessError),
 }
 
 /// Settings that change pipelines or targets (rarely; never per frame).
@@ -64,6 +69,8 @@ pub struct FrameParams<'a> {
     pub background: [f32; 3],
     /// Warp variant and pole merge (used by the omnistereo modes).
     pub omni: OmniSettings,
+    /// Adaptive tessellation before the warp (on when a criterion is set).
+    pub tess: TessSettings,
 }
 
 /// Counts from the last frame.
@@ -81,6 +88,13 @@ pub struct Renderer {
     settings: RenderSettings,
     scene_pass: ScenePass,
     scene: Option<SceneGpu>,
+    /// `None` when the device cannot run it (too few storage buffers per stage).
+    tessellator: Option<Tessellator>,
+    /// Created on the first tessellated frame of a scene (they are large).
+    tess_buffers: Option<(TessBuffers, u64)>,
+    tess_capacity: u32,
+    /// Whether the last frame was tessellated (and with how many views).
+    last_tessellated: bool,
     targets: Vec<WallTargets>,
     wall_names: Vec<String>,
     last_views: Vec<ViewSetup>,
@@ -96,13 +110,32 @@ impl Renderer {
         if settings.wireframe && !gpu.wireframe_supported {
             tracing::warn!("wireframe requested but the adapter lacks POLYGON_MODE_LINE; off");
         }
-        let scene_pass = ScenePass::new(&gpu.device, settings.msaa, cave.walls.len() * 2);
+        let tessellator = gpu
+            .tessellation_supported()
+            .then(|| Tessellator::new(&gpu.device));
+        if tessellator.is_none() {
+            tracing::warn!(
+                "the adapter binds fewer than {} storage buffers per stage: tessellation is \
+                 unavailable and will be skipped",
+                gpu::TESSELLATOR_STORAGE_BUFFERS
+            );
+        }
+        let scene_pass = ScenePass::new(
+            &gpu.device,
+            settings.msaa,
+            cave.walls.len() * 2,
+            &Tessellator::draw_layout(&gpu.device),
+        );
         let mut renderer = Self {
             device: gpu.device.clone(),
             queue: gpu.queue.clone(),
             settings,
             scene_pass,
             scene: None,
+            tessellator,
+            tess_buffers: None,
+            tess_capacity: tessellator::DEFAULT_CAPACITY,
+            last_tessellated: false,
             targets: Vec::new(),
             wall_names: Vec::new(),
             last_views: Vec::new(),
@@ -118,6 +151,47 @@ impl Renderer {
             self.scene_pass
                 .upload_scene(&self.device, &self.queue, scene),
         );
+        self.tess_buffers = None;
+    }
+
+    /// Sets the tessellation output budget (triangles per view); takes effect on the next
+    /// tessellated frame.
+    pub fn set_tess_capacity(&mut self, capacity: u32) {
+        self.tess_capacity = capacity.max(1);
+        self.tess_buffers = None;
+    }
+
+    /// Makes sure the tessellation buffers exist and match the scene and view buffer.
+    fn ensure_tess_buffers(&mut self) -> Result<(), RenderError> {
+        let generation = self.scene_pass.view_buffer_generation;
+        if self
+            .tess_buffers
+            .as_ref()
+            .is_some_and(|(_, g)| *g == generation)
+        {
+            return Ok(());
+        }
+        let Some(scene) = &self.scene else {
+            return Ok(());
+        };
+        let Some(tessellator) = &self.tessellator else {
+            return Ok(());
+        };
+        let (frame_buffer, view_buffer) = self.scene_pass.uniform_buffers();
+        let buffers = tessellator.buffers(
+            &self.device,
+            frame_buffer,
+            view_buffer,
+            std::mem::size_of::<ViewUniforms>() as u64,
+            &scene.vertex_buffer,
+            &scene.index_buffer,
+            &scene.tri_info,
+            scene.draw_count(),
+            self.tess_capacity,
+            self.scene_pass.view_capacity(),
+        )?;
+        self.tess_buffers = Some((buffers, generation));
+        Ok(())
     }
 
     /// Changes MSAA or wireframe; rebuilds pipelines and targets only when MSAA changes.
@@ -175,8 +249,13 @@ impl Renderer {
     }
 
     /// Renders every view of the frame and submits the work (no CPU read-back).
-    pub fn render(&mut self, frame: &FrameParams<'_>) -> FrameStats {
+    pub fn render(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
         self.sync_walls(frame.cave);
+        let tessellate =
+            frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
+        if tessellate {
+            self.ensure_tess_buffers()?;
+        }
         let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
         let frame_uniforms = FrameUniforms::new(
             frame.world_from_cave,
@@ -188,6 +267,21 @@ impl Renderer {
             &frame_uniforms,
             views.iter().map(ViewUniforms::from),
         );
+        if let (true, Some((buffers, _))) = (tessellate, self.tess_buffers.as_mut()) {
+            buffers.write_uniforms(
+                &self.queue,
+                views.iter().map(|v| {
+                    TessUniforms::new(
+                        v,
+                        &frame.cave.walls[v.wall],
+                        frame.cave.near,
+                        &frame.tess,
+                        frame.mode.is_omni(),
+                    )
+                }),
+            );
+        }
+        let rounds = tessellator::rounds(&frame.tess);
         let clear = srgb_to_linear_color(frame.background);
         let wireframe = self.settings.wireframe && self.wireframe_supported;
         let mut encoder = self
@@ -196,6 +290,14 @@ impl Renderer {
                 label: Some("Renderer::frame"),
             });
         for (index, view) in views.iter().enumerate() {
+            let tess = self
+                .tess_buffers
+                .as_ref()
+                .map(|(b, _)| b)
+                .filter(|_| tessellate);
+            if let (Some(buffers), Some(tessellator)) = (tess, &self.tessellator) {
+                buffers.encode(tessellator, &mut encoder, index, rounds);
+            }
             let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
             let (attachment, resolve) = match &target.msaa_view {
                 Some(msaa) => (msaa, Some(&target.color_view)),
@@ -224,8 +326,13 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            if let Some(scene) = &self.scene {
-                self.scene_pass.draw(&mut pass, scene, index, wireframe);
+            match (&self.scene, tess) {
+                (Some(scene), Some(buffers)) => {
+                    self.scene_pass
+                        .draw_tessellated(&mut pass, scene, buffers, index, wireframe);
+                }
+                (Some(scene), None) => self.scene_pass.draw(&mut pass, scene, index, wireframe),
+                (None, _) => {}
             }
         }
         self.queue.submit([encoder.finish()]);
@@ -235,7 +342,33 @@ impl Renderer {
             triangles_submitted: triangles * views.len(),
         };
         self.last_views = views;
-        stats
+        self.last_tessellated = tessellate;
+        Ok(stats)
+    }
+
+    /// Tessellation statistics of the last frame, one per view in `last_views()` order
+    /// (blocking read; for the CLI and tests). Empty when the frame was not tessellated.
+    pub fn read_tess_stats(&self) -> Result<Vec<TessStats>, RenderError> {
+        match (&self.tess_buffers, &self.scene, self.last_tessellated) {
+            (Some((buffers, _)), Some(scene), true) => buffers.read_stats(
+                &self.device,
+                &self.queue,
+                self.last_views.len(),
+                scene.triangle_count as u32,
+            ),
+            _ => Ok(Vec::new()),
+        }
+    }
+
+    /// The output triangles of the last view of the last tessellated frame (tests).
+    pub fn read_tess_entries(&self) -> Result<Vec<tessellator::GpuTessEntry>, RenderError> {
+        let stats = self.read_tess_stats()?;
+        match (&self.tess_buffers, stats.last()) {
+            (Some((buffers, _)), Some(last)) => {
+                buffers.read_entries(&self.device, &self.queue, last.emitted)
+            }
+            _ => Ok(Vec::new()),
+        }
     }
 
     /// The views of the last rendered frame.

@@ -28,6 +28,8 @@ const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
 struct PipelineKey {
     double_sided: bool,
     wireframe: bool,
+    /// Vertices pulled from the tessellator's output (`vs_tess`) instead of a vertex buffer.
+    tessellated: bool,
 }
 
 /// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
@@ -39,7 +41,10 @@ pub struct ScenePass {
     frame_layout: wgpu::BindGroupLayout,
     material_layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
+    tess_pipeline_layout: wgpu::PipelineLayout,
     shader: wgpu::ShaderModule,
+    /// Bumped whenever the view buffer is replaced (bind groups built on it must follow).
+    pub view_buffer_generation: u64,
     pipelines: HashMap<PipelineKey, wgpu::RenderPipeline>,
     msaa: u32,
     frame_buffer: wgpu::Buffer,
@@ -53,9 +58,11 @@ pub struct ScenePass {
 /// A scene uploaded to the GPU.
 #[derive(Debug)]
 pub struct SceneGpu {
-    vertex_buffer: wgpu::Buffer,
-    index_buffer: wgpu::Buffer,
+    pub(crate) vertex_buffer: wgpu::Buffer,
+    pub(crate) index_buffer: wgpu::Buffer,
     draws: Vec<GpuDraw>,
+    /// Per source triangle: its draw index, bit 31 set when double-sided (for the tessellator).
+    pub(crate) tri_info: Vec<u32>,
     material_bind_groups: Vec<wgpu::BindGroup>,
     /// Kept alive for the bind groups.
     _material_buffer: wgpu::Buffer,
@@ -71,8 +78,20 @@ struct GpuDraw {
     double_sided: bool,
 }
 
+impl SceneGpu {
+    /// Number of draws (materials runs) the scene is drawn with.
+    pub fn draw_count(&self) -> usize {
+        self.draws.len()
+    }
+}
+
 impl ScenePass {
-    pub fn new(device: &wgpu::Device, msaa: u32, view_capacity: usize) -> Self {
+    pub fn new(
+        device: &wgpu::Device,
+        msaa: u32,
+        view_capacity: usize,
+        tess_draw_layout: &wgpu::BindGroupLayout,
+    ) -> Self {
         let uniform_entry = |binding, dynamic| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -114,6 +133,15 @@ impl ScenePass {
             bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
             immediate_size: 0,
         });
+        let tess_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ScenePass::tess_pipeline_layout"),
+            bind_group_layouts: &[
+                Some(&frame_layout),
+                Some(&material_layout),
+                Some(tess_draw_layout),
+            ],
+            immediate_size: 0,
+        });
         let shader = shaders::module(device, "ScenePass::shader", shaders::SCENE);
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ScenePass::frame_buffer"),
@@ -127,7 +155,9 @@ impl ScenePass {
             frame_layout,
             material_layout,
             pipeline_layout,
+            tess_pipeline_layout,
             shader,
+            view_buffer_generation: 0,
             pipelines: HashMap::new(),
             msaa,
             frame_buffer,
@@ -182,41 +212,58 @@ impl ScenePass {
             .contains(wgpu::Features::POLYGON_MODE_LINE);
         for double_sided in [false, true] {
             for wireframe in [false, true] {
-                if wireframe && !wireframe_supported {
-                    continue;
+                for tessellated in [false, true] {
+                    if wireframe && !wireframe_supported {
+                        continue;
+                    }
+                    let key = PipelineKey {
+                        double_sided,
+                        wireframe,
+                        tessellated,
+                    };
+                    let pipeline = self.build_pipeline(device, key);
+                    self.pipelines.insert(key, pipeline);
                 }
-                let key = PipelineKey {
-                    double_sided,
-                    wireframe,
-                };
-                let pipeline = self.build_pipeline(device, key);
-                self.pipelines.insert(key, pipeline);
             }
         }
     }
 
     fn build_pipeline(&self, device: &wgpu::Device, key: PipelineKey) -> wgpu::RenderPipeline {
         let label = format!(
-            "ScenePass::pipeline{}{}",
+            "ScenePass::pipeline{}{}{}",
             if key.double_sided {
                 " double-sided"
             } else {
                 ""
             },
-            if key.wireframe { " wireframe" } else { "" }
+            if key.wireframe { " wireframe" } else { "" },
+            if key.tessellated { " tessellated" } else { "" }
         );
+        let vertex_buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<GpuVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &VERTEX_ATTRIBUTES,
+        })];
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(&label),
-            layout: Some(&self.pipeline_layout),
+            layout: Some(if key.tessellated {
+                &self.tess_pipeline_layout
+            } else {
+                &self.pipeline_layout
+            }),
             vertex: wgpu::VertexState {
                 module: &self.shader,
-                entry_point: Some("vs_main"),
+                entry_point: Some(if key.tessellated {
+                    "vs_tess"
+                } else {
+                    "vs_main"
+                }),
                 compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<GpuVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &VERTEX_ATTRIBUTES,
-                })],
+                buffers: if key.tessellated {
+                    &[]
+                } else {
+                    &vertex_buffers
+                },
             },
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
@@ -287,6 +334,16 @@ impl ScenePass {
         self.view_buffer = buffer;
         self.frame_bind_group = bind_group;
         self.view_capacity = views;
+        self.view_buffer_generation += 1;
+    }
+
+    /// The per-frame uniform buffers (the tessellator binds them too).
+    pub fn uniform_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        (&self.frame_buffer, &self.view_buffer)
+    }
+
+    pub fn view_capacity(&self) -> usize {
+        self.view_capacity
     }
 
     /// Uploads this frame's uniforms: one write for the frame, one for all views.
@@ -332,6 +389,7 @@ impl ScenePass {
                 let key = PipelineKey {
                     double_sided: draw.double_sided,
                     wireframe: wire,
+                    tessellated: false,
                 };
                 if bound != Some(key) {
                     let Some(pipeline) = self.pipelines.get(&key) else {
@@ -350,6 +408,49 @@ impl ScenePass {
                     draw.first_index..draw.first_index + draw.index_count,
                     0,
                     0..1,
+                );
+            }
+        }
+    }
+
+    /// Records the draws of the tessellator's output for view slot `view_index`: one indirect
+    /// draw per scene draw (material), with arguments the tessellator wrote on the GPU.
+    pub fn draw_tessellated(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        scene: &SceneGpu,
+        tess: &super::tessellator::TessBuffers,
+        view_index: usize,
+        wireframe: bool,
+    ) {
+        let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
+        pass.set_bind_group(0, &self.frame_bind_group, &[view_offset]);
+        pass.set_bind_group(2, &tess.draw_group, &[]);
+        let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
+        for &wire in layers {
+            let mut bound: Option<PipelineKey> = None;
+            for (d, draw) in scene.draws.iter().enumerate() {
+                let key = PipelineKey {
+                    double_sided: draw.double_sided,
+                    wireframe: wire,
+                    tessellated: true,
+                };
+                if bound != Some(key) {
+                    let Some(pipeline) = self.pipelines.get(&key) else {
+                        continue;
+                    };
+                    pass.set_pipeline(pipeline);
+                    bound = Some(key);
+                }
+                let material_offset = (draw.material as u64 * UNIFORM_STRIDE) as u32;
+                pass.set_bind_group(
+                    1,
+                    &scene.material_bind_groups[draw.material],
+                    &[material_offset],
+                );
+                pass.draw_indirect(
+                    &tess.args,
+                    super::tessellator::TessBuffers::draw_args_offset(d),
                 );
             }
         }
@@ -472,7 +573,7 @@ impl ScenePass {
             }));
         }
 
-        let draws = scene
+        let draws: Vec<GpuDraw> = scene
             .draws
             .iter()
             .filter(|d| d.material < scene.materials.len())
@@ -483,6 +584,15 @@ impl ScenePass {
                 double_sided: scene.materials[d.material].double_sided,
             })
             .collect();
+        let mut tri_info = vec![0u32; scene.triangle_count()];
+        for (d, draw) in draws.iter().enumerate() {
+            let flag = if draw.double_sided { 1 << 31 } else { 0 };
+            let first = draw.first_index as usize / 3;
+            let count = draw.index_count as usize / 3;
+            for info in tri_info.iter_mut().skip(first).take(count) {
+                *info = d as u32 | flag;
+            }
+        }
 
         let mut all_textures = textures;
         all_textures.push(white);
@@ -490,6 +600,7 @@ impl ScenePass {
             vertex_buffer,
             index_buffer,
             draws,
+            tri_info,
             material_bind_groups,
             _material_buffer: material_buffer,
             _textures: all_textures,

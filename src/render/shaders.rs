@@ -6,8 +6,11 @@ pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 /// Scene geometry (paired with `src/render/scene_pass.rs`).
 pub const SCENE: &str = include_str!("../../shaders/scene.wgsl");
 
+/// Adaptive tessellation compute passes (paired with `src/render/tessellator.rs`).
+pub const TESSELLATE: &str = include_str!("../../shaders/tessellate.wgsl");
+
 /// Every feature shader by file stem, for validation.
-pub const FEATURES: &[(&str, &str)] = &[("scene", SCENE)];
+pub const FEATURES: &[(&str, &str)] = &[("scene", SCENE), ("tessellate", TESSELLATE)];
 
 /// Full source of a feature shader: common declarations followed by the feature's own code.
 pub fn compose(feature_source: &str) -> String {

@@ -1,0 +1,416 @@
+// Adaptive tessellation before the warp, in compute: conforming edge bisection.
+// Paired with src/render/tessellator.rs; the CPU twin is src/tess/ (keep the three in step).
+//
+// Per view: cs_init culls source triangles and seeds the live list; each round cs_prepare sizes
+// the next indirect dispatch and cs_split splits every live triangle's edges by the criterion
+// (children to the other live list, finished triangles to the output); cs_flush finishes what
+// is left at the maximum depth; cs_prefix and cs_scatter sort the output by draw (material)
+// and write one indirect draw per draw. No CPU read-back anywhere.
+
+// Keep in sync with `TessUniforms` in src/render/tessellator.rs.
+struct TessUniforms {
+    // x: criterion (0 none, 1 uniform, 2 edge, 3 sphere, 4 error); y: its value;
+    // z: maximum depth; w: 1 if edge lengths count along x only (vertical wall).
+    criterion: vec4<f32>,
+    // x, y: wall pixels; z: wall pixels per metre; w: distance of C from the wall plane.
+    wall: vec4<f32>,
+    // x: near; y: 1 = back-face culling; z: 1 = frustum culling; w: eye-ball radius.
+    cull: vec4<f32>,
+    // xyz: centre of the eye ball (head in omnistereo, else the eye); w unused.
+    eye_ball: vec4<f32>,
+    // x: source triangles; y: live capacity; z: output capacity; w: draws.
+    counts: vec4<u32>,
+}
+
+const DEAD: u32 = 0xffffffffu;
+const WORKGROUP: u32 = 64u;
+
+// Counter slots (keep in sync with src/render/tessellator.rs).
+const C_OUT: u32 = 0u;
+const C_BACK: u32 = 1u;
+const C_FRUSTUM: u32 = 2u;
+const C_OVERFLOW: u32 = 3u;
+// Triangles in flight (finished + live): a split happens only if all of them still fit the
+// output, so running out of budget means "less refined", never "missing".
+const C_BUDGET: u32 = 4u;
+const C_DRAWS: u32 = 5u; // per-draw counts from here
+
+@group(0) @binding(0) var<uniform> frame: FrameUniforms;
+@group(0) @binding(1) var<uniform> view: ViewUniforms;
+@group(0) @binding(2) var<uniform> tess: TessUniforms;
+@group(0) @binding(3) var<storage, read> vertices: array<f32>;
+@group(0) @binding(4) var<storage, read> indices: array<u32>;
+// Per source triangle: draw index, bit 31 set if double-sided.
+@group(0) @binding(5) var<storage, read> tri_info: array<u32>;
+@group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> output: array<TessEntry>;
+@group(0) @binding(8) var<storage, read_write> sorted: array<TessEntry>;
+
+@group(1) @binding(0) var<storage, read_write> live_in: array<TessEntry>;
+@group(1) @binding(1) var<storage, read_write> live_out: array<TessEntry>;
+@group(1) @binding(2) var<storage, read_write> count_in: atomic<u32>;
+@group(1) @binding(3) var<storage, read_write> count_out: atomic<u32>;
+
+// Indirect arguments: [0..3) split dispatch, [3..6) flush/scatter dispatch, then 4 per draw.
+// Bound only for the passes that write them: an indirect dispatch may not also bind its
+// argument buffer as writable storage.
+@group(2) @binding(0) var<storage, read_write> args: array<u32>;
+
+fn vertex_position(i: u32) -> vec3<f32> {
+    return vec3<f32>(vertices[8u * i], vertices[8u * i + 1u], vertices[8u * i + 2u]);
+}
+
+fn source_positions(t: u32) -> array<vec3<f32>, 3> {
+    return array<vec3<f32>, 3>(
+        vertex_position(indices[3u * t]),
+        vertex_position(indices[3u * t + 1u]),
+        vertex_position(indices[3u * t + 2u]),
+    );
+}
+
+// Canonical interpolation of a position (mirrors tess::point_position).
+fn point_position(p: array<vec3<f32>, 3>, b: vec2<u32>) -> vec3<f32> {
+    return interp3(interp_plan(p, b), p);
+}
+
+struct Projected {
+    clip: vec4<f32>,
+    pixel: vec2<f32>,
+}
+
+// Mirrors tess::project: CAVE space, omnistereo eye and warp, projection, pixels.
+fn project(world: vec3<f32>) -> Projected {
+    let p = (frame.cave_from_world * vec4<f32>(world, 1.0)).xyz;
+    var warped = p;
+    if frame.omni.x > 0.5 {
+        let e = omni_eye(p, view, frame.omni);
+        warped = omni_warp(p, e, view, frame.omni.x);
+    }
+    var out: Projected;
+    out.clip = view.clip_from_cave * vec4<f32>(warped, 1.0);
+    out.pixel = vec2<f32>(
+        (out.clip.x / out.clip.w * 0.5 + 0.5) * tess.wall.x,
+        (0.5 - out.clip.y / out.clip.w * 0.5) * tess.wall.y,
+    );
+    return out;
+}
+
+fn midpoint(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    return (a + b) / 2u;
+}
+
+// Mirrors tess::criteria::split_edge.
+fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
+    let code = u32(tess.criterion.x);
+    let value = tess.criterion.y;
+    if code == 1u {
+        return f32(depth) < value;
+    }
+    let pa = point_position(p, a);
+    let pb = point_position(p, b);
+    let ja = project(pa);
+    let jb = project(pb);
+    let near = tess.cull.x;
+    let va = ja.clip.w > near;
+    let vb = jb.clip.w > near;
+    if !va && !vb {
+        return false;
+    }
+    if va != vb {
+        return true;
+    }
+    // Entirely beyond one side of the view: never split (mirrors the CPU twin).
+    let mid = project(point_position(p, midpoint(a, b)));
+    if outside_same_plane(ja.clip, jb.clip, mid.clip, near) {
+        return false;
+    }
+    if code == 2u {
+        let d = jb.pixel - ja.pixel;
+        var len = length(d);
+        if tess.criterion.w > 0.5 {
+            len = abs(d.x);
+        }
+        return len > value;
+    }
+    if code == 3u {
+        let ca = (frame.cave_from_world * vec4<f32>(pa, 1.0)).xyz;
+        let cb = (frame.cave_from_world * vec4<f32>(pb, 1.0)).xyz;
+        let radius = 0.5 * length(cb - ca);
+        let centre = project(0.5 * (pa + pb));
+        if centre.clip.w <= near {
+            return true;
+        }
+        return 2.0 * radius * tess.wall.w / centre.clip.w * tess.wall.z > value;
+    }
+    if mid.clip.w <= near {
+        return true;
+    }
+    return length(mid.pixel - 0.5 * (ja.pixel + jb.pixel)) > value;
+}
+
+// Three points all behind the viewpoint or all beyond one frustum side (mirrors
+// tess::all_outside).
+fn outside_same_plane(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, near: f32) -> bool {
+    if a.w < near && b.w < near && c.w < near {
+        return true;
+    }
+    if a.w <= 0.0 || b.w <= 0.0 || c.w <= 0.0 {
+        return false;
+    }
+    return (a.x > a.w && b.x > b.w && c.x > c.w) || (a.x < -a.w && b.x < -b.w && c.x < -c.w)
+        || (a.y > a.w && b.y > b.w && c.y > c.w) || (a.y < -a.w && b.y < -b.w && c.y < -c.w);
+}
+
+fn make_entry(source: u32, depth: u32, c0: vec2<u32>, c1: vec2<u32>, c2: vec2<u32>) -> TessEntry {
+    var e: TessEntry;
+    e.source = source;
+    e.depth = depth;
+    e.c0 = c0;
+    e.c1 = c1;
+    e.c2 = c2;
+    return e;
+}
+
+// A finished triangle goes to the output; dropped (and flagged) if the output is full.
+fn emit(e: TessEntry) {
+    let slot = atomicAdd(&counters[C_OUT], 1u);
+    if slot < tess.counts.z {
+        output[slot] = e;
+        let draw = tri_info[e.source] & 0x7fffffffu;
+        atomicAdd(&counters[C_DRAWS + draw], 1u);
+    } else {
+        atomicStore(&counters[C_OVERFLOW], 1u);
+    }
+}
+
+fn outside_all(pts: array<vec4<f32>, 6>, near: f32) -> bool {
+    var behind = true;
+    var any_behind = false;
+    var px = true;
+    var nx = true;
+    var py = true;
+    var ny = true;
+    for (var k = 0u; k < 6u; k++) {
+        let c = pts[k];
+        behind = behind && c.w < near;
+        any_behind = any_behind || c.w <= 0.0;
+        px = px && c.x > c.w;
+        nx = nx && c.x < -c.w;
+        py = py && c.y > c.w;
+        ny = ny && c.y < -c.w;
+    }
+    if behind {
+        return true;
+    }
+    if any_behind {
+        return false;
+    }
+    return px || nx || py || ny;
+}
+
+@compute @workgroup_size(64)
+fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
+    let t = id.x;
+    if t >= tess.counts.x {
+        return;
+    }
+    let p = source_positions(t);
+    let double_sided = (tri_info[t] & 0x80000000u) != 0u;
+    if tess.cull.y > 0.5 && !double_sided {
+        let a = (frame.cave_from_world * vec4<f32>(p[0], 1.0)).xyz;
+        let b = (frame.cave_from_world * vec4<f32>(p[1], 1.0)).xyz;
+        let c = (frame.cave_from_world * vec4<f32>(p[2], 1.0)).xyz;
+        let n = cross(b - a, c - a);
+        let len = length(n);
+        if len > 0.0 && dot(n, tess.eye_ball.xyz - a) / len < -(tess.cull.w + 1e-4) {
+            atomicAdd(&counters[C_BACK], 1u);
+            return;
+        }
+    }
+    let v0 = vec2<u32>(0u, 0u);
+    let v1 = vec2<u32>(BARY_ONE, 0u);
+    let v2 = vec2<u32>(0u, BARY_ONE);
+    if tess.cull.z > 0.5 {
+        let pts = array<vec4<f32>, 6>(
+            project(p[0]).clip,
+            project(p[1]).clip,
+            project(p[2]).clip,
+            project(point_position(p, midpoint(v0, v1))).clip,
+            project(point_position(p, midpoint(v1, v2))).clip,
+            project(point_position(p, midpoint(v2, v0))).clip,
+        );
+        if outside_all(pts, tess.cull.x) {
+            atomicAdd(&counters[C_FRUSTUM], 1u);
+            return;
+        }
+    }
+    if atomicAdd(&counters[C_BUDGET], 1u) >= tess.counts.z {
+        // Not even the unrefined scene fits the output: this triangle is not drawn.
+        atomicStore(&counters[C_OVERFLOW], 1u);
+        return;
+    }
+    let e = make_entry(t, 0u, v0, v1, v2);
+    if u32(tess.criterion.x) == 0u || tess.criterion.z < 0.5 {
+        emit(e);
+        return;
+    }
+    let slot = atomicAdd(&count_out, 1u);
+    if slot < tess.counts.y {
+        live_out[slot] = e;
+    } else {
+        atomicStore(&counters[C_OVERFLOW], 1u);
+        emit(e);
+    }
+}
+
+// One thread: size the split dispatch from the live count, and reset the next list.
+@compute @workgroup_size(1)
+fn cs_prepare() {
+    let n = min(atomicLoad(&count_in), tess.counts.y);
+    args[0] = (n + WORKGROUP - 1u) / WORKGROUP;
+    args[1] = 1u;
+    args[2] = 1u;
+    atomicStore(&count_out, 0u);
+}
+
+@compute @workgroup_size(64)
+fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = min(atomicLoad(&count_in), tess.counts.y);
+    if id.x >= n {
+        return;
+    }
+    let e = live_in[id.x];
+    if e.depth == DEAD {
+        return;
+    }
+    let p = source_positions(e.source);
+    let c = array<vec2<u32>, 3>(e.c0, e.c1, e.c2);
+    let s = array<bool, 3>(
+        split_edge(p, e.depth, c[0], c[1]),
+        split_edge(p, e.depth, c[1], c[2]),
+        split_edge(p, e.depth, c[2], c[0]),
+    );
+    var n_split = 0u;
+    for (var k = 0u; k < 3u; k++) {
+        if s[k] {
+            n_split += 1u;
+        }
+    }
+    if n_split == 0u {
+        emit(e);
+        return;
+    }
+    let m = array<vec2<u32>, 3>(midpoint(c[0], c[1]), midpoint(c[1], c[2]), midpoint(c[2], c[0]));
+    let d = e.depth + 1u;
+    var kids: array<TessEntry, 4>;
+    var count = 0u;
+    if n_split == 3u {
+        kids[0] = make_entry(e.source, d, c[0], m[0], m[2]);
+        kids[1] = make_entry(e.source, d, m[0], c[1], m[1]);
+        kids[2] = make_entry(e.source, d, m[2], m[1], c[2]);
+        kids[3] = make_entry(e.source, d, m[0], m[1], m[2]);
+        count = 4u;
+    } else {
+        // Rotate so the split edges start at edge r (mirrors tess::children).
+        var r = 3u;
+        for (var k = 0u; k < 3u; k++) {
+            let ok = select(s[k] && s[(k + 1u) % 3u], s[k], n_split == 1u);
+            if r == 3u && ok {
+                r = k;
+            }
+        }
+        let a = c[r];
+        let b = c[(r + 1u) % 3u];
+        let cc = c[(r + 2u) % 3u];
+        let m0 = m[r];
+        let m1 = m[(r + 1u) % 3u];
+        if n_split == 1u {
+            kids[0] = make_entry(e.source, d, a, m0, cc);
+            kids[1] = make_entry(e.source, d, m0, b, cc);
+            count = 2u;
+        } else {
+            kids[0] = make_entry(e.source, d, a, m0, cc);
+            kids[1] = make_entry(e.source, d, m0, b, m1);
+            kids[2] = make_entry(e.source, d, m0, m1, cc);
+            count = 3u;
+        }
+    }
+    let extra = count - 1u;
+    if atomicAdd(&counters[C_BUDGET], extra) + extra > tess.counts.z {
+        // Budget: draw this triangle unrefined and report it.
+        atomicSub(&counters[C_BUDGET], extra);
+        atomicStore(&counters[C_OVERFLOW], 1u);
+        emit(e);
+        return;
+    }
+    let base = atomicAdd(&count_out, count);
+    if base + count <= tess.counts.y {
+        for (var k = 0u; k < count; k++) {
+            live_out[base + k] = kids[k];
+        }
+        return;
+    }
+    // Cannot happen while live capacity >= output capacity (the budget bounds both); kept so
+    // that a smaller live list degrades like the budget: dead padding, parent unrefined.
+    for (var k = base; k < min(base + count, tess.counts.y); k++) {
+        var dead = e;
+        dead.depth = DEAD;
+        live_out[k] = dead;
+    }
+    atomicStore(&counters[C_OVERFLOW], 1u);
+    emit(e);
+}
+
+// One thread: size a dispatch over what is left in the live list (for cs_flush).
+@compute @workgroup_size(1)
+fn cs_prepare_flush() {
+    let n = min(atomicLoad(&count_in), tess.counts.y);
+    args[3] = (n + WORKGROUP - 1u) / WORKGROUP;
+    args[4] = 1u;
+    args[5] = 1u;
+}
+
+@compute @workgroup_size(64)
+fn cs_flush(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = min(atomicLoad(&count_in), tess.counts.y);
+    if id.x >= n {
+        return;
+    }
+    let e = live_in[id.x];
+    if e.depth != DEAD {
+        emit(e);
+    }
+}
+
+// One thread: per-draw offsets (prefix sum), indirect draw arguments, and the scatter
+// dispatch size. Draw counts become cursors for cs_scatter.
+@compute @workgroup_size(1)
+fn cs_prefix() {
+    var offset = 0u;
+    for (var d = 0u; d < tess.counts.w; d++) {
+        let n = atomicLoad(&counters[C_DRAWS + d]);
+        let a = 6u + 4u * d;
+        args[a] = 3u * n;
+        args[a + 1u] = 1u;
+        args[a + 2u] = 3u * offset;
+        args[a + 3u] = 0u;
+        atomicStore(&counters[C_DRAWS + d], offset);
+        offset += n;
+    }
+    let total = min(atomicLoad(&counters[C_OUT]), tess.counts.z);
+    args[3] = (total + WORKGROUP - 1u) / WORKGROUP;
+    args[4] = 1u;
+    args[5] = 1u;
+}
+
+@compute @workgroup_size(64)
+fn cs_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
+    let total = min(atomicLoad(&counters[C_OUT]), tess.counts.z);
+    if id.x >= total {
+        return;
+    }
+    let e = output[id.x];
+    let draw = tri_info[e.source] & 0x7fffffffu;
+    let slot = atomicAdd(&counters[C_DRAWS + draw], 1u);
+    sorted[slot] = e;
+}

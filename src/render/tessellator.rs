@@ -1,0 +1,609 @@
+//! Adaptive tessellation in compute (shaders/tessellate.wgsl): per view, culls and splits the
+//! scene's triangles by conforming edge bisection into a fixed-size buffer, sorts the result by
+//! draw and writes indirect draw arguments; the scene pass then draws it with `vs_tess`.
+//! Dispatch sizes come from GPU counters (indirect dispatch): no CPU read-back per frame.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::RenderError;
+use super::shaders;
+use crate::cave::{ViewSetup, Wall};
+use crate::tess::criteria::wall_is_vertical;
+use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, TessStats};
+
+/// Output entry. Keep in sync with `TessEntry` in shaders/common.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct GpuTessEntry {
+    pub source: u32,
+    pub depth: u32,
+    pub corners: [[u32; 2]; 3],
+}
+
+/// Per-view parameters. Keep in sync with `TessUniforms` in shaders/tessellate.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct TessUniforms {
+    pub criterion: [f32; 4],
+    pub wall: [f32; 4],
+    pub cull: [f32; 4],
+    pub eye_ball: [f32; 4],
+    pub counts: [u32; 4],
+}
+
+impl TessUniforms {
+    /// Parameters of one view (the counts are filled in by `TessBuffers::write_uniforms`).
+    pub fn new(
+        view: &ViewSetup,
+        wall: &Wall,
+        near: f32,
+        settings: &TessSettings,
+        omni: bool,
+    ) -> Self {
+        let (code, value) = settings.criterion.map_or((0, 0.0), |c| c.gpu_code());
+        let [w, h] = wall.resolution.map(|v| v as f32);
+        let (centre, radius) = match view.omni {
+            Some(o) if omni => (o.head, 0.5 * o.ipd),
+            _ => (view.eye_position, 0.0),
+        };
+        let flag = |b: bool| if b { 1.0 } else { 0.0 };
+        Self {
+            criterion: [
+                code as f32,
+                value,
+                rounds(settings) as f32,
+                flag(wall_is_vertical(wall)),
+            ],
+            wall: [
+                w,
+                h,
+                w / wall.size_m().x,
+                wall.signed_distance(view.eye_position),
+            ],
+            cull: [
+                near,
+                flag(settings.backface_cull),
+                flag(settings.frustum_cull),
+                radius,
+            ],
+            eye_ball: centre.extend(0.0).to_array(),
+            counts: [0; 4],
+        }
+    }
+}
+
+/// Number of split rounds a setting asks for.
+pub fn rounds(settings: &TessSettings) -> u32 {
+    if settings.criterion.is_some() {
+        settings.max_depth.min(MAX_DEPTH_LIMIT)
+    } else {
+        0
+    }
+}
+
+/// Counter slots (keep in sync with shaders/tessellate.wgsl).
+const C_OUT: usize = 0;
+const C_BACK: usize = 1;
+const C_FRUSTUM: usize = 2;
+const C_OVERFLOW: usize = 3;
+// Slot 4 holds the triangles in flight (the budget); it never leaves the GPU.
+const C_DRAWS: usize = 5;
+/// Argument slots: 3 split dispatch + 3 flush/scatter dispatch, then 4 per draw.
+const ARGS_DRAWS: usize = 6;
+/// Bytes of per-view statistics copied out of the counters (C_OUT..=C_OVERFLOW).
+pub const STATS_BYTES: u64 = 16;
+const WORKGROUP: u32 = 64;
+
+/// Default output budget: triangles per view (32 bytes each, live lists alike).
+pub const DEFAULT_CAPACITY: u32 = 1 << 20;
+
+/// Everything that can go wrong setting up the tessellator.
+#[derive(Debug, thiserror::Error)]
+pub enum TessError {
+    #[error("scene has {0} triangles; the tessellator dispatches at most {1}")]
+    TooManyTriangles(usize, usize),
+}
+
+/// The compute pipelines and their layouts (built once).
+#[derive(Debug)]
+pub struct Tessellator {
+    shared_layout: wgpu::BindGroupLayout,
+    lists_layout: wgpu::BindGroupLayout,
+    args_layout: wgpu::BindGroupLayout,
+    init: wgpu::ComputePipeline,
+    prepare: wgpu::ComputePipeline,
+    split: wgpu::ComputePipeline,
+    prepare_flush: wgpu::ComputePipeline,
+    flush: wgpu::ComputePipeline,
+    prefix: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+    /// Layout for drawing tessellated output (group 2 of the scene pass).
+    pub draw_layout: wgpu::BindGroupLayout,
+}
+
+/// Per-scene buffers and bind groups, reused by every view and frame.
+#[derive(Debug)]
+pub struct TessBuffers {
+    capacity: u32,
+    source_triangles: u32,
+    draws: u32,
+    counters: wgpu::Buffer,
+    count_a: wgpu::Buffer,
+    pub args: wgpu::Buffer,
+    uniforms: wgpu::Buffer,
+    uniform_capacity: usize,
+    shared_group: wgpu::BindGroup,
+    lists_ab: wgpu::BindGroup,
+    lists_ba: wgpu::BindGroup,
+    args_group: wgpu::BindGroup,
+    pub draw_group: wgpu::BindGroup,
+    sorted: wgpu::Buffer,
+    /// Per-view statistics (STATS_BYTES each), copied from the counters after each view.
+    pub stats: wgpu::Buffer,
+    stats_capacity: usize,
+    staging: Vec<u8>,
+}
+
+fn storage_entry(
+    binding: u32,
+    read_only: bool,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl Tessellator {
+    /// Layout of the tessellated output as the scene pass reads it (group 2 of `vs_tess`).
+    pub fn draw_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+        let v = wgpu::ShaderStages::VERTEX;
+        device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("Tessellator::draw_layout"),
+            entries: &[
+                storage_entry(0, true, v),
+                storage_entry(1, true, v),
+                storage_entry(2, true, v),
+            ],
+        })
+    }
+
+    pub fn new(device: &wgpu::Device) -> Self {
+        let c = wgpu::ShaderStages::COMPUTE;
+        let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("Tessellator::shared_layout"),
+            entries: &[
+                uniform_entry(0, false),
+                uniform_entry(1, true),
+                uniform_entry(2, true),
+                storage_entry(3, true, c),
+                storage_entry(4, true, c),
+                storage_entry(5, true, c),
+                storage_entry(6, false, c),
+                storage_entry(7, false, c),
+                storage_entry(8, false, c),
+            ],
+        });
+        let lists_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("Tessellator::lists_layout"),
+            entries: &[
+                storage_entry(0, false, c),
+                storage_entry(1, false, c),
+                storage_entry(2, false, c),
+                storage_entry(3, false, c),
+            ],
+        });
+        let args_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("Tessellator::args_layout"),
+            entries: &[storage_entry(0, false, c)],
+        });
+        let v = wgpu::ShaderStages::VERTEX;
+        let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("Tessellator::draw_layout"),
+            entries: &[
+                storage_entry(0, true, v),
+                storage_entry(1, true, v),
+                storage_entry(2, true, v),
+            ],
+        });
+        // Dispatches that are themselves indirect must not also bind the argument buffer as
+        // storage, so the argument writers get a layout of their own.
+        let work_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("Tessellator::work_layout"),
+            bind_group_layouts: &[Some(&shared_layout), Some(&lists_layout)],
+            immediate_size: 0,
+        });
+        let args_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("Tessellator::args_pipeline_layout"),
+            bind_group_layouts: &[
+                Some(&shared_layout),
+                Some(&lists_layout),
+                Some(&args_layout),
+            ],
+            immediate_size: 0,
+        });
+        let module = shaders::module(device, "Tessellator::shader", shaders::TESSELLATE);
+        let pipeline = |name: &str, layout: &wgpu::PipelineLayout| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(&format!("Tessellator::{name}")),
+                layout: Some(layout),
+                module: &module,
+                entry_point: Some(name),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Self {
+            init: pipeline("cs_init", &work_layout),
+            prepare: pipeline("cs_prepare", &args_pipeline_layout),
+            split: pipeline("cs_split", &work_layout),
+            prepare_flush: pipeline("cs_prepare_flush", &args_pipeline_layout),
+            flush: pipeline("cs_flush", &work_layout),
+            prefix: pipeline("cs_prefix", &args_pipeline_layout),
+            scatter: pipeline("cs_scatter", &work_layout),
+            shared_layout,
+            lists_layout,
+            args_layout,
+            draw_layout,
+        }
+    }
+
+    /// Allocates the per-scene buffers. `tri_info[t]` = draw index of source triangle t, bit 31
+    /// set for double-sided materials.
+    #[allow(clippy::too_many_arguments)]
+    pub fn buffers(
+        &self,
+        device: &wgpu::Device,
+        frame_buffer: &wgpu::Buffer,
+        view_buffer: &wgpu::Buffer,
+        view_binding_size: u64,
+        vertex_buffer: &wgpu::Buffer,
+        index_buffer: &wgpu::Buffer,
+        tri_info: &[u32],
+        draws: usize,
+        capacity: u32,
+        views: usize,
+    ) -> Result<TessBuffers, TessError> {
+        let max_tris = 65_535 * WORKGROUP as usize;
+        if tri_info.len() > max_tris {
+            return Err(TessError::TooManyTriangles(tri_info.len(), max_tris));
+        }
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let buffer = |label: &str, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let entry_bytes = std::mem::size_of::<GpuTessEntry>() as u64;
+        let list_bytes = entry_bytes * u64::from(capacity);
+        let live_a = buffer("TessBuffers::live_a", list_bytes, storage);
+        let live_b = buffer("TessBuffers::live_b", list_bytes, storage);
+        let count_a = buffer("TessBuffers::count_a", 4, storage);
+        let count_b = buffer("TessBuffers::count_b", 4, storage);
+        let output = buffer("TessBuffers::output", list_bytes, storage);
+        let sorted = buffer(
+            "TessBuffers::sorted",
+            list_bytes,
+            storage | wgpu::BufferUsages::COPY_SRC,
+        );
+        let counters = buffer(
+            "TessBuffers::counters",
+            4 * (C_DRAWS + draws) as u64,
+            storage | wgpu::BufferUsages::COPY_SRC,
+        );
+        let args = buffer(
+            "TessBuffers::args",
+            4 * (ARGS_DRAWS + 4 * draws) as u64,
+            storage | wgpu::BufferUsages::INDIRECT,
+        );
+        // wgpu refuses empty buffers; an empty scene gets one unused entry.
+        let info: &[u32] = if tri_info.is_empty() { &[0] } else { tri_info };
+        let tri_info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("TessBuffers::tri_info"),
+            contents: bytemuck::cast_slice(info),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let uniforms = buffer(
+            "TessBuffers::uniforms",
+            super::scene_pass::UNIFORM_STRIDE * views.max(1) as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        let stats = buffer(
+            "TessBuffers::stats",
+            STATS_BYTES * views.max(1) as u64,
+            wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        );
+        fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            }
+        }
+        fn sized(b: &wgpu::Buffer, binding: u32, size: u64) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: b,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size),
+                }),
+            }
+        }
+        let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("TessBuffers::shared_group"),
+            layout: &self.shared_layout,
+            entries: &[
+                whole(frame_buffer, 0),
+                sized(view_buffer, 1, view_binding_size),
+                sized(&uniforms, 2, std::mem::size_of::<TessUniforms>() as u64),
+                whole(vertex_buffer, 3),
+                whole(index_buffer, 4),
+                whole(&tri_info_buffer, 5),
+                whole(&counters, 6),
+                whole(&output, 7),
+                whole(&sorted, 8),
+            ],
+        });
+        let lists =
+            |label, a: &wgpu::Buffer, b: &wgpu::Buffer, ca: &wgpu::Buffer, cb: &wgpu::Buffer| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(label),
+                    layout: &self.lists_layout,
+                    entries: &[whole(a, 0), whole(b, 1), whole(ca, 2), whole(cb, 3)],
+                })
+            };
+        let lists_ab = lists(
+            "TessBuffers::lists_ab",
+            &live_a,
+            &live_b,
+            &count_a,
+            &count_b,
+        );
+        let lists_ba = lists(
+            "TessBuffers::lists_ba",
+            &live_b,
+            &live_a,
+            &count_b,
+            &count_a,
+        );
+        let args_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("TessBuffers::args_group"),
+            layout: &self.args_layout,
+            entries: &[whole(&args, 0)],
+        });
+        let draw_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("TessBuffers::draw_group"),
+            layout: &self.draw_layout,
+            entries: &[
+                whole(&sorted, 0),
+                whole(vertex_buffer, 1),
+                whole(index_buffer, 2),
+            ],
+        });
+        Ok(TessBuffers {
+            capacity,
+            source_triangles: tri_info.len() as u32,
+            draws: draws as u32,
+            counters,
+            count_a,
+            args,
+            uniforms,
+            uniform_capacity: views.max(1),
+            shared_group,
+            lists_ab,
+            lists_ba,
+            args_group,
+            draw_group,
+            sorted,
+            stats,
+            stats_capacity: views.max(1),
+            staging: Vec::with_capacity(views.max(1) * super::scene_pass::UNIFORM_STRIDE as usize),
+        })
+    }
+}
+
+impl TessBuffers {
+    pub fn capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    /// Number of views the uniform and statistics buffers hold.
+    pub fn view_capacity(&self) -> usize {
+        self.uniform_capacity.min(self.stats_capacity)
+    }
+
+    /// The per-view parameters for this frame: one write for all views.
+    pub fn write_uniforms(
+        &mut self,
+        queue: &wgpu::Queue,
+        views: impl Iterator<Item = TessUniforms>,
+    ) {
+        self.staging.clear();
+        for u in views.take(self.uniform_capacity) {
+            let mut u = u;
+            u.counts = [
+                self.source_triangles,
+                self.capacity,
+                self.capacity,
+                self.draws,
+            ];
+            self.staging.extend_from_slice(bytemuck::bytes_of(&u));
+            let stride = super::scene_pass::UNIFORM_STRIDE as usize;
+            self.staging
+                .resize(self.staging.len().next_multiple_of(stride), 0);
+        }
+        if !self.staging.is_empty() {
+            queue.write_buffer(&self.uniforms, 0, &self.staging);
+        }
+    }
+
+    /// Records the tessellation of view `view_index` (its uniform slot and view slot).
+    pub fn encode(
+        &self,
+        tess: &Tessellator,
+        encoder: &mut wgpu::CommandEncoder,
+        view_index: usize,
+        rounds: u32,
+    ) {
+        encoder.clear_buffer(&self.counters, 0, None);
+        encoder.clear_buffer(&self.count_a, 0, None);
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("Tessellator::pass"),
+                timestamp_writes: None,
+            });
+            let offset = (view_index as u64 * super::scene_pass::UNIFORM_STRIDE) as u32;
+            pass.set_bind_group(0, &self.shared_group, &[offset, offset]);
+            // cs_init appends to list A (the "out" side of the B→A group).
+            pass.set_bind_group(1, &self.lists_ba, &[]);
+            pass.set_pipeline(&tess.init);
+            pass.dispatch_workgroups(self.source_triangles.div_ceil(WORKGROUP), 1, 1);
+            pass.set_bind_group(2, &self.args_group, &[]);
+            for round in 0..rounds {
+                let lists = if round.is_multiple_of(2) {
+                    &self.lists_ab
+                } else {
+                    &self.lists_ba
+                };
+                pass.set_bind_group(1, lists, &[]);
+                pass.set_pipeline(&tess.prepare);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(&tess.split);
+                pass.dispatch_workgroups_indirect(&self.args, 0);
+            }
+            let last = if rounds.is_multiple_of(2) {
+                &self.lists_ab
+            } else {
+                &self.lists_ba
+            };
+            pass.set_bind_group(1, last, &[]);
+            pass.set_pipeline(&tess.prepare_flush);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&tess.flush);
+            pass.dispatch_workgroups_indirect(&self.args, 12);
+            pass.set_pipeline(&tess.prefix);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&tess.scatter);
+            pass.dispatch_workgroups_indirect(&self.args, 12);
+        }
+        if view_index < self.stats_capacity {
+            encoder.copy_buffer_to_buffer(
+                &self.counters,
+                0,
+                &self.stats,
+                view_index as u64 * STATS_BYTES,
+                STATS_BYTES,
+            );
+        }
+    }
+
+    /// Reads the first `count` output triangles of the last tessellated view, sorted by draw
+    /// (blocking; tests compare them with the CPU twin).
+    pub fn read_entries(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        count: u32,
+    ) -> Result<Vec<GpuTessEntry>, RenderError> {
+        let count = count.min(self.capacity);
+        let size = (std::mem::size_of::<GpuTessEntry>() as u64 * u64::from(count)).max(32);
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("TessBuffers::entries_staging"),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("TessBuffers::read_entries"),
+        });
+        encoder.copy_buffer_to_buffer(&self.sorted, 0, &staging, 0, size);
+        queue.submit([encoder.finish()]);
+        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let data = staging
+            .get_mapped_range(..)
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let entries: Vec<GpuTessEntry> = bytemuck::cast_slice(&data)[..count as usize].to_vec();
+        drop(data);
+        staging.unmap();
+        Ok(entries)
+    }
+
+    /// Byte offset of draw `d`'s indirect arguments.
+    pub fn draw_args_offset(d: usize) -> u64 {
+        4 * (ARGS_DRAWS + 4 * d) as u64
+    }
+
+    /// Reads the last frame's per-view statistics (blocking; for the CLI and tests, never in
+    /// the render loop).
+    pub fn read_stats(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        views: usize,
+        input: u32,
+    ) -> Result<Vec<TessStats>, RenderError> {
+        let views = views.min(self.stats_capacity);
+        let size = STATS_BYTES * views.max(1) as u64;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("TessBuffers::stats_staging"),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("TessBuffers::read_stats"),
+        });
+        encoder.copy_buffer_to_buffer(&self.stats, 0, &staging, 0, size);
+        queue.submit([encoder.finish()]);
+        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let data = staging
+            .get_mapped_range(..)
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let words: &[u32] = bytemuck::cast_slice(&data);
+        let stats = (0..views)
+            .map(|v| {
+                let w = &words[v * 4..v * 4 + 4];
+                TessStats {
+                    input,
+                    culled_backface: w[C_BACK],
+                    culled_frustum: w[C_FRUSTUM],
+                    emitted: w[C_OUT].min(self.capacity),
+                    overflowed: w[C_OVERFLOW] != 0,
+                }
+            })
+            .collect();
+        drop(data);
+        staging.unmap();
+        Ok(stats)
+    }
+}
