@@ -375,6 +375,18 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
             vec!["render", "--head", "0,1.7,-2", "--out", out],
             "behind or on wall 'front'",
         ),
+        (
+            vec!["render", "--tess", "error", "--out", out],
+            "expected none, uniform:N",
+        ),
+        (
+            vec!["render", "--tess", "edge:-3", "--out", out],
+            "outside 0.01..=10000",
+        ),
+        (
+            vec!["render", "--tess-max-depth", "40", "--out", out],
+            "exceeds the limit of 16",
+        ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
         (
@@ -425,6 +437,8 @@ fn render_command_writes_every_wall_and_eye() {
         "omni-offaxis",
         "--pole-merge",
         "55,70",
+        "--tess",
+        "error:1",
         "--head",
         "0.2,1.6,-0.3",
         "--head-yaw",

@@ -13,6 +13,7 @@ use omnicave::config::Lighting;
 use omnicave::render::{FrameParams, Gpu, RenderSettings, Renderer, WallImages};
 use omnicave::scene::build::{MeshData, uv_sphere};
 use omnicave::scene::{Material, Scene};
+use omnicave::tess::TessSettings;
 
 /// One device for the whole test binary (lavapipe in CI). Fails loudly if there is none:
 /// a missing driver must turn CI red, not skip the rendering tests.
@@ -115,6 +116,45 @@ pub fn render(
     render_omni(cave, head, mode, scene, settings, OmniSettings::default())
 }
 
+/// Renders with tessellation; returns the images, the per-view tessellation statistics and the
+/// last view's output triangles.
+pub fn render_tess(
+    cave: &Cave,
+    head: Head,
+    mode: RenderMode,
+    scene: &Scene,
+    tess: TessSettings,
+    capacity: Option<u32>,
+) -> (
+    Vec<WallImages>,
+    Vec<omnicave::tess::TessStats>,
+    Vec<omnicave::render::tessellator::GpuTessEntry>,
+) {
+    let mut renderer = Renderer::new(gpu(), cave, NO_MSAA).expect("renderer");
+    if let Some(c) = capacity {
+        renderer.set_tess_capacity(c);
+    }
+    renderer.set_scene(scene);
+    renderer
+        .render(&FrameParams {
+            cave,
+            head,
+            mode,
+            eye_separation: 0.064,
+            world_from_cave: Mat4::IDENTITY,
+            lighting: Lighting::default(),
+            background: BACKGROUND_SRGB,
+            omni: OmniSettings::default(),
+            tess,
+        })
+        .expect("render");
+    (
+        renderer.read_images().expect("read back"),
+        renderer.read_tess_stats().expect("stats"),
+        renderer.read_tess_entries().expect("entries"),
+    )
+}
+
 /// As [`render`], with explicit omnistereo settings.
 pub fn render_omni(
     cave: &Cave,
@@ -126,16 +166,19 @@ pub fn render_omni(
 ) -> Vec<WallImages> {
     let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
     renderer.set_scene(scene);
-    renderer.render(&FrameParams {
-        cave,
-        head,
-        mode,
-        eye_separation: 0.064,
-        world_from_cave: Mat4::IDENTITY,
-        lighting: Lighting::default(),
-        background: BACKGROUND_SRGB,
-        omni,
-    });
+    renderer
+        .render(&FrameParams {
+            cave,
+            head,
+            mode,
+            eye_separation: 0.064,
+            world_from_cave: Mat4::IDENTITY,
+            lighting: Lighting::default(),
+            background: BACKGROUND_SRGB,
+            omni,
+            tess: TessSettings::default(),
+        })
+        .expect("render");
     renderer.read_images().expect("read back")
 }
 

@@ -1,0 +1,474 @@
+//! Adaptive tessellation: the compute tessellator against its CPU twin, watertightness, the
+//! geometric and seam error it leaves, triangle counts per criterion, and the output budget.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+mod common;
+
+use std::path::Path;
+
+use common::*;
+use glam::{Mat4, Vec3, Vec3Swizzles};
+use omnicave::cave::omni::OmniSettings;
+use omnicave::cave::{Cave, Head, RenderMode, ViewSetup, view_setups};
+use omnicave::scene::build::grid;
+use omnicave::scene::{Scene, load_gltf};
+use omnicave::tess::error::{ErrorStats, drawn_point, edge_errors};
+use omnicave::tess::{
+    Bary, Criterion, TessOutput, TessSettings, TessTriangle, double_sided_flags, tess_view,
+    tessellate,
+};
+
+const CAPACITY: usize = 1 << 20;
+
+fn settings(criterion: Option<Criterion>) -> TessSettings {
+    TessSettings {
+        criterion,
+        ..TessSettings::default()
+    }
+}
+
+/// The CPU twin for every view of a frame: (view, output).
+fn cpu_views(
+    cave: &Cave,
+    head: Vec3,
+    mode: RenderMode,
+    scene: &Scene,
+    tess: &TessSettings,
+) -> Vec<(ViewSetup, TessOutput)> {
+    let flags = double_sided_flags(scene);
+    view_setups(cave, &Head::at(head), mode, 0.064)
+        .into_iter()
+        .map(|v| {
+            let tv = tess_view(
+                &v,
+                &cave.walls[v.wall],
+                Mat4::IDENTITY,
+                Some(OmniSettings::default()),
+                cave.near,
+            );
+            let out = tessellate(scene, &flags, &tv, tess, CAPACITY);
+            (v, out)
+        })
+        .collect()
+}
+
+fn living_room() -> Scene {
+    load_gltf(&Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/living-room.glb")).unwrap()
+}
+
+fn city() -> Scene {
+    load_gltf(&Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/city.glb")).unwrap()
+}
+
+/// A box room around the CAVE, each face its own primitive and colour (unlit, inward-facing,
+/// single-sided), its faces crossing two CAVE walls each.
+fn box_room() -> Scene {
+    let (lo, hi) = (Vec3::new(-2.6, -0.4, -2.4), Vec3::new(2.2, 3.3, 2.8));
+    let d = hi - lo;
+    let faces = [
+        (Vec3::new(lo.x, lo.y, lo.z), Vec3::X * d.x, Vec3::Y * d.y), // front (z = lo)
+        (
+            Vec3::new(hi.x, lo.y, hi.z),
+            Vec3::NEG_X * d.x,
+            Vec3::Y * d.y,
+        ), // back
+        (
+            Vec3::new(lo.x, lo.y, hi.z),
+            Vec3::NEG_Z * d.z,
+            Vec3::Y * d.y,
+        ), // left
+        (Vec3::new(hi.x, lo.y, lo.z), Vec3::Z * d.z, Vec3::Y * d.y), // right
+        (
+            Vec3::new(lo.x, lo.y, hi.z),
+            Vec3::X * d.x,
+            Vec3::NEG_Z * d.z,
+        ), // floor
+        (Vec3::new(lo.x, hi.y, lo.z), Vec3::X * d.x, Vec3::Z * d.z), // ceiling
+    ];
+    let colours: [[u8; 3]; 6] = [
+        [255, 0, 0],
+        [0, 255, 0],
+        [0, 0, 255],
+        [255, 255, 0],
+        [255, 0, 255],
+        [0, 255, 255],
+    ];
+    let mut scene = Scene::default();
+    for ((o, u, v), c) in faces.iter().zip(colours) {
+        let mesh = grid(*o, *u, *v, 1, 1, 1.0);
+        let m = scene.add_material(omnicave::scene::Material {
+            double_sided: false,
+            ..omnicave::scene::Material::unlit("face", c.map(|x| f32::from(x) / 255.0))
+        });
+        scene.add_mesh(&mesh.vertices, &mesh.indices, m);
+    }
+    scene
+}
+
+#[test]
+fn gpu_and_cpu_subdivision_agree_exactly() {
+    // One wall, omnistereo: the last view rendered is the right eye, whose output the GPU
+    // buffers still hold after the frame.
+    let mut cave = cave_at(640, 360);
+    cave.walls.truncate(2); // left and front walls
+    let head = Vec3::new(-0.4, 1.5, 0.3);
+    let scene = box_room();
+    for criterion in [
+        Criterion::Uniform(3),
+        Criterion::Edge(40.0),
+        Criterion::Sphere(60.0),
+        Criterion::Error(1.0),
+    ] {
+        let tess = settings(Some(criterion));
+        let (_, stats, entries) = render_tess(
+            &cave,
+            Head::at(head),
+            RenderMode::OmniOnAxis,
+            &scene,
+            tess,
+            None,
+        );
+        let cpu = cpu_views(&cave, head, RenderMode::OmniOnAxis, &scene, &tess);
+        let (_, last) = cpu.last().unwrap();
+        let mut gpu: Vec<TessTriangle> = entries
+            .iter()
+            .map(|e| TessTriangle {
+                source: e.source,
+                corners: e.corners.map(|[b1, b2]| Bary { b1, b2 }),
+            })
+            .collect();
+        gpu.sort();
+        let mut expected = last.triangles.clone();
+        expected.sort();
+        let gpu_stats = stats.last().unwrap();
+        println!(
+            "{criterion}: GPU {} triangles ({} back-face, {} frustum culled), CPU {} ({}, {})",
+            gpu.len(),
+            gpu_stats.culled_backface,
+            gpu_stats.culled_frustum,
+            expected.len(),
+            last.stats.culled_backface,
+            last.stats.culled_frustum
+        );
+        assert_eq!(
+            gpu_stats.culled_backface, last.stats.culled_backface,
+            "{criterion}"
+        );
+        assert_eq!(
+            gpu_stats.culled_frustum, last.stats.culled_frustum,
+            "{criterion}"
+        );
+        assert_eq!(
+            gpu.len(),
+            expected.len(),
+            "{criterion}: triangle counts differ"
+        );
+        assert!(gpu == expected, "{criterion}: GPU and CPU triangles differ");
+        assert!(
+            gpu.len() > 2 * scene.triangle_count(),
+            "{criterion}: nothing was split"
+        );
+        // Every view's statistics add up.
+        for s in &stats {
+            assert!(s.culled_backface + s.culled_frustum <= s.input);
+            assert!(!s.overflowed);
+        }
+    }
+}
+
+#[test]
+fn a_closed_room_has_no_cracks_with_any_criterion() {
+    let cave = cave_at(480, 270);
+    let scene = box_room();
+    for head in [Vec3::new(0.0, 1.7, 0.0), Vec3::new(1.2, 1.0, -1.3)] {
+        for criterion in [
+            None,
+            Some(Criterion::Uniform(4)),
+            Some(Criterion::Edge(12.0)),
+            Some(Criterion::Sphere(20.0)),
+            Some(Criterion::Error(0.5)),
+        ] {
+            let (images, stats, _) = render_tess(
+                &cave,
+                Head::at(head),
+                RenderMode::OmniOnAxis,
+                &scene,
+                settings(criterion),
+                None,
+            );
+            // (No statistics without tessellation: the plain path has no compute pass.)
+            let emitted: u32 = stats.iter().map(|s| s.emitted).sum();
+            // The room surrounds the viewer: every pixel of every wall lies inside its
+            // silhouette, so any background pixel is a crack.
+            let mut holes = 0;
+            for wall in &images {
+                for img in [&wall.left, &wall.right] {
+                    holes += img
+                        .pixels()
+                        .filter(|p| p[0] == 0 && p[1] == 0 && p[2] == 0)
+                        .count();
+                }
+            }
+            println!(
+                "head {head}, {}: {emitted} triangles over 6 views, {holes} background pixels",
+                criterion.map_or("none".to_string(), |c| c.to_string())
+            );
+            assert_eq!(holes, 0, "cracks with {criterion:?} from {head}");
+        }
+    }
+}
+
+/// Geometric error of a whole frame (all views) with the CPU twin.
+fn frame_error(cave: &Cave, head: Vec3, scene: &Scene, tess: &TessSettings) -> (ErrorStats, u32) {
+    let mut all = Vec::new();
+    let mut emitted = 0;
+    for (view, out) in cpu_views(cave, head, RenderMode::OmniOnAxis, scene, tess) {
+        let tv = tess_view(
+            &view,
+            &cave.walls[view.wall],
+            Mat4::IDENTITY,
+            Some(OmniSettings::default()),
+            cave.near,
+        );
+        all.extend(edge_errors(scene, &tv, &out, 8));
+        emitted += out.stats.emitted;
+    }
+    (ErrorStats::from_samples(all), emitted)
+}
+
+#[test]
+fn the_error_criterion_bounds_the_geometric_error() {
+    let cave = cave_at(1280, 720);
+    let heads = [
+        Vec3::new(0.0, 1.7, 0.0),
+        Vec3::new(0.8, 1.3, -0.6),
+        Vec3::new(-1.35, 1.6, 0.2), // 0.3 m from the left wall
+    ];
+    let error = |depth| TessSettings {
+        criterion: Some(Criterion::Error(0.5)),
+        max_depth: depth,
+        ..TessSettings::default()
+    };
+    for (name, scene) in [("living room", living_room()), ("city", city())] {
+        for head in heads {
+            let (plain, n0) = frame_error(&cave, head, &scene, &settings(None));
+            let (d6, n6) = frame_error(&cave, head, &scene, &error(6));
+            let (d12, n12) = frame_error(&cave, head, &scene, &error(12));
+            println!(
+                "{name}, head {head}: none: max {:.1} px, p99 {:.1} px ({n0} triangles); \
+                 error:0.5 depth 6: max {:.2}, p99 {:.2} ({n6}); depth 12: max {:.2}, p99 {:.2} \
+                 ({n12} triangles, {} edges)",
+                plain.max, plain.p99, d6.max, d6.p99, d12.max, d12.p99, d12.samples
+            );
+            // With enough depth the criterion bounds what the viewer sees: its threshold at the
+            // edge midpoints, and at most twice that anywhere along an edge.
+            assert!(d12.p99 <= 0.5, "{name} {head}: p99 {}", d12.p99);
+            assert!(d12.max <= 1.0, "{name} {head}: max {}", d12.max);
+            // The plain warp is visibly wrong everywhere; most of all in the living room, whose
+            // floor and walls are single large quads (the city's far geometry bends less).
+            let visibly_wrong = if name == "city" { 2.0 } else { 10.0 };
+            assert!(
+                plain.max > visibly_wrong,
+                "{name} {head}: plain warp max {}",
+                plain.max
+            );
+        }
+    }
+}
+
+/// Largest jump, where the left wall meets the front wall, of straight lines drawn across the
+/// living room's floor (the parquet pattern follows such lines): each line is followed
+/// through the floor's drawn triangles on both walls and intersected with the shared border.
+fn floor_seam_jump(cave: &Cave, scene: &Scene, head: Vec3, tess: &TessSettings) -> f32 {
+    let (left, front) = (
+        cave.wall_index("left").unwrap(),
+        cave.wall_index("front").unwrap(),
+    );
+    // The floor: the two large triangles at y = 0.
+    let floor: Vec<u32> = (0..scene.triangle_count() as u32)
+        .filter(|&t| {
+            let p = [0, 1, 2].map(|k| {
+                Vec3::from(scene.vertices[scene.indices[3 * t as usize + k] as usize].position)
+            });
+            p.iter().all(|q| q.y == 0.0) && (p[1] - p[0]).cross(p[2] - p[0]).length() > 10.0
+        })
+        .collect();
+    assert_eq!(floor.len(), 2, "the living room's floor is one quad");
+    let views = cpu_views(cave, head, RenderMode::OmniOnAxis, scene, tess);
+    let drawn = |wall: usize, eye, q: Vec3| -> Option<glam::Vec2> {
+        let (view, out) = views
+            .iter()
+            .find(|(v, _)| v.wall == wall && v.eye == Some(eye))?;
+        let tv = tess_view(
+            view,
+            &cave.walls[wall],
+            Mat4::IDENTITY,
+            Some(OmniSettings::default()),
+            cave.near,
+        );
+        floor.iter().find_map(|&t| {
+            let p = [0, 1, 2].map(|k| {
+                Vec3::from(scene.vertices[scene.indices[3 * t as usize + k] as usize].position)
+            });
+            let (a, b, c) = (p[0].xz(), p[1].xz(), p[2].xz());
+            let area = (b - a).perp_dot(c - a);
+            let w1 = (q.xz() - a).perp_dot(c - a) / area;
+            let w2 = (b - a).perp_dot(q.xz() - a) / area;
+            (w1 >= 0.0 && w2 >= 0.0 && w1 + w2 <= 1.0)
+                .then(|| drawn_point(scene, &tv, out, t, w1, w2))
+                .flatten()
+        })
+    };
+    let border = |wall: usize, eye, a: Vec3, b: Vec3, x: f32| -> Option<f32> {
+        let steps = 600;
+        let mut prev: Option<glam::Vec2> = None;
+        for i in 0..=steps {
+            let cur = drawn(wall, eye, a.lerp(b, i as f32 / steps as f32));
+            if let (Some(p), Some(c)) = (prev, cur) {
+                let (pa, pb) = (p.x - x, c.x - x);
+                if pa * pb <= 0.0 && pa != pb {
+                    return Some(p.y + pa / (pa - pb) * (c.y - p.y));
+                }
+            }
+            prev = cur;
+        }
+        None
+    };
+    let mut worst: f32 = 0.0;
+    let lines = [
+        (Vec3::new(-2.95, 0.0, -2.2), Vec3::new(-1.0, 0.0, -2.2)),
+        (Vec3::new(-2.95, 0.0, -2.7), Vec3::new(-1.0, 0.0, -2.7)),
+        (Vec3::new(-2.95, 0.0, -3.3), Vec3::new(-1.0, 0.0, -3.3)),
+        (Vec3::new(-2.2, 0.0, -1.0), Vec3::new(-2.2, 0.0, -3.45)),
+        (Vec3::new(-2.8, 0.0, -1.0), Vec3::new(-2.8, 0.0, -3.45)),
+    ];
+    for eye in [omnicave::cave::Eye::Left, omnicave::cave::Eye::Right] {
+        for (a, b) in lines {
+            let on_left = border(left, eye, a, b, cave.walls[left].resolution[0] as f32);
+            let on_front = border(front, eye, a, b, 0.0);
+            if let (Some(l), Some(f)) = (on_left, on_front) {
+                worst = worst.max((l - f).abs());
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn tessellation_closes_the_seams_of_the_plain_warp() {
+    let cave = cave_at(1280, 720);
+    let scene = living_room();
+    let mm_per_px = 2900.0 / 720.0;
+    for head in [Vec3::new(0.0, 1.7, 0.0), Vec3::new(0.5, 1.5, 0.4)] {
+        let plain = floor_seam_jump(&cave, &scene, head, &settings(None));
+        let tess = floor_seam_jump(&cave, &scene, head, &settings(Some(Criterion::Error(0.5))));
+        println!(
+            "head {head}: floor lines jump at the left/front seam by {plain:.2} px ({:.1} mm) \
+             with the plain warp, {tess:.2} px ({:.1} mm) with error:0.5",
+            plain * mm_per_px,
+            tess * mm_per_px
+        );
+        assert!(plain > 2.0, "the plain warp should show the jump");
+        // 1 px: the acceptance tolerance.
+        assert!(tess <= 1.0, "seam jump {tess} px with tessellation");
+    }
+}
+
+#[test]
+fn triangle_counts_at_equal_error() {
+    // For each criterion, the coarsest setting that reaches the target on the living room
+    // (centred head), and the triangles it emits over the six views. The target is p99 <= 0.5
+    // px as asked, and also max <= 1 px: on this scene p99 over its ~18 000 edges is ~0 even
+    // for the plain warp, since the error lives in a few dozen long edges (floor, walls).
+    let cave = cave_at(1280, 720);
+    let scene = living_room();
+    let head = Vec3::new(0.0, 1.7, 0.0);
+    let target = 0.5;
+    let candidates: Vec<(&str, Vec<Criterion>)> = vec![
+        ("uniform", (0..=6).map(Criterion::Uniform).collect()),
+        (
+            "edge",
+            [
+                4096.0, 2048.0, 1024.0, 512.0, 256.0, 128.0, 64.0, 32.0, 16.0,
+            ]
+            .map(Criterion::Edge)
+            .to_vec(),
+        ),
+        (
+            "sphere",
+            [
+                4096.0, 2048.0, 1024.0, 512.0, 256.0, 128.0, 64.0, 32.0, 16.0,
+            ]
+            .map(Criterion::Sphere)
+            .to_vec(),
+        ),
+        (
+            "error",
+            [16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.25]
+                .map(Criterion::Error)
+                .to_vec(),
+        ),
+    ];
+    let mut results = Vec::new();
+    for (name, list) in candidates {
+        let found = list.into_iter().find_map(|c| {
+            let (e, n) = frame_error(&cave, head, &scene, &settings(Some(c)));
+            (e.p99 <= target && e.max <= 2.0 * target).then_some((c, e, n))
+        });
+        match found {
+            Some((c, e, n)) => {
+                println!(
+                    "{name:<8} {c:<14} p99 {:.2} px, max {:.2} px: {n} triangles",
+                    e.p99, e.max
+                );
+                results.push((name, n));
+            }
+            None => println!("{name:<8} does not reach the target within max depth 6"),
+        }
+    }
+    let count = |n: &str| results.iter().find(|(k, _)| *k == n).map(|(_, c)| *c);
+    let error = count("error").expect("the error criterion reaches its own target");
+    let uniform = count("uniform").expect("uniform reaches the target");
+    // Every criterion must reach the target, and the adaptive ones must beat uniform
+    // refinement by a wide margin. How edge/sphere/error rank against each other is printed,
+    // not asserted: at this target each sits at its coarsest setting and most triangles come
+    // from refinement all of them force (edges crossing the projective viewpoint's plane).
+    for other in ["edge", "sphere"] {
+        let c = count(other).unwrap_or_else(|| panic!("{other} never reached the target"));
+        println!(
+            "error: {error} triangles vs {other}: {c} ({:+.1} %)",
+            100.0 * (error as f64 / c as f64 - 1.0)
+        );
+    }
+    assert!(error * 10 < uniform, "error: {error}, uniform: {uniform}");
+}
+
+#[test]
+fn an_exhausted_budget_degrades_gracefully() {
+    let cave = cave_at(320, 180);
+    let scene = living_room();
+    let (images, stats, _) = render_tess(
+        &cave,
+        Head::at(Vec3::new(0.0, 1.7, 0.0)),
+        RenderMode::OmniOnAxis,
+        &scene,
+        settings(Some(Criterion::Uniform(6))),
+        Some(20_000),
+    );
+    println!("budget 20 000: {stats:?}");
+    assert!(
+        stats.iter().any(|s| s.overflowed),
+        "uniform:6 should exceed 20 000 triangles"
+    );
+    assert!(stats.iter().all(|s| s.emitted <= 20_000));
+    // Still a picture: most pixels are scene, not background.
+    let front = &images[cave.wall_index("front").unwrap()].left;
+    let background = front
+        .pixels()
+        .filter(|p| p[0] < 10 && p[1] < 10 && p[2] < 12)
+        .count();
+    assert!(
+        background < front.pixels().len() / 4,
+        "{background} background pixels"
+    );
+}
