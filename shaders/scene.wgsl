@@ -24,7 +24,9 @@ struct VertexInput {
 }
 
 struct VertexOutput {
-    @builtin(position) clip: vec4<f32>,
+    // Invariant: a vertex shared by triangles drawn with different pipeline variants must land
+    // on the same position, or tessellated neighbours could show cracks.
+    @invariant @builtin(position) clip: vec4<f32>,
     @location(0) cave_position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,

@@ -31,7 +31,9 @@ const C_BACK: u32 = 1u;
 const C_FRUSTUM: u32 = 2u;
 const C_OVERFLOW: u32 = 3u;
 // Triangles in flight (finished + live): a split happens only if all of them still fit the
-// output, so running out of budget means "less refined", never "missing".
+// output, so running out of budget means "less refined", never "missing" (though a triangle
+// left unrefined next to a refined neighbour can show a T-junction: conformity holds only
+// within the budget).
 const C_BUDGET: u32 = 4u;
 const C_DRAWS: u32 = 5u; // per-draw counts from here
 
@@ -183,7 +185,12 @@ fn emit(e: TessEntry) {
     }
 }
 
-fn outside_all(pts: array<vec4<f32>, 6>, near: f32) -> bool {
+// Triangles are culled only when their sampled points are beyond a frustum side by this
+// fraction of w: warped edges are curves, so the samples can miss a bulge into the view
+// (mirrors tess::CULL_MARGIN).
+const CULL_MARGIN: f32 = 0.25;
+
+fn outside_all(pts: array<vec4<f32>, 6>, near: f32, margin: f32) -> bool {
     var behind = true;
     var any_behind = false;
     var px = true;
@@ -194,10 +201,11 @@ fn outside_all(pts: array<vec4<f32>, 6>, near: f32) -> bool {
         let c = pts[k];
         behind = behind && c.w < near;
         any_behind = any_behind || c.w <= 0.0;
-        px = px && c.x > c.w;
-        nx = nx && c.x < -c.w;
-        py = py && c.y > c.w;
-        ny = ny && c.y < -c.w;
+        let m = c.w * (1.0 + margin);
+        px = px && c.x > m;
+        nx = nx && c.x < -m;
+        py = py && c.y > m;
+        ny = ny && c.y < -m;
     }
     if behind {
         return true;
@@ -212,6 +220,10 @@ fn outside_all(pts: array<vec4<f32>, 6>, near: f32) -> bool {
 fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = id.x;
     if t >= tess.counts.x {
+        return;
+    }
+    if (tri_info[t] & 0x7fffffffu) >= tess.counts.w {
+        // Not part of any draw (the scene pass dropped its draw): nothing to draw it with.
         return;
     }
     let p = source_positions(t);
@@ -239,7 +251,7 @@ fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
             project(point_position(p, midpoint(v1, v2))).clip,
             project(point_position(p, midpoint(v2, v0))).clip,
         );
-        if outside_all(pts, tess.cull.x) {
+        if outside_all(pts, tess.cull.x, CULL_MARGIN) {
             atomicAdd(&counters[C_FRUSTUM], 1u);
             return;
         }

@@ -74,9 +74,20 @@ impl Gpu {
         })
     }
 
-    /// Whether the device can run the compute tessellator.
+    /// Whether the device can run the compute tessellator and draw its output (storage
+    /// buffers in the vertex stage).
     pub fn tessellation_supported(&self) -> bool {
         self.device.limits().max_storage_buffers_per_shader_stage >= TESSELLATOR_STORAGE_BUFFERS
+            && self
+                .adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::VERTEX_STORAGE)
+            && self
+                .adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::INDIRECT_EXECUTION)
     }
 
     /// "name (backend)" of the adapter, for logs and reports.

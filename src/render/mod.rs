@@ -124,7 +124,7 @@ impl Renderer {
             &gpu.device,
             settings.msaa,
             cave.walls.len() * 2,
-            &Tessellator::draw_layout(&gpu.device),
+            tessellator.as_ref().map(|t| &t.draw_layout),
         );
         let mut renderer = Self {
             device: gpu.device.clone(),
@@ -157,7 +157,13 @@ impl Renderer {
     /// Sets the tessellation output budget (triangles per view); takes effect on the next
     /// tessellated frame.
     pub fn set_tess_capacity(&mut self, capacity: u32) {
-        self.tess_capacity = capacity.max(1);
+        let max = tessellator::max_capacity(&self.device);
+        if capacity > max {
+            tracing::warn!(
+                "tessellation budget {capacity} exceeds what this device binds; using {max}"
+            );
+        }
+        self.tess_capacity = capacity.clamp(1, max);
         self.tess_buffers = None;
     }
 

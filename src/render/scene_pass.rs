@@ -41,7 +41,8 @@ pub struct ScenePass {
     frame_layout: wgpu::BindGroupLayout,
     material_layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
-    tess_pipeline_layout: wgpu::PipelineLayout,
+    /// `None` where the device cannot draw tessellated output (no vertex-stage storage).
+    tess_pipeline_layout: Option<wgpu::PipelineLayout>,
     shader: wgpu::ShaderModule,
     /// Bumped whenever the view buffer is replaced (bind groups built on it must follow).
     pub view_buffer_generation: u64,
@@ -61,7 +62,7 @@ pub struct SceneGpu {
     pub(crate) vertex_buffer: wgpu::Buffer,
     pub(crate) index_buffer: wgpu::Buffer,
     draws: Vec<GpuDraw>,
-    /// Per source triangle: its draw index, bit 31 set when double-sided (for the tessellator).
+    /// Per source triangle: its draw index (or `NO_DRAW`), bit 31 set when double-sided.
     pub(crate) tri_info: Vec<u32>,
     material_bind_groups: Vec<wgpu::BindGroup>,
     /// Kept alive for the bind groups.
@@ -90,7 +91,7 @@ impl ScenePass {
         device: &wgpu::Device,
         msaa: u32,
         view_capacity: usize,
-        tess_draw_layout: &wgpu::BindGroupLayout,
+        tess_draw_layout: Option<&wgpu::BindGroupLayout>,
     ) -> Self {
         let uniform_entry = |binding, dynamic| wgpu::BindGroupLayoutEntry {
             binding,
@@ -133,14 +134,12 @@ impl ScenePass {
             bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
             immediate_size: 0,
         });
-        let tess_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("ScenePass::tess_pipeline_layout"),
-            bind_group_layouts: &[
-                Some(&frame_layout),
-                Some(&material_layout),
-                Some(tess_draw_layout),
-            ],
-            immediate_size: 0,
+        let tess_pipeline_layout = tess_draw_layout.map(|layout| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("ScenePass::tess_pipeline_layout"),
+                bind_group_layouts: &[Some(&frame_layout), Some(&material_layout), Some(layout)],
+                immediate_size: 0,
+            })
         });
         let shader = shaders::module(device, "ScenePass::shader", shaders::SCENE);
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
@@ -213,7 +212,9 @@ impl ScenePass {
         for double_sided in [false, true] {
             for wireframe in [false, true] {
                 for tessellated in [false, true] {
-                    if wireframe && !wireframe_supported {
+                    if (wireframe && !wireframe_supported)
+                        || (tessellated && self.tess_pipeline_layout.is_none())
+                    {
                         continue;
                     }
                     let key = PipelineKey {
@@ -246,10 +247,9 @@ impl ScenePass {
         })];
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some(&label),
-            layout: Some(if key.tessellated {
-                &self.tess_pipeline_layout
-            } else {
-                &self.pipeline_layout
+            layout: Some(match (&self.tess_pipeline_layout, key.tessellated) {
+                (Some(layout), true) => layout,
+                _ => &self.pipeline_layout,
             }),
             vertex: wgpu::VertexState {
                 module: &self.shader,
@@ -584,7 +584,8 @@ impl ScenePass {
                 double_sided: scene.materials[d.material].double_sided,
             })
             .collect();
-        let mut tri_info = vec![0u32; scene.triangle_count()];
+        // Triangles no valid draw covers get a draw index no draw has: never drawn.
+        let mut tri_info = vec![super::tessellator::NO_DRAW; scene.triangle_count()];
         for (d, draw) in draws.iter().enumerate() {
             let flag = if draw.double_sided { 1 << 31 } else { 0 };
             let first = draw.first_index as usize / 3;

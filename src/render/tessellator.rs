@@ -98,6 +98,18 @@ const WORKGROUP: u32 = 64;
 /// Default output budget: triangles per view (32 bytes each, live lists alike).
 pub const DEFAULT_CAPACITY: u32 = 1 << 20;
 
+/// `tri_info` draw index of a triangle that belongs to no draw (cs_init skips it).
+pub const NO_DRAW: u32 = 0x7fff_ffff;
+
+/// Largest budget the device can bind (each list is one storage binding) and dispatch
+/// (one thread per live triangle, at most 65 535 workgroups).
+pub fn max_capacity(device: &wgpu::Device) -> u32 {
+    let by_binding = device.limits().max_storage_buffer_binding_size
+        / std::mem::size_of::<GpuTessEntry>() as u64;
+    let by_dispatch = 65_535 * u64::from(WORKGROUP);
+    by_binding.min(by_dispatch).min(u64::from(u32::MAX)) as u32
+}
+
 /// Everything that can go wrong setting up the tessellator.
 #[derive(Debug, thiserror::Error)]
 pub enum TessError {

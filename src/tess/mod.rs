@@ -190,17 +190,30 @@ pub fn is_backfacing(tv: &TessView<'_>, cave: [Vec3; 3]) -> bool {
     n.dot(centre - cave[0]) / len < -(radius + BACKFACE_EPSILON)
 }
 
+/// Fraction of w by which a source triangle's sampled points must lie beyond a frustum side to
+/// be culled: warped edges are curves, and the samples can miss a bulge into the view.
+pub const CULL_MARGIN: f32 = 0.25;
+
 /// Whether points (clip space) all lie outside one frustum plane (or all behind the eye).
 pub fn all_outside(points: &[Vec4], near: f32) -> bool {
+    all_outside_by(points, near, 0.0)
+}
+
+/// As [`all_outside`], with the sides moved outwards by `margin` × w.
+pub fn all_outside_by(points: &[Vec4], near: f32, margin: f32) -> bool {
     if points.iter().all(|c| c.w < near) {
         return true;
     }
     if points.iter().any(|c| c.w <= 0.0) {
         return false;
     }
-    let tests: [fn(&Vec4) -> bool; 4] =
-        [|c| c.x > c.w, |c| c.x < -c.w, |c| c.y > c.w, |c| c.y < -c.w];
-    tests.iter().any(|t| points.iter().all(t))
+    // Same arithmetic as outside_all in shaders/tessellate.wgsl: m = w·(1 + margin).
+    let m = |c: &Vec4| c.w * (1.0 + margin);
+    let sides: [&dyn Fn(&Vec4) -> bool; 4] =
+        [&|c| c.x > m(c), &|c| c.x < -m(c), &|c| c.y > m(c), &|c| {
+            c.y < -m(c)
+        }];
+    sides.iter().any(|side| points.iter().all(side))
 }
 
 /// Result of tessellating all of a scene's triangles for one view.
@@ -211,11 +224,12 @@ pub struct TessOutput {
 }
 
 /// The CPU twin of the compute tessellator: culls, then splits round by round.
-/// `double_sided[t]` says whether source triangle `t` may be seen from behind; `capacity`
+/// `double_sided[t]` says whether source triangle `t` may be seen from behind (`None`: not
+/// drawn at all; see [`double_sided_flags`]); `capacity`
 /// bounds the live triangles of a round and, separately, the output, as the GPU's buffers do.
 pub fn tessellate(
     scene: &Scene,
-    double_sided: &[bool],
+    double_sided: &[Option<bool>],
     tv: &TessView<'_>,
     settings: &TessSettings,
     capacity: usize,
@@ -229,11 +243,17 @@ pub fn tessellate(
     let root = [Bary::V0, Bary::V1, Bary::V2];
     let mut live: Vec<TessTriangle> = Vec::new();
     // Triangles in flight (finished + live); splitting keeps it within `capacity`, so every
-    // triangle gets an output slot and an exhausted budget only means less refinement.
+    // triangle gets an output slot and an exhausted budget means less refinement, not missing
+    // triangles (a triangle left unrefined beside a refined neighbour can show a T-junction:
+    // conformity holds only within the budget).
     let mut budget = 0usize;
     for t in 0..tri_count {
+        // Triangles without a (valid) draw are never drawn (mirrors cs_init).
+        let Some(&Some(double_sided_t)) = double_sided.get(t) else {
+            continue;
+        };
         let p = positions(t);
-        if settings.backface_cull && !double_sided.get(t).copied().unwrap_or(true) {
+        if settings.backface_cull && !double_sided_t {
             let cave = p.map(|q| tv.cave_from_world.transform_point3(q));
             if is_backfacing(tv, cave) {
                 out.stats.culled_backface += 1;
@@ -247,7 +267,7 @@ pub fn tessellate(
                 pts[k + 3] =
                     project(tv, point_position(p, root[k].midpoint(root[(k + 1) % 3]))).clip;
             }
-            if all_outside(&pts, tv.near) {
+            if all_outside_by(&pts, tv.near, CULL_MARGIN) {
                 out.stats.culled_frustum += 1;
                 continue;
             }
@@ -376,21 +396,21 @@ pub fn tess_view<'a>(
     }
 }
 
-/// Per source triangle: whether its material is double-sided (never back-face culled).
-pub fn double_sided_flags(scene: &Scene) -> Vec<bool> {
-    let mut flags = vec![true; scene.triangle_count()];
+/// Per source triangle: whether its material is double-sided (never back-face culled), or
+/// `None` when no draw with a valid material covers it (the renderer never draws those).
+pub fn double_sided_flags(scene: &Scene) -> Vec<Option<bool>> {
+    let mut flags = vec![None; scene.triangle_count()];
     for d in &scene.draws {
-        let ds = scene
-            .materials
-            .get(d.material)
-            .is_none_or(|m| m.double_sided);
+        let Some(material) = scene.materials.get(d.material) else {
+            continue;
+        };
         let first = d.first_index as usize / 3;
         for f in flags
             .iter_mut()
             .skip(first)
             .take(d.index_count as usize / 3)
         {
-            *f = ds;
+            *f = Some(material.double_sided);
         }
     }
     flags
