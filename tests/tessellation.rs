@@ -85,16 +85,10 @@ fn box_room() -> Scene {
         ), // floor
         (Vec3::new(lo.x, hi.y, lo.z), Vec3::X * d.x, Vec3::Z * d.z), // ceiling
     ];
-    let colours: [[u8; 3]; 6] = [
-        [255, 0, 0],
-        [0, 255, 0],
-        [0, 0, 255],
-        [255, 255, 0],
-        [255, 0, 255],
-        [0, 255, 255],
-    ];
+    // Six distinct exact colours (the marker palette).
+    let colours = &MARKER_COLOURS[..6];
     let mut scene = Scene::default();
-    for ((o, u, v), c) in faces.iter().zip(colours) {
+    for ((o, u, v), c) in faces.iter().zip(colours.iter().copied()) {
         let mesh = grid(*o, *u, *v, 1, 1, 1.0);
         let m = scene.add_material(omnicave::scene::Material {
             double_sided: false,

@@ -378,39 +378,22 @@ impl ScenePass {
         view_index: usize,
         wireframe: bool,
     ) {
-        let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
-        pass.set_bind_group(0, &self.frame_bind_group, &[view_offset]);
         pass.set_vertex_buffer(0, scene.vertex_buffer.slice(..));
         pass.set_index_buffer(scene.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-        let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
-        for &wire in layers {
-            let mut bound: Option<PipelineKey> = None;
-            for draw in &scene.draws {
-                let key = PipelineKey {
-                    double_sided: draw.double_sided,
-                    wireframe: wire,
-                    tessellated: false,
-                };
-                if bound != Some(key) {
-                    let Some(pipeline) = self.pipelines.get(&key) else {
-                        continue;
-                    };
-                    pass.set_pipeline(pipeline);
-                    bound = Some(key);
-                }
-                let material_offset = (draw.material as u64 * UNIFORM_STRIDE) as u32;
-                pass.set_bind_group(
-                    1,
-                    &scene.material_bind_groups[draw.material],
-                    &[material_offset],
-                );
+        self.draw_materials(
+            pass,
+            scene,
+            view_index,
+            wireframe,
+            false,
+            |pass, _, draw| {
                 pass.draw_indexed(
                     draw.first_index..draw.first_index + draw.index_count,
                     0,
                     0..1,
                 );
-            }
-        }
+            },
+        );
     }
 
     /// Records the draws of the tessellator's output for view slot `view_index`: one indirect
@@ -423,9 +406,28 @@ impl ScenePass {
         view_index: usize,
         wireframe: bool,
     ) {
+        pass.set_bind_group(2, &tess.draw_group, &[]);
+        self.draw_materials(pass, scene, view_index, wireframe, true, |pass, d, _| {
+            pass.draw_indirect(
+                &tess.args,
+                super::tessellator::TessBuffers::draw_args_offset(d),
+            );
+        });
+    }
+
+    /// Binds the view, then for each layer (shaded, and the wireframe overlay if asked) and
+    /// each draw: the pipeline variant (only when it changes), the material, and `issue`.
+    fn draw_materials(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        scene: &SceneGpu,
+        view_index: usize,
+        wireframe: bool,
+        tessellated: bool,
+        issue: impl Fn(&mut wgpu::RenderPass<'_>, usize, &GpuDraw),
+    ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
         pass.set_bind_group(0, &self.frame_bind_group, &[view_offset]);
-        pass.set_bind_group(2, &tess.draw_group, &[]);
         let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
         for &wire in layers {
             let mut bound: Option<PipelineKey> = None;
@@ -433,7 +435,7 @@ impl ScenePass {
                 let key = PipelineKey {
                     double_sided: draw.double_sided,
                     wireframe: wire,
-                    tessellated: true,
+                    tessellated,
                 };
                 if bound != Some(key) {
                     let Some(pipeline) = self.pipelines.get(&key) else {
@@ -448,10 +450,7 @@ impl ScenePass {
                     &scene.material_bind_groups[draw.material],
                     &[material_offset],
                 );
-                pass.draw_indirect(
-                    &tess.args,
-                    super::tessellator::TessBuffers::draw_args_offset(d),
-                );
+                issue(pass, d, draw);
             }
         }
     }

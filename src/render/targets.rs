@@ -85,6 +85,39 @@ impl EyeTarget {
     }
 }
 
+/// Copies the first `size` bytes of a GPU buffer back to the CPU (blocking; for the headless
+/// CLI and tests, never in the interactive render path).
+pub fn read_buffer(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    source: &wgpu::Buffer,
+    size: u64,
+    label: &str,
+) -> Result<Vec<u8>, RenderError> {
+    let size = size.max(4).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder =
+        device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    encoder.copy_buffer_to_buffer(source, 0, &staging, 0, size);
+    queue.submit([encoder.finish()]);
+    staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let data = staging
+        .get_mapped_range(..)
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let bytes = data.to_vec();
+    drop(data);
+    staging.unmap();
+    Ok(bytes)
+}
+
 /// Copies textures back to CPU images (for the headless CLI and tests; never per frame in the
 /// interactive render path).
 pub fn read_textures(

@@ -541,29 +541,21 @@ impl TessBuffers {
         queue: &wgpu::Queue,
         count: u32,
     ) -> Result<Vec<GpuTessEntry>, RenderError> {
-        let count = count.min(self.capacity);
-        let size = (std::mem::size_of::<GpuTessEntry>() as u64 * u64::from(count)).max(32);
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("TessBuffers::entries_staging"),
+        let count = count.min(self.capacity) as usize;
+        let size = (std::mem::size_of::<GpuTessEntry>() * count) as u64;
+        let bytes = super::targets::read_buffer(
+            device,
+            queue,
+            &self.sorted,
             size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("TessBuffers::read_entries"),
-        });
-        encoder.copy_buffer_to_buffer(&self.sorted, 0, &staging, 0, size);
-        queue.submit([encoder.finish()]);
-        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
-        let data = staging
-            .get_mapped_range(..)
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
-        let entries: Vec<GpuTessEntry> = bytemuck::cast_slice(&data)[..count as usize].to_vec();
-        drop(data);
-        staging.unmap();
+            "TessBuffers::read_entries",
+        )?;
+        // A Vec<u8> need not be aligned for the entry type: read each one unaligned.
+        let entries: Vec<GpuTessEntry> = bytes
+            .chunks_exact(std::mem::size_of::<GpuTessEntry>())
+            .take(count)
+            .map(bytemuck::pod_read_unaligned)
+            .collect();
         Ok(entries)
     }
 
@@ -582,26 +574,17 @@ impl TessBuffers {
         input: u32,
     ) -> Result<Vec<TessStats>, RenderError> {
         let views = views.min(self.stats_capacity);
-        let size = STATS_BYTES * views.max(1) as u64;
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("TessBuffers::stats_staging"),
-            size,
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("TessBuffers::read_stats"),
-        });
-        encoder.copy_buffer_to_buffer(&self.stats, 0, &staging, 0, size);
-        queue.submit([encoder.finish()]);
-        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
-        let data = staging
-            .get_mapped_range(..)
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
-        let words: &[u32] = bytemuck::cast_slice(&data);
+        let bytes = super::targets::read_buffer(
+            device,
+            queue,
+            &self.stats,
+            STATS_BYTES * views as u64,
+            "TessBuffers::read_stats",
+        )?;
+        let words: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(bytemuck::pod_read_unaligned)
+            .collect();
         let stats = (0..views)
             .map(|v| {
                 let w = &words[v * 4..v * 4 + 4];
@@ -614,8 +597,6 @@ impl TessBuffers {
                 }
             })
             .collect();
-        drop(data);
-        staging.unmap();
         Ok(stats)
     }
 }

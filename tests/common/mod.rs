@@ -116,6 +116,27 @@ pub fn render(
     render_omni(cave, head, mode, scene, settings, OmniSettings::default())
 }
 
+/// The frame every test renders: IPD 0.064 m, scene placed at the CAVE, default lights.
+pub fn test_frame<'a>(
+    cave: &'a Cave,
+    head: Head,
+    mode: RenderMode,
+    omni: OmniSettings,
+    tess: TessSettings,
+) -> FrameParams<'a> {
+    FrameParams {
+        cave,
+        head,
+        mode,
+        eye_separation: 0.064,
+        world_from_cave: Mat4::IDENTITY,
+        lighting: Lighting::default(),
+        background: BACKGROUND_SRGB,
+        omni,
+        tess,
+    }
+}
+
 /// Renders with tessellation; returns the images, the per-view tessellation statistics and the
 /// last view's output triangles.
 pub fn render_tess(
@@ -136,17 +157,7 @@ pub fn render_tess(
     }
     renderer.set_scene(scene);
     renderer
-        .render(&FrameParams {
-            cave,
-            head,
-            mode,
-            eye_separation: 0.064,
-            world_from_cave: Mat4::IDENTITY,
-            lighting: Lighting::default(),
-            background: BACKGROUND_SRGB,
-            omni: OmniSettings::default(),
-            tess,
-        })
+        .render(&test_frame(cave, head, mode, OmniSettings::default(), tess))
         .expect("render");
     (
         renderer.read_images().expect("read back"),
@@ -167,17 +178,7 @@ pub fn render_omni(
     let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
     renderer.set_scene(scene);
     renderer
-        .render(&FrameParams {
-            cave,
-            head,
-            mode,
-            eye_separation: 0.064,
-            world_from_cave: Mat4::IDENTITY,
-            lighting: Lighting::default(),
-            background: BACKGROUND_SRGB,
-            omni,
-            tess: TessSettings::default(),
-        })
+        .render(&test_frame(cave, head, mode, omni, TessSettings::default()))
         .expect("render");
     renderer.read_images().expect("read back")
 }
