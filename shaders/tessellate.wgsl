@@ -275,13 +275,18 @@ fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// One thread: size the split dispatch from the live count, and reset the next list.
+// One thread: size the split (args 0..3) and flush (args 3..6) dispatches from the live
+// count, and reset the next list (harmless before the flush, which reads only count_in).
 @compute @workgroup_size(1)
 fn cs_prepare() {
     let n = min(atomicLoad(&count_in), tess.counts.y);
-    args[0] = (n + WORKGROUP - 1u) / WORKGROUP;
+    let groups = (n + WORKGROUP - 1u) / WORKGROUP;
+    args[0] = groups;
     args[1] = 1u;
     args[2] = 1u;
+    args[3] = groups;
+    args[4] = 1u;
+    args[5] = 1u;
     atomicStore(&count_out, 0u);
 }
 
@@ -371,15 +376,6 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     atomicStore(&counters[C_OVERFLOW], 1u);
     emit(e);
-}
-
-// One thread: size a dispatch over what is left in the live list (for cs_flush).
-@compute @workgroup_size(1)
-fn cs_prepare_flush() {
-    let n = min(atomicLoad(&count_in), tess.counts.y);
-    args[3] = (n + WORKGROUP - 1u) / WORKGROUP;
-    args[4] = 1u;
-    args[5] = 1u;
 }
 
 @compute @workgroup_size(64)

@@ -107,13 +107,19 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
     cave.walls.truncate(2); // left and front walls
     let head = Vec3::new(-0.4, 1.5, 0.3);
     let scene = box_room();
-    for criterion in [
-        Criterion::Uniform(3),
-        Criterion::Edge(40.0),
-        Criterion::Sphere(60.0),
-        Criterion::Error(1.0),
+    // (criterion, max depth): uniform:3 capped at depth 2 ends with live triangles, so the
+    // flush at the maximum depth is compared too.
+    for (criterion, max_depth) in [
+        (Criterion::Uniform(3), 6),
+        (Criterion::Uniform(3), 2),
+        (Criterion::Edge(40.0), 6),
+        (Criterion::Sphere(60.0), 6),
+        (Criterion::Error(1.0), 6),
     ] {
-        let tess = settings(Some(criterion));
+        let tess = TessSettings {
+            max_depth,
+            ..settings(Some(criterion))
+        };
         let (_, stats, entries) = render_tess(
             &cave,
             Head::at(head),
@@ -136,7 +142,8 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
         expected.sort();
         let gpu_stats = stats.last().unwrap();
         println!(
-            "{criterion}: GPU {} triangles ({} back-face, {} frustum culled), CPU {} ({}, {})",
+            "{criterion} depth {max_depth}: GPU {} triangles ({} back-face, {} frustum culled), \
+             CPU {} ({}, {})",
             gpu.len(),
             gpu_stats.culled_backface,
             gpu_stats.culled_frustum,

@@ -89,10 +89,4 @@ impl Gpu {
                 .flags
                 .contains(wgpu::DownlevelFlags::INDIRECT_EXECUTION)
     }
-
-    /// "name (backend)" of the adapter, for logs and reports.
-    pub fn adapter_name(&self) -> String {
-        let info = self.adapter.get_info();
-        format!("{} ({:?})", info.name, info.backend)
-    }
 }

@@ -126,7 +126,6 @@ pub struct Tessellator {
     init: wgpu::ComputePipeline,
     prepare: wgpu::ComputePipeline,
     split: wgpu::ComputePipeline,
-    prepare_flush: wgpu::ComputePipeline,
     flush: wgpu::ComputePipeline,
     prefix: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
@@ -270,7 +269,6 @@ impl Tessellator {
             init: pipeline("cs_init", &work_layout),
             prepare: pipeline("cs_prepare", &args_pipeline_layout),
             split: pipeline("cs_split", &work_layout),
-            prepare_flush: pipeline("cs_prepare_flush", &args_pipeline_layout),
             flush: pipeline("cs_flush", &work_layout),
             prefix: pipeline("cs_prefix", &args_pipeline_layout),
             scatter: pipeline("cs_scatter", &work_layout),
@@ -513,7 +511,7 @@ impl TessBuffers {
                 &self.lists_ba
             };
             pass.set_bind_group(1, last, &[]);
-            pass.set_pipeline(&tess.prepare_flush);
+            pass.set_pipeline(&tess.prepare);
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_pipeline(&tess.flush);
             pass.dispatch_workgroups_indirect(&self.args, 12);

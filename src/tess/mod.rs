@@ -18,7 +18,7 @@ pub use criteria::{Criterion, TessSettings, parse_criterion};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 
 use crate::cave::omni::{OmniSettings, omni_eye, warp};
-use crate::cave::{Eye, ViewSetup, Wall};
+use crate::cave::{ViewSetup, Wall};
 use crate::scene::Scene;
 
 /// Fixed-point 1.0 of barycentric coordinates: depth ≤ 16 halvings stay exact.
@@ -414,11 +414,6 @@ pub fn double_sided_flags(scene: &Scene) -> Vec<Option<bool>> {
         }
     }
     flags
-}
-
-/// The eye a view is for (left in mono).
-pub fn view_eye(view: &ViewSetup) -> Eye {
-    view.eye.unwrap_or(Eye::Left)
 }
 
 #[cfg(test)]
