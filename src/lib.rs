@@ -1,8 +1,8 @@
 //! omnicave: omnidirectional stereo rendering of virtual environments for CAVEs.
 //!
 //! Layers, with dependencies pointing one way: [`scene`] (glTF → CPU meshes) and [`cave`]
-//! (walls, head, eyes, projections) and [`tess`] (tessellation criteria, CPU twin) know
-//! nothing of the GPU; [`render`] owns GPU resources;
+//! (walls, head, eyes, projections) and [`tess`] (tessellation criteria, CPU twin) and [`sky`]
+//! (cube maps, the sky's eye model) know nothing of the GPU; [`render`] owns GPU resources;
 //! [`output`] composes eye images; [`headless`] ties them together for the CLI.
 
 pub mod cave;
@@ -11,4 +11,5 @@ pub mod headless;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod sky;
 pub mod tess;
