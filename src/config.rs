@@ -10,6 +10,7 @@ use serde::Deserialize;
 
 use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
+use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode, SkySettings};
 use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, parse_criterion};
 
 /// Everything that can be wrong with a config file.
@@ -49,6 +50,8 @@ pub struct ConfigFile {
     pub omnistereo: OmnistereoSection,
     #[serde(default)]
     pub tessellation: TessellationSection,
+    #[serde(default)]
+    pub skybox: SkyboxSection,
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
@@ -134,6 +137,43 @@ impl Default for TessellationSection {
             frustum_cull: true,
         }
     }
+}
+
+/// The sky behind the scene.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkyboxSection {
+    /// An equirectangular image (PNG/JPEG/HDR) or a folder of six faces; relative to the
+    /// config's folder. Absent or "none": no sky.
+    #[serde(default)]
+    pub file: Option<PathBuf>,
+    /// `auto`, `offaxis`, `omni-quad` or `omni-exact`.
+    #[serde(default = "default_sky_mode")]
+    pub mode: String,
+    /// Omni-quad mesh density: one slice per this many pixels.
+    #[serde(default = "default_pixels_per_slice")]
+    pub pixels_per_slice: f32,
+    /// Multiplier on the sky's linear colour.
+    #[serde(default = "one")]
+    pub exposure: f32,
+}
+
+impl Default for SkyboxSection {
+    fn default() -> Self {
+        Self {
+            file: None,
+            mode: default_sky_mode(),
+            pixels_per_slice: default_pixels_per_slice(),
+            exposure: 1.0,
+        }
+    }
+}
+
+fn default_sky_mode() -> String {
+    SkyMode::default().name().into()
+}
+fn default_pixels_per_slice() -> f32 {
+    DEFAULT_PIXELS_PER_SLICE
 }
 
 fn default_criterion() -> String {
@@ -425,6 +465,9 @@ pub struct Config {
     pub lighting: Lighting,
     pub omni: OmniSettings,
     pub tess: TessSettings,
+    /// Sky file, already resolved against the config's folder (`None`: no sky).
+    pub sky_path: Option<PathBuf>,
+    pub sky: SkySettings,
 }
 
 impl Config {
@@ -657,13 +700,39 @@ impl ConfigFile {
         ck.range("lighting.point.intensity", l.point.intensity, 0.0, 100.0)?;
         ck.range("lighting.point.range", l.point.range, 1e-3, 1e6)?;
 
-        let scene_path = self.scene.path.as_ref().map(|p| {
+        let resolve = |p: &PathBuf| {
             if p.is_absolute() {
                 p.clone()
             } else {
                 path.parent().unwrap_or(Path::new(".")).join(p)
             }
-        });
+        };
+        let scene_path = self.scene.path.as_ref().map(resolve);
+
+        let k = &self.skybox;
+        let sky_mode = SkyMode::from_name(&k.mode).ok_or_else(|| {
+            let names: Vec<_> = SkyMode::ALL.iter().map(|m| m.name()).collect();
+            ck.fail(
+                "skybox.mode",
+                &k.mode,
+                &format!("must be one of {}", names.join(", ")),
+            )
+        })?;
+        let sky = SkySettings {
+            mode: sky_mode,
+            pixels_per_slice: ck.range(
+                "skybox.pixels_per_slice",
+                k.pixels_per_slice,
+                1.0,
+                4096.0,
+            )?,
+            exposure: ck.range("skybox.exposure", k.exposure, 0.0, 1e4)?,
+        };
+        let sky_path = k
+            .file
+            .as_ref()
+            .filter(|p| p.as_os_str() != "none")
+            .map(resolve);
 
         Ok(Config {
             source: path.to_owned(),
@@ -686,6 +755,8 @@ impl ConfigFile {
             lighting: l.to_lighting(),
             omni,
             tess,
+            sky_path,
+            sky,
         })
     }
 }

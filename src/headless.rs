@@ -7,6 +7,7 @@ use crate::config::{Config, ConfigError};
 use crate::output::{self, OutputError};
 use crate::render::{FrameParams, Gpu, RenderError, RenderSettings, Renderer, WallImages};
 use crate::scene::{Scene, SceneError, load_gltf};
+use crate::sky::{CubeMap, load_sky};
 
 /// Anything that stops a headless render.
 #[derive(Debug, thiserror::Error)]
@@ -46,6 +47,9 @@ pub struct Overrides {
     /// `Some(None)` switches tessellation off.
     pub tess: Option<Option<crate::tess::Criterion>>,
     pub tess_max_depth: Option<u32>,
+    /// `Some(None)` removes the sky; `Some(Some(path))` replaces the config's sky file.
+    pub sky: Option<Option<PathBuf>>,
+    pub sky_mode: Option<crate::sky::SkyMode>,
 }
 
 impl Overrides {
@@ -87,14 +91,45 @@ impl Overrides {
         if let Some(depth) = self.tess_max_depth {
             config.tess.max_depth = depth;
         }
+        if let Some(sky) = &self.sky {
+            config.sky_path = sky.clone();
+        }
+        if let Some(mode) = self.sky_mode {
+            config.sky.mode = mode;
+        }
     }
 }
 
-/// Renders one frame of `scene` as configured and returns every wall's eye images.
+/// Loads the config's sky, if it names one. A missing or malformed sky file is logged as an
+/// error naming the file, and the scene renders without a sky.
+pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
+    let path = config.sky_path.as_ref()?;
+    match load_sky(path) {
+        Ok(cube) => {
+            tracing::info!(
+                "sky {}: {}×{} per face, {} mip levels{}",
+                path.display(),
+                cube.size(),
+                cube.size(),
+                cube.levels.len(),
+                if cube.is_hdr() { ", HDR" } else { "" }
+            );
+            Some(cube)
+        }
+        Err(e) => {
+            tracing::error!("{e}; rendering without a sky");
+            None
+        }
+    }
+}
+
+/// Renders one frame of `scene` (and `sky`, if any) as configured and returns every wall's eye
+/// images.
 pub fn render_images(
     gpu: &Gpu,
     config: &Config,
     scene: &Scene,
+    sky: Option<&CubeMap>,
 ) -> Result<Vec<WallImages>, RenderError> {
     let mut renderer = Renderer::new(
         gpu,
@@ -105,6 +140,7 @@ pub fn render_images(
         },
     )?;
     renderer.set_scene(scene);
+    renderer.set_sky(sky);
     renderer.render(&frame_params(config))?;
     for (view, stats) in renderer
         .last_views()
@@ -141,6 +177,7 @@ pub fn frame_params(config: &Config) -> FrameParams<'_> {
         background: config.background,
         omni: config.omni,
         tess: config.tess,
+        sky: config.sky,
     }
 }
 
@@ -178,8 +215,9 @@ pub fn render_to_dir(
         scene.materials.len(),
         scene.textures.len()
     );
+    let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
-    let images = render_images(&gpu, &config, &scene)?;
+    let images = render_images(&gpu, &config, &scene, sky.as_ref())?;
     write_images(&images, out_dir).map_err(Into::into)
 }
 

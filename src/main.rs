@@ -10,6 +10,7 @@ use glam::Vec3;
 use omnicave::cave::RenderMode;
 use omnicave::cave::omni::{PoleMerge, WarpVariant};
 use omnicave::headless::{self, Overrides};
+use omnicave::sky::SkyMode;
 use omnicave::tess::{Criterion, MAX_DEPTH_LIMIT, parse_criterion};
 
 #[derive(Debug, Parser)]
@@ -70,9 +71,37 @@ struct RenderArgs {
     /// Deepest subdivision (6 = 64 segments per edge, like hardware tessellators).
     #[arg(long, value_parser = parse_depth)]
     tess_max_depth: Option<u32>,
+    /// Sky: an equirectangular image (PNG/JPEG/HDR) or a folder of six faces, or "none".
+    #[arg(long, value_parser = parse_skybox)]
+    skybox: Option<SkyboxArg>,
+    /// Sky mode: auto (follows the render mode), offaxis, omni-quad or omni-exact.
+    #[arg(long, value_parser = parse_sky_mode)]
+    skybox_mode: Option<SkyMode>,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
+}
+
+/// `--skybox` value (a newtype: clap reads `Option<Option<T>>` as an optional-value flag).
+#[derive(Debug, Clone)]
+struct SkyboxArg(Option<PathBuf>);
+
+fn parse_skybox(s: &str) -> Result<SkyboxArg, String> {
+    match s.trim() {
+        "" => Err("expected a sky file or folder, or 'none'".into()),
+        "none" => Ok(SkyboxArg(None)),
+        path => Ok(SkyboxArg(Some(PathBuf::from(path)))),
+    }
+}
+
+fn parse_sky_mode(s: &str) -> Result<SkyMode, String> {
+    SkyMode::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = SkyMode::ALL.iter().map(|m| m.name()).collect();
+        format!(
+            "unknown sky mode '{s}'; expected one of: {}",
+            names.join(", ")
+        )
+    })
 }
 
 fn parse_mode(s: &str) -> Result<RenderMode, String> {
@@ -233,6 +262,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 pole_merge: args.pole_merge.map(|p| p.0),
                 tess: args.tess.map(|t| t.0),
                 tess_max_depth: args.tess_max_depth,
+                sky: args.skybox.map(|s| s.0),
+                sky_mode: args.skybox_mode,
             };
             let written = headless::render_to_dir(&args.config, &overrides, &args.out)
                 .context("render failed")?;

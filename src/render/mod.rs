@@ -3,6 +3,7 @@
 pub mod gpu;
 pub mod scene_pass;
 pub mod shaders;
+pub mod sky_pass;
 pub mod targets;
 pub mod tessellator;
 pub mod uniforms;
@@ -12,14 +13,16 @@ use image::RgbaImage;
 
 pub use gpu::Gpu;
 use scene_pass::{SceneGpu, ScenePass};
+use sky_pass::{SkyFrame, SkyPass};
 use targets::WallTargets;
 use tessellator::{TessBuffers, TessUniforms, Tessellator};
 use uniforms::{FrameUniforms, ViewUniforms};
 
 use crate::cave::omni::OmniSettings;
-use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, view_setups};
+use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
 use crate::config::Lighting;
 use crate::scene::Scene;
+use crate::sky::{CubeMap, SkySettings};
 use crate::tess::{TessSettings, TessStats};
 
 /// Everything that can go wrong in the render layer.
@@ -71,6 +74,8 @@ pub struct FrameParams<'a> {
     pub omni: OmniSettings,
     /// Adaptive tessellation before the warp (on when a criterion is set).
     pub tess: TessSettings,
+    /// Sky mode and parameters (drawn when a cube map is set with `Renderer::set_sky`).
+    pub sky: SkySettings,
 }
 
 /// Counts from the last frame.
@@ -88,6 +93,7 @@ pub struct Renderer {
     settings: RenderSettings,
     scene_pass: ScenePass,
     scene: Option<SceneGpu>,
+    sky_pass: SkyPass,
     /// `None` when the device cannot run it (too few storage buffers per stage).
     tessellator: Option<Tessellator>,
     /// Created on the first tessellated frame of a scene (they are large).
@@ -126,12 +132,14 @@ impl Renderer {
             cave.walls.len() * 2,
             tessellator.as_ref().map(|t| &t.draw_layout),
         );
+        let sky_pass = SkyPass::new(&gpu.device, settings.msaa, cave.walls.len() * 2);
         let mut renderer = Self {
             device: gpu.device.clone(),
             queue: gpu.queue.clone(),
             settings,
             scene_pass,
             scene: None,
+            sky_pass,
             tessellator,
             tess_buffers: None,
             tess_capacity: tessellator::DEFAULT_CAPACITY,
@@ -152,6 +160,16 @@ impl Renderer {
                 .upload_scene(&self.device, &self.queue, scene),
         );
         self.tess_buffers = None;
+    }
+
+    /// Sets the sky's cube map (uploaded once with its mip chain); `None` removes the sky.
+    pub fn set_sky(&mut self, cube: Option<&CubeMap>) {
+        self.sky_pass.set_cube(&self.device, &self.queue, cube);
+    }
+
+    /// Whether a sky is set.
+    pub fn has_sky(&self) -> bool {
+        self.sky_pass.has_cube()
     }
 
     /// Sets the tessellation output budget (triangles per view); takes effect on the next
@@ -213,6 +231,7 @@ impl Renderer {
         self.settings = settings;
         if msaa_changed {
             self.scene_pass.build_pipelines(&self.device, settings.msaa);
+            self.sky_pass.build_pipelines(&self.device, settings.msaa);
             self.targets.clear();
             self.sync_walls(cave);
         }
@@ -287,6 +306,36 @@ impl Renderer {
                 }),
             );
         }
+        let sky_frame = SkyFrame {
+            world_from_cave: frame.world_from_cave,
+            head: frame.head.position,
+            eye_separation: frame.eye_separation,
+            offaxis_eyes: match frame.mode {
+                RenderMode::OmniOnAxis | RenderMode::OmniOffAxis => eye_positions(
+                    RenderMode::Stereo,
+                    &frame.head,
+                    frame.eye_separation,
+                    frame.cave.stereo_view_direction,
+                ),
+                _ => eye_positions(
+                    frame.mode,
+                    &frame.head,
+                    frame.eye_separation,
+                    frame.cave.stereo_view_direction,
+                ),
+            },
+            pole_merge: frame.omni.pole_merge,
+            exposure: frame.sky.exposure,
+        };
+        self.sky_pass.prepare(
+            &self.device,
+            &self.queue,
+            frame.cave,
+            &views,
+            &frame.sky,
+            frame.sky.mode.resolve(frame.mode),
+            &sky_frame,
+        );
         let rounds = tessellator::rounds(&frame.tess);
         let clear = srgb_to_linear_color(frame.background);
         let wireframe = self.settings.wireframe && self.wireframe_supported;
@@ -340,6 +389,7 @@ impl Renderer {
                 (Some(scene), None) => self.scene_pass.draw(&mut pass, scene, index, wireframe),
                 (None, _) => {}
             }
+            self.sky_pass.draw(&mut pass, index, view.wall);
         }
         self.queue.submit([encoder.finish()]);
         let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);

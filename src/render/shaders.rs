@@ -9,8 +9,11 @@ pub const SCENE: &str = include_str!("../../shaders/scene.wgsl");
 /// Adaptive tessellation compute passes (paired with `src/render/tessellator.rs`).
 pub const TESSELLATE: &str = include_str!("../../shaders/tessellate.wgsl");
 
+/// Skybox (paired with `src/render/sky_pass.rs`).
+pub const SKY: &str = include_str!("../../shaders/sky.wgsl");
+
 /// Every feature shader by file stem, for validation.
-pub const FEATURES: &[(&str, &str)] = &[("scene", SCENE), ("tessellate", TESSELLATE)];
+pub const FEATURES: &[(&str, &str)] = &[("scene", SCENE), ("tessellate", TESSELLATE), ("sky", SKY)];
 
 /// Full source of a feature shader: common declarations followed by the feature's own code.
 pub fn compose(feature_source: &str) -> String {

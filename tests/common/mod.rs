@@ -134,6 +134,7 @@ pub fn test_frame<'a>(
         background: BACKGROUND_SRGB,
         omni,
         tess,
+        sky: omnicave::sky::SkySettings::default(),
     }
 }
 
