@@ -1,4 +1,5 @@
-//! Generates the bundled scenes (`assets/living-room.glb`, `assets/city.glb`) deterministically.
+//! Generates the bundled scenes (`assets/living-room.glb`, `assets/city.glb`) and sky
+//! (`assets/sky.png`) deterministically.
 //!
 //! `gen-assets [--out DIR]` writes them; `gen-assets --check [--out DIR]` fails if the files
 //! there differ from what this generator makes (so committed assets always match the code).
@@ -11,6 +12,8 @@ use image::{Rgba, RgbaImage};
 
 use omnicave::scene::build::{MeshData, cuboid, frustum_shell, grid, uv_sphere};
 use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, NodeDesc};
+use omnicave::sky::bundled;
+use omnicave::sky::cubemap::{equirect_direction, linear_to_srgb, srgb_to_linear};
 
 fn main() -> anyhow::Result<()> {
     let mut out = PathBuf::from("assets");
@@ -23,7 +26,11 @@ fn main() -> anyhow::Result<()> {
             other => bail!("unknown argument '{other}' (use --out DIR and/or --check)"),
         }
     }
-    let files = [("living-room.glb", living_room()?), ("city.glb", city()?)];
+    let files = [
+        ("living-room.glb", living_room()?),
+        ("city.glb", city()?),
+        ("sky.png", png(&sky())?),
+    ];
     let mut stale = Vec::new();
     for (name, bytes) in &files {
         let path = out.join(name);
@@ -587,4 +594,168 @@ fn city() -> anyhow::Result<Vec<u8>> {
     }
     roots.push(w.add_node(NodeDesc::new("trees").with_children(trees)));
     Ok(w.to_glb(&roots))
+}
+
+/// Smooth 3D value noise in 0..1 (a hashed lattice, trilinear with smoothstep), so the clouds
+/// wrap seamlessly around the sphere.
+fn value_noise(p: Vec3) -> f32 {
+    let hash = |x: i32, y: i32, z: i32| {
+        let mut h = (x as u32).wrapping_mul(0x8da6_b343)
+            ^ (y as u32).wrapping_mul(0xd816_3841)
+            ^ (z as u32).wrapping_mul(0xcb1a_b31f);
+        h ^= h >> 13;
+        h = h.wrapping_mul(0x5bd1_e995);
+        h ^= h >> 15;
+        (h & 0xffff) as f32 / 65535.0
+    };
+    let i = p.floor();
+    let f = p - i;
+    let s = f * f * (Vec3::splat(3.0) - 2.0 * f);
+    let (x, y, z) = (i.x as i32, i.y as i32, i.z as i32);
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let x00 = lerp(hash(x, y, z), hash(x + 1, y, z), s.x);
+    let x10 = lerp(hash(x, y + 1, z), hash(x + 1, y + 1, z), s.x);
+    let x01 = lerp(hash(x, y, z + 1), hash(x + 1, y, z + 1), s.x);
+    let x11 = lerp(hash(x, y + 1, z + 1), hash(x + 1, y + 1, z + 1), s.x);
+    lerp(lerp(x00, x10, s.y), lerp(x01, x11, s.y), s.z)
+}
+
+fn fbm(p: Vec3, octaves: u32) -> f32 {
+    let (mut sum, mut amp, mut freq, mut norm) = (0.0, 0.5, 1.0, 0.0);
+    for _ in 0..octaves {
+        sum += amp * value_noise(p * freq);
+        norm += amp;
+        amp *= 0.5;
+        freq *= 2.03;
+    }
+    sum / norm
+}
+
+/// The bundled sky, equirectangular 2048×1024: gradient, clouds, distant mountains, ground,
+/// and the calibration beacons and ring of `omnicave::sky::bundled`.
+fn sky() -> RgbaImage {
+    let (w, h) = (2048u32, 1024u32);
+    // Clouds at a quarter of the resolution (they are soft), upsampled bilinearly.
+    let (cw, ch) = (w / 4, h / 4);
+    let clouds: Vec<f32> = (0..cw * ch)
+        .map(|i| {
+            let (x, y) = (i % cw, i / cw);
+            let d = equirect_direction((x as f32 + 0.5) / cw as f32, (y as f32 + 0.5) / ch as f32);
+            let n = fbm(d * 3.0 + Vec3::new(11.0, 3.0, 7.0), 5);
+            let cover = ((n - 0.5) / 0.2).clamp(0.0, 1.0);
+            // Clouds thin out towards the horizon and stay clear of the ring and beacons'
+            // band below 31° (beacons on a uniform background keep their drawn centroids
+            // unbiased).
+            let elevation = d.y.asin().to_degrees();
+            cover * ((elevation - 31.0) / 10.0).clamp(0.0, 1.0)
+        })
+        .collect();
+    let cloud_at = |u: f32, v: f32| {
+        let fx = u * cw as f32 - 0.5;
+        let fy = (v * ch as f32 - 0.5).clamp(0.0, (ch - 1) as f32);
+        let (x0, y0) = (fx.floor(), fy.floor());
+        let (ax, ay) = (fx - x0, fy - y0);
+        let xi = |x: f32| (x as i64).rem_euclid(i64::from(cw)) as u32;
+        let (xa, xb) = (xi(x0), xi(x0 + 1.0));
+        let (ya, yb) = (y0 as u32, (y0 as u32 + 1).min(ch - 1));
+        let c = |x: u32, y: u32| clouds[(y * cw + x) as usize];
+        let top = c(xa, ya) + ax * (c(xb, ya) - c(xa, ya));
+        let bottom = c(xa, yb) + ax * (c(xb, yb) - c(xa, yb));
+        top + ay * (bottom - top)
+    };
+    let lin = |c: [u8; 3]| {
+        Vec3::new(
+            srgb_to_linear(c[0]),
+            srgb_to_linear(c[1]),
+            srgb_to_linear(c[2]),
+        )
+    };
+    let zenith = lin([38, 88, 170]);
+    let horizon = lin([185, 205, 228]);
+    let mountain = lin([86, 100, 122]);
+    let ground_near = lin([58, 70, 46]);
+    let ground_far = lin([104, 116, 96]);
+    let cloud = lin([246, 246, 248]);
+    let cloud_shadow = lin([170, 176, 190]);
+    let (ring_lo, ring_hi) = bundled::RING_ELEVATION_DEGREES;
+    // The calibration features: a beacon's or the ring's colour where `d` is on one.
+    let feature = |d: Vec3| -> Option<[u8; 3]> {
+        let elevation = d.y.clamp(-1.0, 1.0).asin().to_degrees();
+        for b in &bundled::BEACONS {
+            if d.dot(b.direction()) >= b.radius_degrees.to_radians().cos() {
+                return Some(b.rgb);
+            }
+        }
+        if elevation < ring_lo || elevation > bundled::RING_TICK_TOP_DEGREES {
+            return None;
+        }
+        let azimuth = d.x.atan2(-d.z).to_degrees();
+        let tick_offset =
+            (azimuth / bundled::RING_TICK_DEGREES).round() * bundled::RING_TICK_DEGREES - azimuth;
+        let on_tick = tick_offset.abs() * elevation.to_radians().cos()
+            <= bundled::RING_TICK_HALF_WIDTH_DEGREES;
+        (elevation <= ring_hi || on_tick).then_some(bundled::RING_RGB)
+    };
+    // Whether a pixel may touch a feature (then it is supersampled for an anti-aliased edge, so
+    // the features' drawn centroids and edges are accurate to a small fraction of a texel).
+    let near_feature = |d: Vec3| {
+        let elevation = d.y.clamp(-1.0, 1.0).asin().to_degrees();
+        (elevation > ring_lo - 0.5 && elevation < bundled::RING_TICK_TOP_DEGREES + 0.5)
+            || bundled::BEACONS
+                .iter()
+                .any(|b| d.dot(b.direction()) >= (b.radius_degrees + 0.5).to_radians().cos())
+    };
+    let background = |u: f32, v: f32, d: Vec3| -> Vec3 {
+        let elevation = d.y.clamp(-1.0, 1.0).asin().to_degrees();
+        // Distant mountains: a ridge line from noise around the horizon.
+        let ridge = 0.6
+            + 14.0
+                * (fbm(
+                    Vec3::new(d.x * 4.0, 0.0, d.z * 4.0) + Vec3::new(5.0, 0.5, 2.0),
+                    4,
+                ) - 0.35)
+                    .max(0.0);
+        if elevation < 0.0 {
+            let t = (-elevation / 40.0).clamp(0.0, 1.0).sqrt();
+            ground_far.lerp(ground_near, t)
+        } else if elevation < ridge {
+            // Haze: lighter towards the ridge top.
+            mountain.lerp(horizon, 0.35 * elevation / ridge)
+        } else {
+            let t = (elevation / 90.0).clamp(0.0, 1.0).powf(0.6);
+            let sky = horizon.lerp(zenith, t);
+            let c = cloud_at(u, v);
+            // Darker cloud bases: shade by the density just below.
+            let below = cloud_at(u, (v + 0.004).min(1.0));
+            sky.lerp(
+                cloud.lerp(cloud_shadow, (below - c).clamp(0.0, 1.0) * 2.0),
+                c,
+            )
+        }
+    };
+    const SUB: u32 = 4;
+    RgbaImage::from_fn(w, h, |x, y| {
+        let (u, v) = ((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+        let d = equirect_direction(u, v);
+        let base = background(u, v, d);
+        let colour = if near_feature(d) {
+            let mut sum = Vec3::ZERO;
+            for sy in 0..SUB {
+                for sx in 0..SUB {
+                    let su = (x as f32 + (sx as f32 + 0.5) / SUB as f32) / w as f32;
+                    let sv = (y as f32 + (sy as f32 + 0.5) / SUB as f32) / h as f32;
+                    sum += feature(equirect_direction(su, sv)).map_or(base, lin);
+                }
+            }
+            sum / (SUB * SUB) as f32
+        } else {
+            base
+        };
+        Rgba([
+            linear_to_srgb(colour.x),
+            linear_to_srgb(colour.y),
+            linear_to_srgb(colour.z),
+            255,
+        ])
+    })
 }
