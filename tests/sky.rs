@@ -1,0 +1,550 @@
+//! Skyboxes on the GPU against the CPU eye model: beacons of the bundled sky land where the
+//! model puts them for each eye and sky mode, the sky is continuous across wall seams, the
+//! omni-quad mesh's interpolation error is measured against the exact lookup, and only the
+//! omnistereo skies have stereo disparity in every direction.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+mod common;
+
+use std::sync::OnceLock;
+
+use glam::{Vec2, Vec3};
+use image::RgbaImage;
+
+use common::{NO_MSAA, cave_at, fit_line, gpu, test_frame};
+use omnicave::cave::omni::{OmniSettings, PoleMerge, omni_eye};
+use omnicave::cave::{Cave, Eye, Head, RenderMode, Wall, eye_positions};
+use omnicave::render::{Renderer, WallImages};
+use omnicave::sky::bundled::{BEACONS, Beacon, RING_ELEVATION_DEGREES};
+use omnicave::sky::cubemap::srgb_to_linear;
+use omnicave::sky::lookup::{
+    omni_lookup, omni_sky_eye_of_point, quad_error, quad_lookup, quad_slices, sky_eye,
+};
+use omnicave::sky::{CubeMap, DEFAULT_PIXELS_PER_SLICE, SkyMode, SkySettings, load_sky};
+use omnicave::tess::TessSettings;
+
+const IPD: f32 = 0.064;
+/// Test walls: the thesis CAVE at half its pixel size (5.2 mm × 8.1 mm pixels).
+const SIZE: [u32; 2] = [640, 360];
+const SKY_MODES: [SkyMode; 3] = [SkyMode::Offaxis, SkyMode::OmniQuad, SkyMode::OmniExact];
+
+fn bundled_sky() -> &'static CubeMap {
+    static SKY: OnceLock<CubeMap> = OnceLock::new();
+    SKY.get_or_init(|| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/sky.png");
+        load_sky(&path).expect("bundled sky")
+    })
+}
+
+/// Renders only the sky (no scene) in omni-offaxis mode with the given sky mode.
+fn render_sky(cave: &Cave, head: Vec3, sky_mode: SkyMode) -> Vec<WallImages> {
+    let mut renderer = Renderer::new(gpu(), cave, NO_MSAA).expect("renderer");
+    renderer.set_sky(Some(bundled_sky()));
+    let mut frame = test_frame(
+        cave,
+        Head::at(head),
+        RenderMode::OmniOffAxis,
+        OmniSettings::default(),
+        TessSettings::default(),
+    );
+    frame.sky = SkySettings {
+        mode: sky_mode,
+        ..SkySettings::default()
+    };
+    renderer.render(&frame).expect("render");
+    renderer.read_images().expect("read back")
+}
+
+/// The CPU eye model: the (unnormalised) direction the sky shows at pixel `px` of `wall`.
+fn cpu_lookup(mode: SkyMode, wall: &Wall, px: Vec2, head: Vec3, eye: Eye) -> Vec3 {
+    let p = wall.wall_point_of_pixel(px);
+    let half = eye.sign() * 0.5 * IPD;
+    let pole = Some(PoleMerge::default());
+    match mode {
+        SkyMode::OmniExact => omni_lookup(p, head, half, pole),
+        SkyMode::OmniQuad => {
+            let slices = quad_slices(wall, DEFAULT_PIXELS_PER_SLICE, true);
+            let u = px.x / wall.resolution[0] as f32;
+            let v = 1.0 - px.y / wall.resolution[1] as f32;
+            quad_lookup(wall, slices, u, v, head, half, pole)
+        }
+        _ => {
+            let eyes = eye_positions(RenderMode::Stereo, &Head::at(head), IPD, Vec3::NEG_Z);
+            p - eyes[eye as usize]
+        }
+    }
+}
+
+/// Where the centre of `beacon` is drawn by the forward model (the eye that sees its direction).
+fn forward_pixel(
+    mode: SkyMode,
+    wall: &Wall,
+    beacon: &Beacon,
+    head: Vec3,
+    eye: Eye,
+) -> Option<Vec2> {
+    let d = beacon.direction();
+    let e = match mode {
+        SkyMode::Offaxis | SkyMode::Auto => {
+            eye_positions(RenderMode::Stereo, &Head::at(head), IPD, Vec3::NEG_Z)[eye as usize]
+        }
+        _ => sky_eye(head, d, IPD, eye, Some(PoleMerge::default())),
+    };
+    wall.pixel_of_ray(e, e + d)
+}
+
+/// Centroid and count of the pixels whose direction (CPU model) lies in the beacon's cap,
+/// within `radius` pixels of `around`; `None` when there is none or the cap is cut by the
+/// image's edge (where the filtered rim is missing on one side).
+fn cpu_beacon(
+    mode: SkyMode,
+    wall: &Wall,
+    beacon: &Beacon,
+    head: Vec3,
+    eye: Eye,
+    around: Vec2,
+    radius: i32,
+) -> Option<CapImage> {
+    let d = beacon.direction();
+    let cos_r = beacon.radius_degrees.to_radians().cos();
+    let (mut sum, mut n) = (Vec2::ZERO, 0);
+    let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
+    for y in
+        (around.y as i32 - radius).max(0)..(around.y as i32 + radius).min(wall.resolution[1] as i32)
+    {
+        for x in (around.x as i32 - radius).max(0)
+            ..(around.x as i32 + radius).min(wall.resolution[0] as i32)
+        {
+            let px = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            if cpu_lookup(mode, wall, px, head, eye).normalize().dot(d) >= cos_r {
+                let [w, h] = wall.resolution;
+                if x == 0 || y == 0 || x as u32 == w - 1 || y as u32 == h - 1 {
+                    return None;
+                }
+                sum += px;
+                n += 1;
+                lo = [lo[0].min(x), lo[1].min(y)];
+                hi = [hi[0].max(x), hi[1].max(y)];
+            }
+        }
+    }
+    (n > 0).then(|| CapImage {
+        centroid: sum / n as f32,
+        pixels: n,
+        min: lo,
+        max: hi,
+    })
+}
+
+/// A beacon's cap as the CPU model draws it: centroid, pixel count and bounding box.
+#[derive(Debug, Clone, Copy)]
+struct CapImage {
+    centroid: Vec2,
+    pixels: usize,
+    min: [i32; 2],
+    max: [i32; 2],
+}
+
+/// Centroid and area (pixels) of the beacon drawn within 4 px of the modelled cap's bounding
+/// box, each pixel weighted by how much of it is beacon: its linear colour's position between
+/// the surrounding sky (the median of the box's border) and the beacon's colour. Weighting the
+/// filtered rim instead of cutting it keeps the centroid unbiased where perspective stretches
+/// the rim unevenly. Pixels off the sky–beacon colour line (ring, ticks) and weights under 0.1
+/// (the sky's gradient across the box) are left out.
+fn gpu_beacon(img: &RgbaImage, beacon: &Beacon, cap: &CapImage) -> (Vec2, f32) {
+    let lin = |p: &image::Rgba<u8>| {
+        Vec3::new(
+            srgb_to_linear(p[0]),
+            srgb_to_linear(p[1]),
+            srgb_to_linear(p[2]),
+        )
+    };
+    let (x0, x1) = (
+        (cap.min[0] - 4).max(0),
+        (cap.max[0] + 5).min(img.width() as i32),
+    );
+    let (y0, y1) = (
+        (cap.min[1] - 4).max(0),
+        (cap.max[1] + 5).min(img.height() as i32),
+    );
+    let mut border: Vec<Vec3> = (x0..x1)
+        .flat_map(|x| [(x, y0), (x, y1 - 1)])
+        .chain((y0..y1).flat_map(|y| [(x0, y), (x1 - 1, y)]))
+        .map(|(x, y)| lin(img.get_pixel(x as u32, y as u32)))
+        .collect();
+    let median = |v: &mut Vec<Vec3>, c: usize| {
+        v.sort_by(|a, b| a[c].total_cmp(&b[c]));
+        v[v.len() / 2][c]
+    };
+    let bg = Vec3::new(
+        median(&mut border, 0),
+        median(&mut border, 1),
+        median(&mut border, 2),
+    );
+    let target = Vec3::new(
+        srgb_to_linear(beacon.rgb[0]),
+        srgb_to_linear(beacon.rgb[1]),
+        srgb_to_linear(beacon.rgb[2]),
+    );
+    let axis = target - bg;
+    let (mut sum, mut area) = (Vec2::ZERO, 0.0);
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let p = lin(img.get_pixel(x as u32, y as u32));
+            let alpha = ((p - bg).dot(axis) / axis.length_squared()).clamp(0.0, 1.0);
+            // Only pixels whose colour lies on the sky–beacon line (not ring, ground, ...).
+            let off_line = (p - bg - alpha * axis).length();
+            if alpha >= 0.1 && off_line < 0.05 {
+                sum += alpha * Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                area += alpha;
+            }
+        }
+    }
+    (if area > 0.0 { sum / area } else { Vec2::ZERO }, area)
+}
+
+const HEADS: [Vec3; 4] = [
+    Vec3::new(0.0, 1.7, 0.0),
+    Vec3::new(-0.7, 1.5, -0.5),
+    // 0.3 m from the left wall.
+    Vec3::new(-1.35, 1.7, 0.2),
+    // 0.3 m from the front wall, off to the right.
+    Vec3::new(0.6, 1.6, -1.35),
+];
+
+#[test]
+fn beacons_appear_where_the_eye_model_puts_them_in_every_sky_mode() {
+    let cave = cave_at(SIZE[0], SIZE[1]);
+    let mut worst: f32 = 0.0;
+    let mut checked = 0;
+    for mode in SKY_MODES {
+        let mut mode_worst: f32 = 0.0;
+        for head in HEADS {
+            let images = render_sky(&cave, head, mode);
+            for (wall, imgs) in cave.walls.iter().zip(&images) {
+                for eye in Eye::BOTH {
+                    let img = imgs.eye(eye);
+                    for beacon in &BEACONS {
+                        let Some(centre) = forward_pixel(mode, wall, beacon, head, eye) else {
+                            continue;
+                        };
+                        // A cap of 1.5° is at most ~130 px long on these walls, even seen at a
+                        // grazing angle from 0.3 m.
+                        let Some(cap) = cpu_beacon(mode, wall, beacon, head, eye, centre, 80)
+                        else {
+                            continue;
+                        };
+                        // Skip slivers.
+                        if cap.pixels < 40 {
+                            continue;
+                        }
+                        let (expected, n_cpu) = (cap.centroid, cap.pixels);
+                        let (got, n_gpu) = gpu_beacon(img, beacon, &cap);
+                        let what = format!(
+                            "{mode} head {head} {} {} {}",
+                            wall.name,
+                            eye.name(),
+                            beacon.name
+                        );
+                        assert!(
+                            n_gpu > 0.0,
+                            "{what}: beacon not drawn (expected at {expected})"
+                        );
+                        let err = got.distance(expected);
+                        // 0.5 px: the cap is anti-aliased into a 2048×1024 equirectangular
+                        // image (0.18° texels) and resampled into 512² faces; the weighted
+                        // centroid of its filtered image stays within a small fraction of a
+                        // texel of the cap's, ≤ 0.3 px on these walls even at grazing views.
+                        let tolerance = 0.5;
+                        assert!(
+                            err <= tolerance,
+                            "{what}: drawn at {got}, model says {expected} ({err:.2} px)"
+                        );
+                        // Same size: the weighted area equals the cap's within 10 % (the weights
+                        // under 0.1 dropped at the rim, and the rim's pixel quantisation for the
+                        // smallest caps of ~150 px).
+                        let ratio = n_gpu / n_cpu as f32;
+                        assert!(
+                            (0.9..=1.1).contains(&ratio),
+                            "{what}: {n_gpu} px drawn, {n_cpu} px modelled"
+                        );
+                        mode_worst = mode_worst.max(err);
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        println!("sky {mode}: worst beacon centroid error {mode_worst:.3} px");
+        worst = worst.max(mode_worst);
+    }
+    println!("{checked} beacon placements checked, worst {worst:.3} px");
+    assert!(
+        checked >= 60,
+        "only {checked} beacon placements were visible"
+    );
+}
+
+/// Linear-light luminance of an sRGB pixel.
+fn luminance(p: &image::Rgba<u8>) -> f32 {
+    0.2126 * srgb_to_linear(p[0]) + 0.7152 * srgb_to_linear(p[1]) + 0.0722 * srgb_to_linear(p[2])
+}
+
+/// Row (continuous pixel coordinates) of the calibration ring's lower edge in column `x`: the
+/// first grey pixel from the top at under half the brightness of the sky 6 rows below is the
+/// ring (or a tick on it); the darkest row after it is the ring's core, and its lower edge is
+/// where the luminance crosses halfway from that core to the sky below (a thin ring seen at a
+/// grazing angle is filtered to grey, not black, hence the relative test).
+fn ring_lower_edge(img: &RgbaImage, x: u32) -> Option<f32> {
+    let h = img.height();
+    let lum: Vec<f32> = (0..h).map(|y| luminance(img.get_pixel(x, y))).collect();
+    let grey = |y: u32| {
+        let p = img.get_pixel(x, y);
+        let (lo, hi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+        hi - lo < 60
+    };
+    let start = (0..h - 6).find(|&y| grey(y) && lum[y as usize] < 0.5 * lum[y as usize + 6])?;
+    let end = (start + 14).min(h - 1);
+    let dark = (start..end).min_by(|&a, &b| lum[a as usize].total_cmp(&lum[b as usize]))?;
+    let sky_end = (dark + 8).min(h - 1);
+    let sky = (dark..=sky_end)
+        .map(|y| lum[y as usize])
+        .fold(0.0, f32::max);
+    let mid = 0.5 * (lum[dark as usize] + sky);
+    let r = (dark + 1..=sky_end).find(|&y| lum[y as usize] >= mid)?;
+    let (a, b) = (lum[r as usize - 1], lum[r as usize]);
+    Some((r - 1) as f32 + 0.5 + (mid - a) / (b - a))
+}
+
+/// Where the CPU model puts the ring's lower edge on the seam line shared by two walls: the
+/// height on `wall`'s edge at `u` (0 or 1) where the lookup's elevation is the ring's.
+fn cpu_ring_row(mode: SkyMode, wall: &Wall, u: f32, head: Vec3, eye: Eye) -> f32 {
+    let target = RING_ELEVATION_DEGREES.0.to_radians();
+    let elevation = |v: f32| {
+        let px = Vec2::new(
+            u * wall.resolution[0] as f32,
+            (1.0 - v) * wall.resolution[1] as f32,
+        );
+        let d = cpu_lookup(mode, wall, px, head, eye).normalize();
+        d.y.asin()
+    };
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if elevation(mid) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (1.0 - 0.5 * (lo + hi)) * wall.resolution[1] as f32
+}
+
+#[test]
+fn sky_is_continuous_across_wall_seams_in_every_sky_mode() {
+    let cave = cave_at(SIZE[0], SIZE[1]);
+    let w = SIZE[0];
+    // Columns fitted on each side of a seam, and how far a fit is extrapolated to the seam.
+    let near: Vec<u32> = (2..22).collect();
+    let mut worst_jump: f32 = 0.0;
+    let mut worst_model: f32 = 0.0;
+    for mode in SKY_MODES {
+        for head in HEADS {
+            let images = render_sky(&cave, head, mode);
+            // (wall on the seam's left, wall on its right): left|front and front|right.
+            for (a, b) in [(0usize, 1usize), (1, 2)] {
+                for eye in Eye::BOTH {
+                    let what = format!(
+                        "{mode} head {head} {}|{} {}",
+                        cave.walls[a].name,
+                        cave.walls[b].name,
+                        eye.name()
+                    );
+                    let fit = |img: &RgbaImage, cols: &mut dyn Iterator<Item = u32>| {
+                        let pts: Vec<(f32, f32)> = cols
+                            .filter_map(|x| ring_lower_edge(img, x).map(|r| (x as f32 + 0.5, r)))
+                            .collect();
+                        assert!(
+                            pts.len() >= 15,
+                            "{what}: ring not found ({} columns)",
+                            pts.len()
+                        );
+                        fit_line(&pts)
+                    };
+                    let (a0, a1) = fit(images[a].eye(eye), &mut near.iter().map(|&x| w - 1 - x));
+                    let (b0, _) = fit(images[b].eye(eye), &mut near.iter().copied());
+                    let row_a = a0 + a1 * w as f32;
+                    let row_b = b0;
+                    let jump = (row_a - row_b).abs();
+                    // 1 px: the acceptance bound for a seam.
+                    assert!(
+                        jump <= 1.0,
+                        "{what}: ring edge jumps {jump:.2} px at the seam ({row_a:.2} vs {row_b:.2})"
+                    );
+                    let model = cpu_ring_row(mode, &cave.walls[b], 0.0, head, eye);
+                    let model_err = (row_a - model).abs().max((row_b - model).abs());
+                    // 1 px also against the model's crossing point.
+                    assert!(
+                        model_err <= 1.0,
+                        "{what}: edge at {row_a:.2}/{row_b:.2}, model {model:.2}"
+                    );
+                    worst_jump = worst_jump.max(jump);
+                    worst_model = worst_model.max(model_err);
+                }
+            }
+        }
+    }
+    println!(
+        "seams: worst jump {worst_jump:.3} px, worst distance from the model {worst_model:.3} px"
+    );
+}
+
+#[test]
+fn omni_quad_interpolation_error_against_exact_by_slices() {
+    // The full-size thesis CAVE (1280×720 walls).
+    let cave = omnicave::cave::thesis_cave();
+    let front = &cave.walls[1];
+    let floor = Wall {
+        name: "floor".into(),
+        lower_left: Vec3::new(-1.65, 0.0, 1.65),
+        lower_right: Vec3::new(1.65, 0.0, 1.65),
+        upper_left: Vec3::new(-1.65, 0.0, -1.65),
+        resolution: [1280, 1280],
+    };
+    let heads = [
+        ("centre", Vec3::new(0.3, 1.7, 0.0)),
+        ("0.6 m", Vec3::new(0.3, 1.7, -1.05)),
+        ("0.3 m", Vec3::new(0.3, 1.7, -1.35)),
+        ("0.15 m", Vec3::new(0.3, 1.7, -1.5)),
+    ];
+    for pole in [Some(PoleMerge::default()), None] {
+        println!(
+            "omni-quad vs omni-exact, front wall 1280×720, right eye, pole merge {}: max error \
+             px (degrees), by head distance from the wall",
+            if pole.is_some() { "60°–75°" } else { "off" }
+        );
+        println!(
+            "{:>16} | {}",
+            "px per slice",
+            heads.map(|h| format!("{:>17}", h.0)).join(" | ")
+        );
+        for per in [60.0, 30.0, 15.0, 10.0, 8.0, 6.0] {
+            let slices = quad_slices(front, per, pole.is_some());
+            let row: Vec<String> = heads
+                .iter()
+                .map(|(_, head)| {
+                    let e = quad_error(front, slices, *head, 0.5 * IPD, pole, 3);
+                    format!("{:>7.3} ({:.4}°)", e.max_pixels, e.max_degrees)
+                })
+                .collect();
+            println!(
+                "{:>4} {:>11} | {}",
+                per,
+                format!("{slices:?}"),
+                row.join(" | ")
+            );
+        }
+    }
+    // The default: one slice per 8 px across, and down (pole merging on).
+    let pole = Some(PoleMerge::default());
+    let slices = quad_slices(front, DEFAULT_PIXELS_PER_SLICE, true);
+    assert_eq!(slices, (160, 90));
+    let mut worst: f32 = 0.0;
+    for (name, head) in &heads[..3] {
+        for eye in Eye::BOTH {
+            let e = quad_error(front, slices, *head, eye.sign() * 0.5 * IPD, pole, 2);
+            // The acceptance bound: under 0.5 px, for heads down to 0.3 m from the wall.
+            assert!(e.max_pixels < 0.5, "{name} {}: {e:?}", eye.name());
+            worst = worst.max(e.max_pixels);
+        }
+    }
+    println!("default {slices:?} slices: worst {worst:.3} px for heads ≥ 0.3 m from the wall");
+    // Floor: the eye varies both ways; the default keeps it under 0.5 px too.
+    let floor_slices = quad_slices(&floor, DEFAULT_PIXELS_PER_SLICE, true);
+    for (name, head) in &heads[..3] {
+        let e = quad_error(&floor, floor_slices, *head, 0.5 * IPD, pole, 4);
+        println!(
+            "floor {floor_slices:?} slices, head {name} from the front wall: {:.3} px ({:.4}°)",
+            e.max_pixels, e.max_degrees
+        );
+        assert!(e.max_pixels < 0.5, "floor, {name}: {e:?}");
+    }
+    // The thesis's eye (the one of the wall point's head direction, not the tangent through
+    // it) would shift the sky on the same wall by:
+    for (name, head) in &heads {
+        let mut worst_thesis: f32 = 0.0;
+        for x in (0..1280).step_by(8) {
+            let px = Vec2::new(x as f32 + 0.5, 360.0);
+            let p = front.wall_point_of_pixel(px);
+            let exact = omni_sky_eye_of_point(p, *head, 0.5 * IPD, pole);
+            let thesis = omni_eye(*head, p, IPD, Eye::Right, pole);
+            let hit = front.pixel_of_ray(exact, exact + (p - thesis)).unwrap();
+            worst_thesis = worst_thesis.max(hit.distance(px));
+        }
+        println!("thesis eye approximation, head {name}: off by up to {worst_thesis:.3} px");
+    }
+}
+
+/// Horizontal disparity (right − left centroid) of every visible beacon.
+fn disparities(
+    cave: &Cave,
+    images: &[WallImages],
+    head: Vec3,
+    mode: SkyMode,
+) -> Vec<(String, f32)> {
+    let mut out = Vec::new();
+    for (wall, imgs) in cave.walls.iter().zip(images) {
+        for beacon in &BEACONS {
+            let cap = |eye| {
+                let centre = forward_pixel(mode, wall, beacon, head, eye)?;
+                cpu_beacon(mode, wall, beacon, head, eye, centre, 80)
+            };
+            let (Some(cap_l), Some(cap_r)) = (cap(Eye::Left), cap(Eye::Right)) else {
+                continue;
+            };
+            let (l, nl) = gpu_beacon(&imgs.left, beacon, &cap_l);
+            let (r, nr) = gpu_beacon(&imgs.right, beacon, &cap_r);
+            if nl > 40.0 && nr > 40.0 && common::inside(l, wall.resolution, 20.0) {
+                out.push((format!("{mode} {} {}", wall.name, beacon.name), r.x - l.x));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn only_the_omnistereo_skies_have_disparity_in_every_direction() {
+    let cave = cave_at(SIZE[0], SIZE[1]);
+    let head = Vec3::new(0.0, 1.7, 0.0);
+    // Sky at infinity: on-screen disparity equals the eye separation across the line of sight,
+    // IPD / pixel width = 0.064 / 0.00516 ≈ 12.4 px for a view straight at a wall.
+    let px_per_m = SIZE[0] as f32 / 3.3;
+    for mode in [SkyMode::OmniQuad, SkyMode::OmniExact] {
+        let d = disparities(&cave, &render_sky(&cave, head, mode), head, mode);
+        // From the centre the yellow and green beacons straddle the corners (cut by the walls' edges).
+        assert!(d.len() >= 3, "{d:?}");
+        for (what, disparity) in &d {
+            println!("{what}: disparity {disparity:.2} px");
+            // Uncrossed (positive) and at least the IPD across the line of sight seen at 45°.
+            assert!(
+                *disparity > 0.7 * IPD * px_per_m,
+                "{what}: {disparity:.2} px"
+            );
+        }
+    }
+    let d = disparities(
+        &cave,
+        &render_sky(&cave, head, SkyMode::Offaxis),
+        head,
+        SkyMode::Offaxis,
+    );
+    for (what, disparity) in &d {
+        println!("{what}: disparity {disparity:.2} px");
+    }
+    // The fixed-direction eyes separate along x: a beacon on the left wall (80° to the left)
+    // gets almost none, and on the side walls it is reversed relative to the other side.
+    let side = d
+        .iter()
+        .find(|(w, _)| w.contains("left magenta"))
+        .expect("magenta beacon on the left wall");
+    assert!(side.1.abs() < 0.25 * IPD * px_per_m, "{side:?}");
+}
