@@ -118,6 +118,16 @@ fn config_errors_name_file_field_and_value() {
             vec!["wall[2].name", "another wall"],
         ),
         (
+            "bad-sky-mode.toml",
+            format!("{base}\n[skybox]\nmode = \"omni\"\n"),
+            vec!["skybox.mode", "omni", "omni-exact"],
+        ),
+        (
+            "bad-sky-slices.toml",
+            format!("{base}\n[skybox]\npixels_per_slice = 0.0\n"),
+            vec!["skybox.pixels_per_slice", "0.0"],
+        ),
+        (
             "not-toml.toml",
             "this is [not toml".to_owned(),
             vec!["not valid"],
@@ -387,6 +397,10 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
             vec!["render", "--tess-max-depth", "40", "--out", out],
             "exceeds the limit of 16",
         ),
+        (
+            vec!["render", "--skybox-mode", "exact", "--out", out],
+            "unknown sky mode 'exact'",
+        ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
         (
@@ -457,4 +471,145 @@ fn render_command_writes_every_wall_and_eye() {
     }
     let unfolded = image::open(out.join("unfolded-anaglyph.png")).unwrap();
     assert_eq!((unfolded.width(), unfolded.height()), (384, 72));
+}
+
+// ---------------------------------------------------------------- sky
+
+fn sky_error(path: &Path) -> String {
+    omnicave::sky::load_sky(path)
+        .expect_err("sky should be refused")
+        .to_string()
+}
+
+#[test]
+fn bad_sky_files_are_refused_naming_the_file() {
+    let garbage = tmp("garbage-sky.png");
+    std::fs::write(&garbage, b"not an image at all").unwrap();
+    let err = sky_error(&garbage);
+    assert!(
+        err.contains("garbage-sky.png") && err.contains("not a readable"),
+        "{err}"
+    );
+
+    let square = tmp("square-sky.png");
+    image::RgbaImage::new(64, 64).save(&square).unwrap();
+    let err = sky_error(&square);
+    assert!(
+        err.contains("square-sky.png") && err.contains("twice as wide"),
+        "{err}"
+    );
+
+    let missing = tmp("no-such-sky.hdr");
+    let err = sky_error(&missing);
+    assert!(
+        err.contains("no-such-sky.hdr") && err.contains("cannot read"),
+        "{err}"
+    );
+
+    // A folder of faces missing one, and one with a face of the wrong size.
+    let dir = tmp("five-faces");
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in ["right", "left", "top", "bottom", "front"] {
+        image::RgbaImage::new(8, 8)
+            .save(dir.join(format!("{name}.png")))
+            .unwrap();
+    }
+    let _ = std::fs::remove_file(dir.join("back.png"));
+    let err = sky_error(&dir);
+    assert!(
+        err.contains("five-faces") && err.contains("no back face"),
+        "{err}"
+    );
+    image::RgbaImage::new(8, 4)
+        .save(dir.join("back.png"))
+        .unwrap();
+    let err = sky_error(&dir);
+    assert!(err.contains("back.png") && err.contains("8×4"), "{err}");
+}
+
+#[test]
+fn six_faces_load_in_place_and_hdr_keeps_its_range() {
+    // Faces of distinct colours, given by their px…nz aliases; each must be seen in its
+    // direction.
+    let dir = tmp("six-faces");
+    std::fs::create_dir_all(&dir).unwrap();
+    let colours = [
+        [255u8, 0, 0],
+        [0, 255, 0],
+        [0, 0, 255],
+        [255, 255, 0],
+        [255, 0, 255],
+        [0, 255, 255],
+    ];
+    for (alias, c) in ["px", "nx", "py", "ny", "pz", "nz"].iter().zip(colours) {
+        image::RgbaImage::from_pixel(16, 16, image::Rgba([c[0], c[1], c[2], 255]))
+            .save(dir.join(format!("{alias}.png")))
+            .unwrap();
+    }
+    let cube = omnicave::sky::load_sky(&dir).unwrap();
+    assert_eq!(cube.size(), 16);
+    assert_eq!(cube.levels.len(), 5);
+    use glam::Vec3;
+    for (dir, c) in [
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::NEG_Z, // front
+        Vec3::Z,
+    ]
+    .iter()
+    .zip(colours)
+    {
+        let got = cube.sample_nearest(*dir);
+        let want = c.map(|v| f32::from(v) / 255.0);
+        assert_eq!(got, want, "direction {dir}");
+    }
+
+    // An HDR equirectangular sky: values above 1 survive (RGBA16F), and are where they belong.
+    let hdr = tmp("bright.hdr");
+    let (w, h) = (64u32, 32u32);
+    let pixels: Vec<image::Rgb<f32>> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            // The upper half is bright (4.0), the lower dim (0.25).
+            let v = if y < h / 2 { 4.0 } else { 0.25 };
+            image::Rgb([v, v * 0.5, if x < w / 2 { 1.0 } else { 2.0 }])
+        })
+        .collect();
+    let file = std::fs::File::create(&hdr).unwrap();
+    image::codecs::hdr::HdrEncoder::new(file)
+        .encode(&pixels, w as usize, h as usize)
+        .unwrap();
+    let cube = omnicave::sky::load_sky(&hdr).unwrap();
+    assert!(cube.is_hdr());
+    let up = cube.sample_nearest(Vec3::new(0.0, 1.0, -0.2));
+    assert!((up[0] - 4.0).abs() < 0.05, "{up:?}");
+    let down = cube.sample_nearest(Vec3::new(0.3, -1.0, 0.0));
+    assert!((down[0] - 0.25).abs() < 0.01, "{down:?}");
+}
+
+#[test]
+fn a_broken_sky_is_reported_and_the_scene_still_renders() {
+    let out = tmp("cli-bad-sky");
+    let _ = std::fs::remove_dir_all(&out);
+    let garbage = tmp("cli-garbage-sky.jpg");
+    std::fs::write(&garbage, b"\xff\xd8 broken jpeg").unwrap();
+    let (ok, stderr) = omnicave(&[
+        "render",
+        "--config",
+        "config/cave.toml",
+        "--skybox",
+        garbage.to_str().unwrap(),
+        "--size",
+        "64x36",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "render should go on without the sky:\n{stderr}");
+    assert!(
+        stderr.contains("cli-garbage-sky.jpg") && stderr.contains("rendering without a sky"),
+        "{stderr}"
+    );
+    assert!(out.join("front-left.png").is_file());
 }

@@ -548,3 +548,59 @@ fn only_the_omnistereo_skies_have_disparity_in_every_direction() {
         .expect("magenta beacon on the left wall");
     assert!(side.1.abs() < 0.25 * IPD * px_per_m, "{side:?}");
 }
+
+#[test]
+fn the_sky_fills_only_the_background_in_every_render_mode() {
+    let cave = cave_at(160, 90);
+    let head = Vec3::new(0.2, 1.6, -0.3);
+    let points = [
+        Vec3::new(0.0, 1.5, -1.0),
+        Vec3::new(-1.0, 1.0, -0.5),
+        Vec3::new(0.9, 2.0, -1.2),
+    ];
+    let scene = common::marker_scene(&points, head, 0.15);
+    for mode in RenderMode::ALL {
+        let render = |sky: Option<SkyMode>| {
+            let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+            renderer.set_scene(&scene);
+            renderer.set_sky(sky.map(|_| bundled_sky()));
+            let mut frame = test_frame(
+                &cave,
+                Head::at(head),
+                mode,
+                OmniSettings::default(),
+                TessSettings::default(),
+            );
+            frame.sky.mode = sky.unwrap_or_default();
+            renderer.render(&frame).expect("render");
+            renderer.read_images().expect("read back")
+        };
+        let bare = render(None);
+        for sky_mode in SkyMode::ALL {
+            let with_sky = render(Some(sky_mode));
+            let (mut scene_px, mut sky_px) = (0, 0);
+            for (a, b) in bare.iter().zip(&with_sky) {
+                for eye in Eye::BOTH {
+                    for (p, q) in a.eye(eye).pixels().zip(b.eye(eye).pixels()) {
+                        if p.0 == [0, 0, 0, 255] {
+                            // Background: the sky must be there (no black sky pixel).
+                            assert_ne!(
+                                q.0,
+                                [0, 0, 0, 255],
+                                "{mode} {sky_mode}: background left black"
+                            );
+                            sky_px += 1;
+                        } else {
+                            assert_eq!(p, q, "{mode} {sky_mode}: scene pixel changed by the sky");
+                            scene_px += 1;
+                        }
+                    }
+                }
+            }
+            assert!(
+                scene_px > 100 && sky_px > 1000,
+                "{mode} {sky_mode}: {scene_px} {sky_px}"
+            );
+        }
+    }
+}
