@@ -207,7 +207,12 @@ pub fn render_to_dir(
         .clone()
         .or_else(|| config.scene_path.clone())
         .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
-    let scene = load_gltf(&scene_path)?;
+    // "none": an empty scene (the sky alone).
+    let scene = if scene_path.as_os_str() == "none" {
+        Scene::default()
+    } else {
+        load_gltf(&scene_path)?
+    };
     tracing::info!(
         "scene {}: {} triangles, {} materials, {} textures",
         scene_path.display(),

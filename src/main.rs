@@ -28,6 +28,33 @@ struct Cli {
 enum Command {
     /// Render one frame headless: every wall for both eyes, written as PNG files.
     Render(RenderArgs),
+    /// Measure the frame time of every method in one run; write results.csv and report.md.
+    Bench(BenchArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    /// CAVE configuration (TOML): walls, resolution, MSAA, head.
+    #[arg(long, default_value = "config/cave.toml")]
+    config: PathBuf,
+    /// A scene to measure (repeatable); default: the config's scene and the bundled city.
+    #[arg(long)]
+    scene: Vec<PathBuf>,
+    /// Sky for the sky methods; default: the config's, else the bundled one.
+    #[arg(long)]
+    skybox: Option<PathBuf>,
+    /// Fewer frames and head positions.
+    #[arg(long)]
+    quick: bool,
+    /// Timed frames per method and case.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    frames: Option<u32>,
+    /// Pixel size of every wall image, WxH (overrides the config; --quick: 192x108).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<[u32; 2]>,
+    /// Output folder.
+    #[arg(long, default_value = "out/bench")]
+    out: PathBuf,
 }
 
 #[derive(Debug, clap::Args)]
@@ -35,7 +62,8 @@ struct RenderArgs {
     /// CAVE configuration (TOML).
     #[arg(long, default_value = "config/cave.toml")]
     config: PathBuf,
-    /// glTF scene (.gltf or .glb); default: the config's [scene] path.
+    /// glTF scene (.gltf or .glb), or "none" for the sky alone; default: the config's [scene]
+    /// path.
     #[arg(long)]
     scene: Option<PathBuf>,
     /// Render mode: mono, stereo, tracked-stereo, omni-onaxis, omni-offaxis; default: the config's.
@@ -248,6 +276,23 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bench(args) => {
+            let report = omnicave::bench::run(&omnicave::bench::BenchOptions {
+                config: args.config,
+                scenes: args.scene,
+                sky: args.skybox,
+                out: args.out,
+                quick: args.quick,
+                frames: args.frames.map(|f| f as usize),
+                size: args.size,
+            })
+            .context("bench failed")?;
+            tracing::info!("adapter: {}", report.adapter);
+            for f in &report.files {
+                tracing::info!("wrote {}", f.display());
+            }
+            Ok(())
+        }
         Command::Render(args) => {
             let overrides = Overrides {
                 scene: args.scene,

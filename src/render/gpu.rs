@@ -11,6 +11,8 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     /// Wireframe rendering (`POLYGON_MODE_LINE`) is available.
     pub wireframe_supported: bool,
+    /// GPU timestamps between passes (for the benchmark's frame times) are available.
+    pub timestamps_supported: bool,
 }
 
 /// Storage buffers the compute tessellator binds in one stage.
@@ -41,7 +43,9 @@ impl Gpu {
         instance: wgpu::Instance,
         adapter: wgpu::Adapter,
     ) -> Result<Self, RenderError> {
-        let wanted = wgpu::Features::POLYGON_MODE_LINE;
+        let wanted = wgpu::Features::POLYGON_MODE_LINE
+            | wgpu::Features::TIMESTAMP_QUERY
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
         let features = adapter.features() & wanted;
         // The tessellator binds 11 storage buffers in one compute stage; WebGPU's default is 8
         // but desktop adapters (and lavapipe) offer far more.
@@ -71,6 +75,9 @@ impl Gpu {
             device,
             queue,
             wireframe_supported: features.contains(wgpu::Features::POLYGON_MODE_LINE),
+            timestamps_supported: features.contains(
+                wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS,
+            ),
         })
     }
 

@@ -105,6 +105,16 @@ pub struct Renderer {
     wall_names: Vec<String>,
     last_views: Vec<ViewSetup>,
     wireframe_supported: bool,
+    /// GPU frame timer (benchmark only; `None` unless enabled).
+    timer: Option<FrameTimer>,
+}
+
+/// Two timestamps around a frame's GPU work, resolved into a buffer the CPU can map.
+#[derive(Debug)]
+struct FrameTimer {
+    queries: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    period_ns: f32,
 }
 
 impl Renderer {
@@ -148,6 +158,7 @@ impl Renderer {
             wall_names: Vec::new(),
             last_views: Vec::new(),
             wireframe_supported: gpu.wireframe_supported,
+            timer: None,
         };
         renderer.sync_walls(cave);
         Ok(renderer)
@@ -160,6 +171,57 @@ impl Renderer {
                 .upload_scene(&self.device, &self.queue, scene),
         );
         self.tess_buffers = None;
+    }
+
+    /// Times every following frame on the GPU (for the benchmark: reading the time back
+    /// blocks). Returns false when the adapter has no timestamps.
+    pub fn enable_gpu_timing(&mut self, gpu: &Gpu) -> bool {
+        if !gpu.timestamps_supported {
+            return false;
+        }
+        self.timer = Some(FrameTimer {
+            queries: self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("Renderer::frame_timer"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolve: self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("Renderer::frame_timer_resolve"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            period_ns: self.queue.get_timestamp_period(),
+        });
+        true
+    }
+
+    /// GPU time of the last frame in milliseconds (blocks until it is done), if timing is on.
+    pub fn read_gpu_time_ms(&self) -> Result<Option<f64>, RenderError> {
+        let Some(timer) = &self.timer else {
+            return Ok(None);
+        };
+        let bytes = targets::read_buffer(
+            &self.device,
+            &self.queue,
+            &timer.resolve,
+            16,
+            "Renderer::frame_timer_readback",
+        )?;
+        let ticks: [u64; 2] = [
+            u64::from_le_bytes(bytes[0..8].try_into().unwrap_or_default()),
+            u64::from_le_bytes(bytes[8..16].try_into().unwrap_or_default()),
+        ];
+        let ns = ticks[1].saturating_sub(ticks[0]) as f64 * f64::from(timer.period_ns);
+        Ok(Some(ns * 1e-6))
+    }
+
+    /// Waits until the GPU has finished all submitted work.
+    pub fn wait_idle(&self) -> Result<(), RenderError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| RenderError::Readback(e.to_string()))
     }
 
     /// Sets the sky's cube map (uploaded once with its mip chain); `None` removes the sky.
@@ -344,6 +406,9 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("Renderer::frame"),
             });
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, 0);
+        }
         for (index, view) in views.iter().enumerate() {
             let tess = self
                 .tess_buffers
@@ -390,6 +455,10 @@ impl Renderer {
                 (None, _) => {}
             }
             self.sky_pass.draw(&mut pass, index, view.wall);
+        }
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, 1);
+            encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
         }
         self.queue.submit([encoder.finish()]);
         let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);

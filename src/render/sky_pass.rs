@@ -378,7 +378,7 @@ impl SkyPass {
         frame: &SkyFrame,
     ) {
         self.active = None;
-        if self.cube.is_none() {
+        if self.cube.is_none() || mode == SkyMode::Off {
             return;
         }
         if views.len() > self.capacity {
@@ -421,7 +421,7 @@ impl SkyPass {
         let variant = match mode {
             SkyMode::OmniQuad => Variant::Quad,
             SkyMode::OmniExact => Variant::Exact,
-            SkyMode::Offaxis | SkyMode::Auto => Variant::Offaxis,
+            SkyMode::Offaxis | SkyMode::Auto | SkyMode::Off => Variant::Offaxis,
         };
         pass.set_pipeline(&self.pipelines[variant as usize]);
         pass.set_bind_group(

@@ -25,10 +25,18 @@ pub enum SkyMode {
     /// The omnistereo lookup computed per pixel in the fragment shader: no mesh, no
     /// interpolation error.
     OmniExact,
+    /// No sky drawn (the cube map stays loaded, so switching back costs nothing).
+    Off,
 }
 
 impl SkyMode {
-    pub const ALL: [SkyMode; 4] = [Self::Auto, Self::Offaxis, Self::OmniQuad, Self::OmniExact];
+    pub const ALL: [SkyMode; 5] = [
+        Self::Auto,
+        Self::Offaxis,
+        Self::OmniQuad,
+        Self::OmniExact,
+        Self::Off,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -36,6 +44,7 @@ impl SkyMode {
             Self::Offaxis => "offaxis",
             Self::OmniQuad => "omni-quad",
             Self::OmniExact => "omni-exact",
+            Self::Off => "off",
         }
     }
 
