@@ -49,6 +49,8 @@ fn omni_sky_eye(p: vec3<f32>) -> vec3<f32> {
         let t = sqrt(max(l2 - sigma * sigma, 0.0));
         sigma = half_ipd * pole_merge_factor(atan2(dy, t), sky.pole);
     }
+    // Within |σ| of the vertical through the head (pole merging off): no tangent; clamp.
+    sigma = clamp(sigma, -sqrt(l2), sqrt(l2));
     let t = sqrt(max(l2 - sigma * sigma, 0.0));
     let d = vec2<f32>(t * q.x + sigma * q.y, t * q.y - sigma * q.x) / l2;
     return head + sigma * vec3<f32>(-d.y, 0.0, d.x);

@@ -281,7 +281,7 @@ fn measure(
     if let Some(scene) = scene {
         renderer.set_scene(scene);
     }
-    renderer.set_sky(Some(sky));
+    renderer.set_sky(Some(sky))?;
     let timer = if renderer.enable_gpu_timing(gpu) {
         Timer::Gpu
     } else {
@@ -374,10 +374,13 @@ fn write_outputs(
         path: options.out.clone(),
         source,
     })?;
+    // Plain off-axis stereo of the same case; none for an empty scene, whose reference frame
+    // would be a bare clear.
     let reference = |r: &Row| {
         find(rows, r, |m| {
             m.mode == RenderMode::Stereo && m.sky.is_none() && m.tess.criterion.is_none()
         })
+        .filter(|o| o.input_triangles > 0)
     };
     let without_sky = |r: &Row| {
         find(rows, r, |m| {

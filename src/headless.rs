@@ -140,7 +140,9 @@ pub fn render_images(
         },
     )?;
     renderer.set_scene(scene);
-    renderer.set_sky(sky);
+    if let Err(e) = renderer.set_sky(sky) {
+        tracing::error!("{e}; rendering without a sky");
+    }
     renderer.render(&frame_params(config))?;
     for (view, stats) in renderer
         .last_views()

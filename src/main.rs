@@ -102,7 +102,7 @@ struct RenderArgs {
     /// Sky: an equirectangular image (PNG/JPEG/HDR) or a folder of six faces, or "none".
     #[arg(long, value_parser = parse_skybox)]
     skybox: Option<SkyboxArg>,
-    /// Sky mode: auto (follows the render mode), offaxis, omni-quad or omni-exact.
+    /// Sky mode: auto (follows the render mode), offaxis, omni-quad, omni-exact or off.
     #[arg(long, value_parser = parse_sky_mode)]
     skybox_mode: Option<SkyMode>,
     /// Output folder.

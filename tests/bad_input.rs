@@ -119,12 +119,12 @@ fn config_errors_name_file_field_and_value() {
         ),
         (
             "bad-sky-mode.toml",
-            format!("{base}\n[skybox]\nmode = \"omni\"\n"),
+            base.replace("mode = \"auto\"", "mode = \"omni\""),
             vec!["skybox.mode", "omni", "omni-exact"],
         ),
         (
             "bad-sky-slices.toml",
-            format!("{base}\n[skybox]\npixels_per_slice = 0.0\n"),
+            base.replace("pixels_per_slice = 8.0", "pixels_per_slice = 0.0"),
             vec!["skybox.pixels_per_slice", "0.0"],
         ),
         (
@@ -529,8 +529,10 @@ fn bad_sky_files_are_refused_naming_the_file() {
 
 #[test]
 fn six_faces_load_in_place_and_hdr_keeps_its_range() {
-    // Faces of distinct colours, given by their px…nz aliases; each must be seen in its
-    // direction.
+    use glam::Vec3;
+    // Faces of distinct colours, given by their px…nz aliases, each with a white top-left
+    // quadrant (as the image is viewed from inside the cube): a face loaded into the wrong
+    // layer, mirrored or rotated would show its colour or its white in the wrong direction.
     let dir = tmp("six-faces");
     std::fs::create_dir_all(&dir).unwrap();
     let colours = [
@@ -542,28 +544,41 @@ fn six_faces_load_in_place_and_hdr_keeps_its_range() {
         [0, 255, 255],
     ];
     for (alias, c) in ["px", "nx", "py", "ny", "pz", "nz"].iter().zip(colours) {
-        image::RgbaImage::from_pixel(16, 16, image::Rgba([c[0], c[1], c[2], 255]))
-            .save(dir.join(format!("{alias}.png")))
-            .unwrap();
+        image::RgbaImage::from_fn(16, 16, |x, y| {
+            if x < 8 && y < 8 {
+                image::Rgba([255, 255, 255, 255])
+            } else {
+                image::Rgba([c[0], c[1], c[2], 255])
+            }
+        })
+        .save(dir.join(format!("{alias}.png")))
+        .unwrap();
     }
     let cube = omnicave::sky::load_sky(&dir).unwrap();
     assert_eq!(cube.size(), 16);
     assert_eq!(cube.levels.len(), 5);
-    use glam::Vec3;
-    for (dir, c) in [
-        Vec3::X,
-        Vec3::NEG_X,
-        Vec3::Y,
-        Vec3::NEG_Y,
-        Vec3::NEG_Z, // front
-        Vec3::Z,
-    ]
-    .iter()
-    .zip(colours)
-    {
-        let got = cube.sample_nearest(*dir);
+    // For each face: its centre direction, and the direction of its image's top-left quadrant
+    // as a viewer inside sees it (CAVE space: +x right, +y up, −z front). The top face is seen
+    // with the front at its lower edge, the bottom face with the front at its upper edge.
+    let faces = [
+        ("right (px)", Vec3::X, Vec3::new(1.0, 0.5, -0.5)),
+        ("left (nx)", Vec3::NEG_X, Vec3::new(-1.0, 0.5, 0.5)),
+        ("top (py)", Vec3::Y, Vec3::new(-0.5, 1.0, 0.5)),
+        ("bottom (ny)", Vec3::NEG_Y, Vec3::new(-0.5, -1.0, -0.5)),
+        ("front (pz)", Vec3::NEG_Z, Vec3::new(-0.5, 0.5, -1.0)),
+        ("back (nz)", Vec3::Z, Vec3::new(0.5, 0.5, 1.0)),
+    ];
+    for ((name, centre, top_left), c) in faces.into_iter().zip(colours) {
         let want = c.map(|v| f32::from(v) / 255.0);
-        assert_eq!(got, want, "direction {dir}");
+        // Just off the centre, into the coloured quadrants.
+        let off_centre =
+            centre + 0.2 * (centre.cross(Vec3::Y).normalize_or(Vec3::X)) - 0.1 * Vec3::Y;
+        assert_eq!(cube.sample_nearest(off_centre), want, "{name}: colour");
+        assert_eq!(
+            cube.sample_nearest(top_left),
+            [1.0; 3],
+            "{name}: top-left quadrant"
+        );
     }
 
     // An HDR equirectangular sky: values above 1 survive (RGBA16F), and are where they belong.

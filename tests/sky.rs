@@ -39,7 +39,7 @@ fn bundled_sky() -> &'static CubeMap {
 /// Renders only the sky (no scene) in omni-offaxis mode with the given sky mode.
 fn render_sky(cave: &Cave, head: Vec3, sky_mode: SkyMode) -> Vec<WallImages> {
     let mut renderer = Renderer::new(gpu(), cave, NO_MSAA).expect("renderer");
-    renderer.set_sky(Some(bundled_sky()));
+    renderer.set_sky(Some(bundled_sky())).expect("sky");
     let mut frame = test_frame(
         cave,
         Head::at(head),
@@ -484,13 +484,14 @@ fn omni_quad_interpolation_error_against_exact_by_slices() {
     }
 }
 
-/// Horizontal disparity (right − left centroid) of every visible beacon.
+/// Horizontal disparity (right − left centroid) of every visible beacon: drawn, and as the CPU
+/// model draws it.
 fn disparities(
     cave: &Cave,
     images: &[WallImages],
     head: Vec3,
     mode: SkyMode,
-) -> Vec<(String, f32)> {
+) -> Vec<(String, f32, f32)> {
     let mut out = Vec::new();
     for (wall, imgs) in cave.walls.iter().zip(images) {
         for beacon in &BEACONS {
@@ -504,7 +505,11 @@ fn disparities(
             let (l, nl) = gpu_beacon(&imgs.left, beacon, &cap_l);
             let (r, nr) = gpu_beacon(&imgs.right, beacon, &cap_r);
             if nl > 40.0 && nr > 40.0 && common::inside(l, wall.resolution, 20.0) {
-                out.push((format!("{mode} {} {}", wall.name, beacon.name), r.x - l.x));
+                out.push((
+                    format!("{mode} {} {}", wall.name, beacon.name),
+                    r.x - l.x,
+                    cap_r.centroid.x - cap_l.centroid.x,
+                ));
             }
         }
     }
@@ -518,35 +523,40 @@ fn only_the_omnistereo_skies_have_disparity_in_every_direction() {
     // Sky at infinity: on-screen disparity equals the eye separation across the line of sight,
     // IPD / pixel width = 0.064 / 0.00516 ≈ 12.4 px for a view straight at a wall.
     let px_per_m = SIZE[0] as f32 / 3.3;
-    for mode in [SkyMode::OmniQuad, SkyMode::OmniExact] {
+    let ipd_px = IPD * px_per_m;
+    let check = |mode: SkyMode| {
         let d = disparities(&cave, &render_sky(&cave, head, mode), head, mode);
-        // From the centre the yellow and green beacons straddle the corners (cut by the walls' edges).
-        assert!(d.len() >= 3, "{d:?}");
-        for (what, disparity) in &d {
-            println!("{what}: disparity {disparity:.2} px");
-            // Uncrossed (positive) and at least the IPD across the line of sight seen at 45°.
+        // From the centre the yellow and green beacons straddle the corners (cut by the walls'
+        // edges); red, magenta and orange are whole on the front, left and right walls.
+        assert_eq!(d.len(), 3, "{d:?}");
+        for (what, drawn, model) in &d {
+            println!("{what}: disparity {drawn:.2} px (model {model:.2} px)");
+            // Each eye's centroid is within 0.5 px of the model (the beacon test), so their
+            // difference is within 1 px of the modelled disparity; measured ≤ 0.1 px.
             assert!(
-                *disparity > 0.7 * IPD * px_per_m,
-                "{what}: {disparity:.2} px"
+                (drawn - model).abs() <= 0.5,
+                "{what}: {drawn:.2} vs {model:.2} px"
+            );
+        }
+        d
+    };
+    for mode in [SkyMode::OmniQuad, SkyMode::OmniExact] {
+        for (what, drawn, _) in check(mode) {
+            // Uncrossed, about the IPD for beacons straight ahead of a wall (at most 10° off).
+            assert!(
+                drawn > 0.95 * ipd_px && drawn < 1.1 * ipd_px,
+                "{what}: {drawn:.2} px"
             );
         }
     }
-    let d = disparities(
-        &cave,
-        &render_sky(&cave, head, SkyMode::Offaxis),
-        head,
-        SkyMode::Offaxis,
-    );
-    for (what, disparity) in &d {
-        println!("{what}: disparity {disparity:.2} px");
-    }
-    // The fixed-direction eyes separate along x: a beacon on the left wall (80° to the left)
-    // gets almost none, and on the side walls it is reversed relative to the other side.
-    let side = d
-        .iter()
-        .find(|(w, _)| w.contains("left magenta"))
-        .expect("magenta beacon on the left wall");
-    assert!(side.1.abs() < 0.25 * IPD * px_per_m, "{side:?}");
+    let d = check(SkyMode::Offaxis);
+    // The fixed-direction eyes separate along x: straight ahead the disparity is right, but the
+    // beacons 80° and 100° to the side get a fraction of it, and the one on the right wall is
+    // reversed (it would appear nearer than the wall).
+    let get = |name: &str| d.iter().find(|x| x.0.contains(name)).expect(name).1;
+    assert!(get("front red") > 0.95 * ipd_px);
+    assert!(get("left magenta") > 0.0 && get("left magenta") < 0.25 * ipd_px);
+    assert!(get("right orange") < 0.0 && get("right orange") > -0.25 * ipd_px);
 }
 
 #[test]
@@ -563,7 +573,7 @@ fn the_sky_fills_only_the_background_in_every_render_mode() {
         let render = |sky: Option<SkyMode>| {
             let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
             renderer.set_scene(&scene);
-            renderer.set_sky(sky.map(|_| bundled_sky()));
+            renderer.set_sky(sky.map(|_| bundled_sky())).expect("sky");
             let mut frame = test_frame(
                 &cave,
                 Head::at(head),
@@ -576,7 +586,15 @@ fn the_sky_fills_only_the_background_in_every_render_mode() {
             renderer.read_images().expect("read back")
         };
         let bare = render(None);
-        for sky_mode in SkyMode::ALL {
+        // Off keeps the cube map loaded but draws nothing.
+        let off = render(Some(SkyMode::Off));
+        for (a, b) in bare.iter().zip(&off) {
+            assert!(
+                a.left == b.left && a.right == b.right,
+                "{mode}: sky off still drew"
+            );
+        }
+        for sky_mode in SkyMode::ALL.into_iter().filter(|m| *m != SkyMode::Off) {
             let with_sky = render(Some(sky_mode));
             let (mut scene_px, mut sky_px, mut black) = (0, 0, 0);
             for (a, b) in bare.iter().zip(&with_sky) {

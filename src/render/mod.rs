@@ -40,6 +40,8 @@ pub enum RenderError {
     Msaa(u32),
     #[error(transparent)]
     Tessellation(#[from] tessellator::TessError),
+    #[error("sky faces of {size}×{size} exceed this device's texture limit of {max}")]
+    SkyTooLarge { size: u32, max: u32 },
 }
 
 /// Settings that change pipelines or targets (rarely; never per frame).
@@ -212,7 +214,11 @@ impl Renderer {
             u64::from_le_bytes(bytes[0..8].try_into().unwrap_or_default()),
             u64::from_le_bytes(bytes[8..16].try_into().unwrap_or_default()),
         ];
-        let ns = ticks[1].saturating_sub(ticks[0]) as f64 * f64::from(timer.period_ns);
+        // A counter that wrapped (or a driver that reordered) gives no sample.
+        if ticks[1] < ticks[0] {
+            return Ok(None);
+        }
+        let ns = (ticks[1] - ticks[0]) as f64 * f64::from(timer.period_ns);
         Ok(Some(ns * 1e-6))
     }
 
@@ -224,9 +230,23 @@ impl Renderer {
             .map_err(|e| RenderError::Readback(e.to_string()))
     }
 
-    /// Sets the sky's cube map (uploaded once with its mip chain); `None` removes the sky.
-    pub fn set_sky(&mut self, cube: Option<&CubeMap>) {
-        self.sky_pass.set_cube(&self.device, &self.queue, cube);
+    /// Sets the sky's cube map (uploaded once with its mip chain); `None` removes the sky. A
+    /// cube map larger than the device's textures is refused (and any previous sky removed).
+    pub fn set_sky(&mut self, cube: Option<&CubeMap>) -> Result<(), RenderError> {
+        let max = self.device.limits().max_texture_dimension_2d;
+        match cube {
+            Some(c) if c.size() > max => {
+                self.sky_pass.set_cube(&self.device, &self.queue, None);
+                Err(RenderError::SkyTooLarge {
+                    size: c.size(),
+                    max,
+                })
+            }
+            _ => {
+                self.sky_pass.set_cube(&self.device, &self.queue, cube);
+                Ok(())
+            }
+        }
     }
 
     /// Whether a sky is set.
@@ -372,20 +392,13 @@ impl Renderer {
             world_from_cave: frame.world_from_cave,
             head: frame.head.position,
             eye_separation: frame.eye_separation,
-            offaxis_eyes: match frame.mode {
-                RenderMode::OmniOnAxis | RenderMode::OmniOffAxis => eye_positions(
-                    RenderMode::Stereo,
-                    &frame.head,
-                    frame.eye_separation,
-                    frame.cave.stereo_view_direction,
-                ),
-                _ => eye_positions(
-                    frame.mode,
-                    &frame.head,
-                    frame.eye_separation,
-                    frame.cave.stereo_view_direction,
-                ),
-            },
+            // The omnistereo modes' fixed-direction eyes are their stereo eyes.
+            offaxis_eyes: eye_positions(
+                frame.mode,
+                &frame.head,
+                frame.eye_separation,
+                frame.cave.stereo_view_direction,
+            ),
             pole_merge: frame.omni.pole_merge,
             exposure: frame.sky.exposure,
         };

@@ -6,7 +6,9 @@
 //! D3D agree) is left-handed, and this flip makes every face read unmirrored from inside.
 //! Faces, in layer order: 0 right (+x), 1 left (−x), 2 top (+y), 3 bottom (−y), 4 front (−z),
 //! 5 back (+z); file names `right left top bottom front back` (or `px nx py ny pz nz`, which
-//! mean the same layers). The top face's lower edge joins the front face's upper edge.
+//! mean the same layers: note pz = front = −z, as in the hardware's left-handed frame; packs
+//! made for a right-handed −z-forward viewer that call the front `nz` need their pz/nz swapped).
+//! The top face's lower edge joins the front face's upper edge.
 //!
 //! Equirectangular images: column 0.5·width looks at the front (−z), longitude grows to the
 //! right (+x at 0.75·width), row 0 is straight up.
@@ -21,7 +23,9 @@ pub const FACE_ALIASES: [&str; 6] = ["px", "nx", "py", "ny", "pz", "nz"];
 const EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "hdr"];
 
 /// Largest face side made from an equirectangular image.
-pub const MAX_FACE_SIZE: u32 = 2048;
+pub const MAX_EQUIRECT_FACE_SIZE: u32 = 2048;
+/// Largest face side accepted from face images (4096²×6 RGBA16F is 800 MiB with mips).
+pub const MAX_FACE_SIZE: u32 = 4096;
 
 /// Why a sky could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -42,7 +46,7 @@ pub enum SkyError {
         alias: &'static str,
     },
     #[error(
-        "sky face {path}: is {width}×{height}; every face must be square and the same size ({expected}×{expected})"
+        "sky face {path}: is {width}×{height}; every face must be square, the same size ({expected}×{expected}) and at most {MAX_FACE_SIZE} pixels"
     )]
     FaceSize {
         path: PathBuf,
@@ -99,7 +103,7 @@ impl CubeMap {
 
     /// Linear RGB of level 0 at the texel nearest to `dir` (tests and tools).
     pub fn sample_nearest(&self, dir: Vec3) -> [f32; 3] {
-        let Some(level) = self.levels.first() else {
+        let Some(level) = self.levels.first().filter(|l| l.size > 0) else {
             return [0.0; 3];
         };
         let (face, s, t) = face_coordinates(dir);
@@ -272,7 +276,7 @@ fn load_faces(dir: &Path) -> Result<CubeMap, SkyError> {
         let image = open_image(&path)?;
         let (w, h) = image.dimensions();
         let expected = *size.get_or_insert(w);
-        if w != h || w != expected || w == 0 {
+        if w != h || w != expected || w == 0 || w > MAX_FACE_SIZE {
             return Err(SkyError::FaceSize {
                 path,
                 width: w,
@@ -306,7 +310,7 @@ fn from_equirect(path: &Path, image: &Decoded) -> Result<CubeMap, SkyError> {
         });
     }
     // A quarter of the width covers a face's 90° at the equator at the image's resolution.
-    let size = (w / 4).next_power_of_two().clamp(4, MAX_FACE_SIZE);
+    let size = (w / 4).next_power_of_two().clamp(4, MAX_EQUIRECT_FACE_SIZE);
     let mut linear = Vec::with_capacity((6 * size * size) as usize * 4);
     for face in 0..6 {
         for y in 0..size {

@@ -49,6 +49,9 @@ pub fn omni_sky_eye_of_point(
         let t = (l2 - sigma * sigma).max(0.0).sqrt();
         sigma = signed_half_ipd * pole_merge_factor(dy.atan2(t), pole);
     }
+    // Within |σ| of the vertical through the head (pole merging off) no tangent exists: clamp
+    // the eye onto the point's own distance, so the eye stays on the viewing circle's inside.
+    sigma = sigma.clamp(-l2.sqrt(), l2.sqrt());
     let t = (l2 - sigma * sigma).max(0.0).sqrt();
     // q = t·d + σ·right(d), right(d) = (−d_z, d_x) in (x, z): invert the rotation-scale.
     let d = Vec2::new(t * q.x + sigma * q.y, t * q.y - sigma * q.x) / l2;
@@ -61,15 +64,22 @@ pub fn omni_sky_eye_of_point(
 /// with elevation.
 pub fn quad_slices(wall: &Wall, pixels_per_slice: f32, pole_merge: bool) -> (u32, u32) {
     let per = pixels_per_slice.max(1.0);
-    let cols = (wall.resolution[0] as f32 / per).ceil().max(1.0) as u32;
+    let cols = (wall.resolution[0] as f32 / per)
+        .ceil()
+        .clamp(1.0, MAX_SLICES as f32) as u32;
     let vertical = wall.normal().y.abs() < 1e-3;
     let rows = if vertical && !pole_merge {
         1
     } else {
-        (wall.resolution[1] as f32 / per).ceil().max(1.0) as u32
+        (wall.resolution[1] as f32 / per)
+            .ceil()
+            .clamp(1.0, MAX_SLICES as f32) as u32
     };
     (cols, rows)
 }
+
+/// Most slices in either direction of a wall's mesh (512² cells: 6 MiB of indices).
+pub const MAX_SLICES: u32 = 512;
 
 /// Wall point at normalised wall coordinates (u right, v up, both 0..1).
 pub fn wall_point(wall: &Wall, u: f32, v: f32) -> Vec3 {
@@ -90,6 +100,7 @@ pub fn quad_lookup(
     signed_half_ipd: f32,
     pole: Option<PoleMerge>,
 ) -> Vec3 {
+    let (cols, rows) = (cols.max(1), rows.max(1));
     let fx = (u * cols as f32).clamp(0.0, cols as f32);
     let fy = (v * rows as f32).clamp(0.0, rows as f32);
     let (i, j) = (
