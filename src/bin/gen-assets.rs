@@ -13,7 +13,7 @@ use image::{Rgba, RgbaImage};
 use omnicave::scene::build::{MeshData, cuboid, frustum_shell, grid, uv_sphere};
 use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, NodeDesc};
 use omnicave::sky::bundled;
-use omnicave::sky::cubemap::{equirect_direction, linear_to_srgb, srgb_to_linear};
+use omnicave::sky::cubemap::{equirect_direction, equirect_taps, linear_to_srgb, srgb_to_linear};
 
 fn main() -> anyhow::Result<()> {
     let mut out = PathBuf::from("assets");
@@ -650,18 +650,11 @@ fn sky() -> RgbaImage {
             cover * ((elevation - 31.0) / 10.0).clamp(0.0, 1.0)
         })
         .collect();
-    let cloud_at = |u: f32, v: f32| {
-        let fx = u * cw as f32 - 0.5;
-        let fy = (v * ch as f32 - 0.5).clamp(0.0, (ch - 1) as f32);
-        let (x0, y0) = (fx.floor(), fy.floor());
-        let (ax, ay) = (fx - x0, fy - y0);
-        let xi = |x: f32| (x as i64).rem_euclid(i64::from(cw)) as u32;
-        let (xa, xb) = (xi(x0), xi(x0 + 1.0));
-        let (ya, yb) = (y0 as u32, (y0 as u32 + 1).min(ch - 1));
-        let c = |x: u32, y: u32| clouds[(y * cw + x) as usize];
-        let top = c(xa, ya) + ax * (c(xb, ya) - c(xa, ya));
-        let bottom = c(xa, yb) + ax * (c(xb, yb) - c(xa, yb));
-        top + ay * (bottom - top)
+    let cloud_at = |u: f32, v: f32| -> f32 {
+        equirect_taps(cw, ch, u, v)
+            .iter()
+            .map(|&(x, y, weight)| weight * clouds[(y * cw + x) as usize])
+            .sum()
     };
     let lin = |c: [u8; 3]| {
         Vec3::new(

@@ -332,6 +332,18 @@ fn from_equirect(path: &Path, image: &Decoded) -> Result<CubeMap, SkyError> {
 
 fn bilinear(image: &Decoded, u: f32, v: f32) -> [f32; 4] {
     let (w, h) = image.dimensions();
+    let taps = equirect_taps(w, h, u, v);
+    std::array::from_fn(|c| {
+        taps.iter()
+            .map(|&(x, y, weight)| weight * image.linear(x, y)[c])
+            .sum()
+    })
+}
+
+/// The four texels and weights of a bilinear sample at (u, v) ∈ [0, 1]² of a `w`×`h`
+/// equirectangular image: longitude wraps, latitude clamps.
+pub fn equirect_taps(w: u32, h: u32, u: f32, v: f32) -> [(u32, u32, f32); 4] {
+    let (w, h) = (w.max(1), h.max(1));
     let fx = u * w as f32 - 0.5;
     let fy = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
     let (x0, y0) = (fx.floor(), fy.floor());
@@ -339,17 +351,12 @@ fn bilinear(image: &Decoded, u: f32, v: f32) -> [f32; 4] {
     let wrap = |x: f32| (x as i64).rem_euclid(i64::from(w)) as u32;
     let (xa, xb) = (wrap(x0), wrap(x0 + 1.0));
     let (ya, yb) = (y0 as u32, (y0 as u32 + 1).min(h - 1));
-    let (p00, p10, p01, p11) = (
-        image.linear(xa, ya),
-        image.linear(xb, ya),
-        image.linear(xa, yb),
-        image.linear(xb, yb),
-    );
-    std::array::from_fn(|c| {
-        let top = p00[c] + ax * (p10[c] - p00[c]);
-        let bottom = p01[c] + ax * (p11[c] - p01[c]);
-        top + ay * (bottom - top)
-    })
+    [
+        (xa, ya, (1.0 - ax) * (1.0 - ay)),
+        (xb, ya, ax * (1.0 - ay)),
+        (xa, yb, (1.0 - ax) * ay),
+        (xb, yb, ax * ay),
+    ]
 }
 
 /// Builds the mip chain (2×2 box filter in linear light, per face) and encodes the texels.
