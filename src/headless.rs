@@ -4,7 +4,9 @@ use std::path::{Path, PathBuf};
 
 use crate::cave::{Eye, Head, RenderMode};
 use crate::config::{Config, ConfigError};
+use crate::output::formats::StereoFormat;
 use crate::output::{self, OutputError};
+use crate::render::present::PresentParams;
 use crate::render::{FrameParams, Gpu, RenderError, RenderSettings, Renderer, WallImages};
 use crate::scene::{Scene, SceneError, load_gltf};
 use crate::sky::{CubeMap, load_sky};
@@ -123,14 +125,14 @@ pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
     }
 }
 
-/// Renders one frame of `scene` (and `sky`, if any) as configured and returns every wall's eye
-/// images.
-pub fn render_images(
+/// Renders one frame of `scene` (and `sky`, if any) as configured; returns the renderer holding
+/// the frame (to read or compose its images).
+pub fn render_frame(
     gpu: &Gpu,
     config: &Config,
     scene: &Scene,
     sky: Option<&CubeMap>,
-) -> Result<Vec<WallImages>, RenderError> {
+) -> Result<Renderer, RenderError> {
     let mut renderer = Renderer::new(
         gpu,
         &config.cave,
@@ -164,7 +166,17 @@ pub fn render_images(
             }
         );
     }
-    renderer.read_images()
+    Ok(renderer)
+}
+
+/// Renders one frame as [`render_frame`] and returns every wall's eye images.
+pub fn render_images(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+) -> Result<Vec<WallImages>, RenderError> {
+    render_frame(gpu, config, scene, sky)?.read_images()
 }
 
 /// The frame parameters a config describes.
@@ -189,12 +201,13 @@ pub struct Written {
     pub files: Vec<PathBuf>,
 }
 
-/// Loads config and scene, renders, writes `<wall>-left.png`, `<wall>-right.png` for every wall
-/// and `unfolded-anaglyph.png` into `out_dir`.
+/// Loads config and scene, renders, writes `<wall>-left.png`, `<wall>-right.png` for every wall,
+/// `unfolded-anaglyph.png`, and `<wall>-<format>.png` for each of `formats` into `out_dir`.
 pub fn render_to_dir(
     config_path: &Path,
     overrides: &Overrides,
     out_dir: &Path,
+    formats: &[StereoFormat],
 ) -> Result<Written, HeadlessError> {
     let mut config = Config::load(config_path)?;
     overrides.apply(&mut config);
@@ -224,8 +237,26 @@ pub fn render_to_dir(
     );
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
-    let images = render_images(&gpu, &config, &scene, sky.as_ref())?;
-    write_images(&images, out_dir).map_err(Into::into)
+    let mut renderer = render_frame(&gpu, &config, &scene, sky.as_ref())?;
+    let images = renderer.read_images()?;
+    let mut written = write_images(&images, out_dir)?;
+    // Each wall in each asked-for stereo output format, composed on the GPU as a window would.
+    for (index, wall) in images.iter().enumerate() {
+        for &format in formats {
+            let img = renderer.compose(
+                index,
+                PresentParams {
+                    format,
+                    frame: 0,
+                    swap_eyes: false,
+                },
+            )?;
+            let path = out_dir.join(format!("{}-{}.png", wall.wall, format.name()));
+            output::write_png(&path, &img)?;
+            written.files.push(path);
+        }
+    }
+    Ok(written)
 }
 
 /// Writes eye images and the unfolded anaglyph.

@@ -10,6 +10,7 @@ use glam::Vec3;
 use omnicave::cave::RenderMode;
 use omnicave::cave::omni::{PoleMerge, WarpVariant};
 use omnicave::headless::{self, Overrides};
+use omnicave::output::formats::StereoFormat;
 use omnicave::sky::SkyMode;
 use omnicave::tess::{Criterion, MAX_DEPTH_LIMIT, parse_criterion};
 
@@ -105,9 +106,24 @@ struct RenderArgs {
     /// Sky mode: auto (follows the render mode), offaxis, omni-quad, omni-exact or off.
     #[arg(long, value_parser = parse_sky_mode)]
     skybox_mode: Option<SkyMode>,
+    /// Also write each wall in a stereo output format (repeatable): frame-sequential,
+    /// side-by-side[-half], top-bottom[-half], frame-packing, row-interleaved, anaglyph,
+    /// anaglyph-optimized, left-only, right-only, mono.
+    #[arg(long = "format", value_parser = parse_format)]
+    formats: Vec<StereoFormat>,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
+}
+
+fn parse_format(s: &str) -> Result<StereoFormat, String> {
+    StereoFormat::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = StereoFormat::ALL.iter().map(|f| f.name()).collect();
+        format!(
+            "unknown output format '{s}'; expected one of: {}",
+            names.join(", ")
+        )
+    })
 }
 
 /// `--skybox` value (a newtype: clap reads `Option<Option<T>>` as an optional-value flag).
@@ -310,8 +326,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 sky: args.skybox.map(|s| s.0),
                 sky_mode: args.skybox_mode,
             };
-            let written = headless::render_to_dir(&args.config, &overrides, &args.out)
-                .context("render failed")?;
+            let written =
+                headless::render_to_dir(&args.config, &overrides, &args.out, &args.formats)
+                    .context("render failed")?;
             for f in &written.files {
                 tracing::info!("wrote {}", f.display());
             }

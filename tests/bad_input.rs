@@ -401,6 +401,10 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
             vec!["render", "--skybox-mode", "exact", "--out", out],
             "unknown sky mode 'exact'",
         ),
+        (
+            vec!["render", "--format", "checkerboard", "--out", out],
+            "unknown output format 'checkerboard'",
+        ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
         (
@@ -459,10 +463,20 @@ fn render_command_writes_every_wall_and_eye() {
         "-20",
         "--size",
         "128x72",
+        "--format",
+        "side-by-side",
+        "--format",
+        "frame-packing",
         "--out",
         out.to_str().unwrap(),
     ]);
     assert!(ok, "render failed:\n{stderr}");
+    for wall in ["left", "front", "right"] {
+        let sbs = image::open(out.join(format!("{wall}-side-by-side.png"))).unwrap();
+        assert_eq!((sbs.width(), sbs.height()), (256, 72));
+        let packed = image::open(out.join(format!("{wall}-frame-packing.png"))).unwrap();
+        assert_eq!((packed.width(), packed.height()), (128, 147));
+    }
     for wall in ["left", "front", "right"] {
         for eye in ["left", "right"] {
             let img = image::open(out.join(format!("{wall}-{eye}.png"))).unwrap();

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 
 use image::{Rgba, RgbaImage};
 
+pub mod formats;
+
 /// Writing output files failed.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -30,11 +32,13 @@ pub fn anaglyph(left: &RgbaImage, right: &RgbaImage) -> Result<RgbaImage, Output
             right: right.dimensions(),
         });
     }
-    let mut out = RgbaImage::new(left.width(), left.height());
-    for ((o, l), r) in out.pixels_mut().zip(left.pixels()).zip(right.pixels()) {
-        *o = Rgba([l[0], r[1], r[2], 255]);
-    }
-    Ok(out)
+    Ok(formats::compose(
+        formats::StereoFormat::Anaglyph,
+        left,
+        right,
+        0,
+        false,
+    ))
 }
 
 /// Places images side by side, left to right, top-aligned, on black (the thesis's figures show

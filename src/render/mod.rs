@@ -1,6 +1,7 @@
 //! The multi-wall stereo renderer: owns the GPU resources and draws every wall for every eye.
 
 pub mod gpu;
+pub mod present;
 pub mod scene_pass;
 pub mod shaders;
 pub mod sky_pass;
@@ -109,6 +110,8 @@ pub struct Renderer {
     wireframe_supported: bool,
     /// GPU frame timer (benchmark only; `None` unless enabled).
     timer: Option<FrameTimer>,
+    /// Stereo output composition (headless use; windows own theirs).
+    present: present::PresentPass,
 }
 
 /// Two timestamps around a frame's GPU work, resolved into a buffer the CPU can map.
@@ -161,6 +164,7 @@ impl Renderer {
             last_views: Vec::new(),
             wireframe_supported: gpu.wireframe_supported,
             timer: None,
+            present: present::PresentPass::new(&gpu.device),
         };
         renderer.sync_walls(cave);
         Ok(renderer)
@@ -520,6 +524,24 @@ impl Renderer {
         let mono = self.last_views.iter().any(|v| v.eye.is_none());
         let slot = if mono { 0 } else { eye as usize };
         self.targets.get(wall).map(|t| &t.eyes[slot].color)
+    }
+
+    /// Composes wall `wall`'s eye images of the last frame into a stereo output format on the
+    /// GPU and reads the result back (headless output and tests).
+    pub fn compose(
+        &mut self,
+        wall: usize,
+        params: present::PresentParams,
+    ) -> Result<RgbaImage, RenderError> {
+        let (Some(left), Some(right)) = (
+            self.eye_texture(wall, Eye::Left),
+            self.eye_texture(wall, Eye::Right),
+        ) else {
+            return Err(RenderError::Readback(format!("no wall {wall}")));
+        };
+        let (left, right) = (left.clone(), right.clone());
+        self.present
+            .compose_to_image(&self.device, &self.queue, &left, &right, params)
     }
 
     /// Reads every wall's left and right image back to the CPU (headless output and tests).

@@ -12,8 +12,16 @@ pub const TESSELLATE: &str = include_str!("../../shaders/tessellate.wgsl");
 /// Skybox (paired with `src/render/sky_pass.rs`).
 pub const SKY: &str = include_str!("../../shaders/sky.wgsl");
 
+/// Stereo output formats (paired with `src/render/present.rs`).
+pub const PRESENT: &str = include_str!("../../shaders/present.wgsl");
+
 /// Every feature shader by file stem, for validation.
-pub const FEATURES: &[(&str, &str)] = &[("scene", SCENE), ("tessellate", TESSELLATE), ("sky", SKY)];
+pub const FEATURES: &[(&str, &str)] = &[
+    ("scene", SCENE),
+    ("tessellate", TESSELLATE),
+    ("sky", SKY),
+    ("present", PRESENT),
+];
 
 /// Full source of a feature shader: common declarations followed by the feature's own code.
 pub fn compose(feature_source: &str) -> String {
