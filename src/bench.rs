@@ -235,6 +235,8 @@ pub fn run(options: &BenchOptions) -> Result<BenchReport, BenchError> {
                 &methods,
                 frames,
             )?);
+            // Rewritten after every case, so a run that is stopped keeps what it measured.
+            write_outputs(options, &config, &adapter, frames, &rows)?;
         }
     }
     let files = write_outputs(options, &config, &adapter, frames, &rows)?;
