@@ -9,6 +9,9 @@ struct PresentUniforms {
     params: vec4<u32>,
     // xy: eye image size in pixels; z: 1 if the target is not sRGB (the shader then encodes).
     size: vec4<u32>,
+    // xy: top-left of the tile in target pixels; zw: composed pixels per target pixel (a window
+    // or preview tile of another size than the format's output is scaled, nearest texel).
+    viewport: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> present: PresentUniforms;
@@ -111,7 +114,8 @@ fn composed(p: vec2<i32>) -> vec3<f32> {
 
 @fragment
 fn fs_present(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> {
-    var c = composed(vec2<i32>(floor(position.xy)));
+    let p = (position.xy - present.viewport.xy) * present.viewport.zw;
+    var c = composed(vec2<i32>(floor(p)));
     if present.size.z != 0u {
         c = srgb_encode(c);
     }

@@ -6,10 +6,11 @@
 use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
+use crate::output::formats::StereoFormat;
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode, SkySettings};
 use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, parse_criterion};
 
@@ -33,7 +34,7 @@ pub enum ConfigError {
 }
 
 /// The whole configuration file, as written.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ConfigFile {
     #[serde(default)]
@@ -52,11 +53,13 @@ pub struct ConfigFile {
     pub tessellation: TessellationSection,
     #[serde(default)]
     pub skybox: SkyboxSection,
+    #[serde(default)]
+    pub app: AppSection,
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CaveSection {
     /// Interpupillary distance in metres.
@@ -87,7 +90,7 @@ impl Default for CaveSection {
 }
 
 /// Omnistereo settings.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OmnistereoSection {
     /// `similar-triangles` (stable) or `intersection-point` (only to show where it breaks).
@@ -114,7 +117,7 @@ impl Default for OmnistereoSection {
 }
 
 /// Adaptive tessellation before the omnistereo warp.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TessellationSection {
     /// `none`, `uniform:N`, `edge:PX`, `sphere:PX` or `error:PX`.
@@ -140,7 +143,7 @@ impl Default for TessellationSection {
 }
 
 /// The sky behind the scene.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SkyboxSection {
     /// An equirectangular image (PNG/JPEG/HDR) or a folder of six faces; relative to the
@@ -209,7 +212,7 @@ fn default_view_direction() -> [f32; 3] {
     [0.0, 0.0, -1.0]
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct HeadSection {
     #[serde(default = "default_head_position")]
@@ -237,7 +240,7 @@ fn default_head_position() -> [f32; 3] {
     [0.0, 1.7, 0.0]
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderSection {
     #[serde(default = "default_mode")]
@@ -273,7 +276,7 @@ fn default_background() -> [f32; 3] {
     [0.02, 0.02, 0.03]
 }
 
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneSection {
     /// glTF file; relative paths are relative to the config file's folder.
@@ -283,7 +286,7 @@ pub struct SceneSection {
 }
 
 /// Where the CAVE stands in the scene: scene point = translation + yaw · scale · CAVE point.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlacementSection {
     #[serde(default)]
@@ -308,7 +311,7 @@ fn one() -> f32 {
     1.0
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LightingSection {
     /// Ambient light colour (linear).
@@ -334,7 +337,7 @@ fn default_ambient() -> [f32; 3] {
     [0.18, 0.18, 0.2]
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DirectionalLightSection {
     /// Direction the light travels, in scene (world) space.
@@ -366,7 +369,7 @@ fn default_sun_intensity() -> f32 {
     0.6
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PointLightSection {
     /// Position in scene (world) space.
@@ -405,7 +408,7 @@ fn default_point_range() -> f32 {
     12.0
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct WallSection {
     pub name: String,
@@ -414,6 +417,136 @@ pub struct WallSection {
     pub upper_left: [f32; 3],
     /// Pixels (width, height).
     pub resolution: [u32; 2],
+    /// The monitor this wall's window goes fullscreen on (CAVE mode): an index into the
+    /// system's monitor list or a monitor name. Missing monitor: `window_position`/`size`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub monitor: Option<MonitorRef>,
+    /// Borderless window position (screen pixels) when no monitor is named or found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_position: Option<[i32; 2]>,
+    /// Window size (pixels) when no monitor is named or found; default: `resolution`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_size: Option<[u32; 2]>,
+    /// Stereo output format of this wall's window; default: `app.wall_output`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output: Option<String>,
+}
+
+/// A monitor named in the config: by position in the system's list or by name.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum MonitorRef {
+    Index(usize),
+    Name(String),
+}
+
+/// The interactive application (`omnicave run`): windows, panel, output formats.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AppSection {
+    /// "cave" (a window per wall) or "preview" (one window, walls unfolded).
+    #[serde(default = "default_app_mode")]
+    pub mode: String,
+    /// Where the control panel goes in CAVE mode: "window" (its own operator window),
+    /// "overlay:<wall>" (drawn over that wall's window) or "hidden".
+    #[serde(default = "default_panel")]
+    pub panel: String,
+    /// Operator (or preview) window position, screen pixels; default: chosen by the system.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_position: Option<[i32; 2]>,
+    /// Operator (or preview) window size in pixels.
+    #[serde(default = "default_app_window_size")]
+    pub window_size: [u32; 2],
+    /// Default stereo output format of the wall windows.
+    #[serde(default = "default_wall_output")]
+    pub wall_output: String,
+    /// Stereo output format of the preview's unfolded walls.
+    #[serde(default = "default_preview_output")]
+    pub preview_output: String,
+    /// Wait for vertical blank (no tearing; caps the frame rate at the display's).
+    #[serde(default = "default_true")]
+    pub vsync: bool,
+    /// Navigation speed in the scene, metres per second (keyboard and gamepad).
+    #[serde(default = "default_nav_speed")]
+    pub navigation_speed: f32,
+}
+
+impl Default for AppSection {
+    fn default() -> Self {
+        Self {
+            mode: default_app_mode(),
+            panel: default_panel(),
+            window_position: None,
+            window_size: default_app_window_size(),
+            wall_output: default_wall_output(),
+            preview_output: default_preview_output(),
+            vsync: true,
+            navigation_speed: default_nav_speed(),
+        }
+    }
+}
+
+fn default_app_mode() -> String {
+    "preview".into()
+}
+fn default_panel() -> String {
+    "window".into()
+}
+fn default_app_window_size() -> [u32; 2] {
+    [1280, 720]
+}
+fn default_wall_output() -> String {
+    "frame-sequential".into()
+}
+fn default_preview_output() -> String {
+    "anaglyph".into()
+}
+fn default_true() -> bool {
+    true
+}
+fn default_nav_speed() -> f32 {
+    1.5
+}
+
+/// How the application shows the walls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AppMode {
+    /// One borderless window per wall, on the monitors the config names.
+    Cave,
+    /// One window with the walls unfolded side by side and the panel docked.
+    Preview,
+}
+
+/// Where the control panel is drawn in CAVE mode.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PanelPlacement {
+    Window,
+    /// Over the wall with this index.
+    Overlay(usize),
+    Hidden,
+}
+
+/// Where one wall's window goes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WallWindow {
+    pub monitor: Option<MonitorRef>,
+    pub position: Option<[i32; 2]>,
+    pub size: [u32; 2],
+    pub output: StereoFormat,
+}
+
+/// The validated `[app]` section and per-wall window settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AppConfig {
+    pub mode: AppMode,
+    pub panel: PanelPlacement,
+    pub window_position: Option<[i32; 2]>,
+    pub window_size: [u32; 2],
+    pub preview_output: StereoFormat,
+    pub vsync: bool,
+    pub navigation_speed: f32,
+    /// One per wall, in wall order.
+    pub walls: Vec<WallWindow>,
 }
 
 /// Lighting ready for the renderer (scene/world space).
@@ -468,6 +601,10 @@ pub struct Config {
     /// Sky file, already resolved against the config's folder (`None`: no sky).
     pub sky_path: Option<PathBuf>,
     pub sky: SkySettings,
+    /// Windows, panel and output formats of the interactive application.
+    pub app: AppConfig,
+    /// The file as written (to save changed settings back without losing the rest).
+    pub file: ConfigFile,
 }
 
 impl Config {
@@ -757,6 +894,86 @@ impl ConfigFile {
             tess,
             sky_path,
             sky,
+            app: self.validate_app(&ck)?,
+            file: self.clone(),
+        })
+    }
+
+    fn validate_app(&self, ck: &Checker<'_>) -> Result<AppConfig, ConfigError> {
+        let a = &self.app;
+        let format = |field: &str, name: &str| {
+            StereoFormat::from_name(name).ok_or_else(|| {
+                let names: Vec<_> = StereoFormat::ALL.iter().map(|f| f.name()).collect();
+                ck.fail(field, name, &format!("must be one of {}", names.join(", ")))
+            })
+        };
+        let mode = match a.mode.as_str() {
+            "cave" => AppMode::Cave,
+            "preview" => AppMode::Preview,
+            other => return Err(ck.fail("app.mode", other, "must be \"cave\" or \"preview\"")),
+        };
+        let panel = match a.panel.as_str() {
+            "window" => PanelPlacement::Window,
+            "hidden" => PanelPlacement::Hidden,
+            other => match other.strip_prefix("overlay:") {
+                Some(wall) => PanelPlacement::Overlay(
+                    self.walls
+                        .iter()
+                        .position(|w| w.name == wall)
+                        .ok_or_else(|| {
+                            ck.fail("app.panel", other, "names no wall of this config")
+                        })?,
+                ),
+                None => {
+                    return Err(ck.fail(
+                        "app.panel",
+                        other,
+                        "must be \"window\", \"hidden\" or \"overlay:<wall name>\"",
+                    ));
+                }
+            },
+        };
+        let size_ok = |s: [u32; 2]| s.iter().all(|&v| (1..=MAX_WALL_PIXELS).contains(&v));
+        if !size_ok(a.window_size) {
+            return Err(ck.fail(
+                "app.window_size",
+                a.window_size,
+                &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
+            ));
+        }
+        let wall_output = format("app.wall_output", &a.wall_output)?;
+        let preview_output = format("app.preview_output", &a.preview_output)?;
+        let navigation_speed = ck.range("app.navigation_speed", a.navigation_speed, 0.0, 1000.0)?;
+        let mut walls = Vec::with_capacity(self.walls.len());
+        for (i, w) in self.walls.iter().enumerate() {
+            let size = w.window_size.unwrap_or(w.resolution);
+            if !size_ok(size) {
+                return Err(ck.fail(
+                    &format!("wall[{i}].window_size"),
+                    size,
+                    &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
+                ));
+            }
+            let output = match &w.output {
+                Some(name) => format(&format!("wall[{i}].output"), name)?,
+                None => wall_output,
+            };
+            walls.push(WallWindow {
+                monitor: w.monitor.clone(),
+                position: w.window_position,
+                size,
+                output,
+            });
+        }
+        Ok(AppConfig {
+            mode,
+            panel,
+            window_position: a.window_position,
+            window_size: a.window_size,
+            preview_output,
+            vsync: a.vsync,
+            navigation_speed,
+            walls,
         })
     }
 }

@@ -38,6 +38,20 @@ impl Gpu {
         Self::from_adapter(instance, adapter)
     }
 
+    /// Opens an adapter that can present to `surface`, on the instance that made it.
+    pub fn for_surface(
+        instance: wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+    ) -> Result<Self, RenderError> {
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            compatible_surface: Some(surface),
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        Self::from_adapter(instance, adapter)
+    }
+
     /// Creates the device on a chosen adapter, enabling the optional features it offers.
     pub fn from_adapter(
         instance: wgpu::Instance,

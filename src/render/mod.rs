@@ -9,6 +9,9 @@ pub mod targets;
 pub mod tessellator;
 pub mod uniforms;
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+
 use glam::Mat4;
 use image::RgbaImage;
 
@@ -81,6 +84,19 @@ pub struct FrameParams<'a> {
     pub sky: SkySettings,
 }
 
+/// Milliseconds between two resolved timestamps (`None` if the counter wrapped or a driver
+/// reordered them).
+fn ticks_to_ms(bytes: &[u8], period_ns: f32) -> Option<f64> {
+    let tick = |i: usize| {
+        bytes
+            .get(i * 8..i * 8 + 8)
+            .and_then(|b| b.try_into().ok())
+            .map(u64::from_le_bytes)
+    };
+    let (start, end) = (tick(0)?, tick(1)?);
+    (end >= start).then(|| (end - start) as f64 * f64::from(period_ns) * 1e-6)
+}
+
 /// Counts from the last frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FrameStats {
@@ -112,6 +128,8 @@ pub struct Renderer {
     timer: Option<FrameTimer>,
     /// Stereo output composition (headless use; windows own theirs).
     present: present::PresentPass,
+    /// Bumped whenever an eye target is rebuilt (bindings of eye textures must follow).
+    targets_generation: u64,
 }
 
 /// Two timestamps around a frame's GPU work, resolved into a buffer the CPU can map.
@@ -120,7 +138,28 @@ struct FrameTimer {
     queries: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     period_ns: f32,
+    /// Staging buffers for reading frame times without stalling (the interactive app).
+    slots: Vec<TimerSlot>,
+    /// Newest GPU frame time read so far (ms) and the frame it belongs to.
+    latest: Option<(u64, f64)>,
+    frame: u64,
 }
+
+/// A staging buffer a frame's timestamps are copied into and mapped asynchronously.
+#[derive(Debug)]
+struct TimerSlot {
+    buffer: wgpu::Buffer,
+    /// `SLOT_*`: set to done or failed by the map callback.
+    state: Arc<AtomicU8>,
+    frame: u64,
+}
+
+const SLOT_FREE: u8 = 0;
+const SLOT_IN_FLIGHT: u8 = 1;
+const SLOT_DONE: u8 = 2;
+const SLOT_FAILED: u8 = 3;
+/// Frames of timestamps in flight at once; more would only mean older numbers.
+const TIMER_SLOTS: usize = 3;
 
 impl Renderer {
     /// Creates targets for every wall of `cave` and builds all pipelines.
@@ -165,6 +204,7 @@ impl Renderer {
             wireframe_supported: gpu.wireframe_supported,
             timer: None,
             present: present::PresentPass::new(&gpu.device),
+            targets_generation: 0,
         };
         renderer.sync_walls(cave);
         Ok(renderer)
@@ -198,8 +238,71 @@ impl Renderer {
                 mapped_at_creation: false,
             }),
             period_ns: self.queue.get_timestamp_period(),
+            slots: (0..TIMER_SLOTS)
+                .map(|i| TimerSlot {
+                    buffer: self.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(&format!("Renderer::frame_timer_staging {i}")),
+                        size: 16,
+                        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                        mapped_at_creation: false,
+                    }),
+                    state: Arc::new(AtomicU8::new(SLOT_FREE)),
+                    frame: 0,
+                })
+                .collect(),
+            latest: None,
+            frame: 0,
         });
         true
+    }
+
+    /// The GPU time (ms) of the newest frame whose timestamps have arrived, without waiting:
+    /// frames copy their timestamps into staging buffers mapped asynchronously, collected here.
+    /// `None` until timing is enabled and a frame has finished.
+    pub fn poll_gpu_time_ms(&mut self) -> Option<f64> {
+        let timer = self.timer.as_mut()?;
+        // Only collects callbacks of finished work; never blocks.
+        let _ = self.device.poll(wgpu::PollType::Poll);
+        for slot in &mut timer.slots {
+            match slot.state.load(Ordering::Acquire) {
+                SLOT_DONE => {
+                    let ms = slot
+                        .buffer
+                        .get_mapped_range(..)
+                        .ok()
+                        .and_then(|bytes| ticks_to_ms(&bytes, timer.period_ns));
+                    slot.buffer.unmap();
+                    if let Some(ms) = ms
+                        && timer.latest.is_none_or(|(f, _)| f < slot.frame)
+                    {
+                        timer.latest = Some((slot.frame, ms));
+                    }
+                    slot.state.store(SLOT_FREE, Ordering::Release);
+                }
+                SLOT_FAILED => slot.state.store(SLOT_FREE, Ordering::Release),
+                _ => {}
+            }
+        }
+        timer.latest.map(|(_, ms)| ms)
+    }
+
+    /// How many render and compute pipelines this renderer has built (tests check that
+    /// switching settings builds none).
+    pub fn pipelines_built(&self) -> u64 {
+        self.scene_pass.pipelines_built
+            + self.sky_pass.pipelines_built
+            + self.present.pipelines_built()
+            + if self.tessellator.is_some() {
+                Tessellator::PIPELINES
+            } else {
+                0
+            }
+    }
+
+    /// Changes whenever an eye texture is replaced (wall resized, MSAA changed): anything
+    /// bound to [`Renderer::eye_texture`] must be rebound.
+    pub fn targets_generation(&self) -> u64 {
+        self.targets_generation
     }
 
     /// GPU time of the last frame in milliseconds (blocks until it is done), if timing is on.
@@ -214,16 +317,7 @@ impl Renderer {
             16,
             "Renderer::frame_timer_readback",
         )?;
-        let ticks: [u64; 2] = [
-            u64::from_le_bytes(bytes[0..8].try_into().unwrap_or_default()),
-            u64::from_le_bytes(bytes[8..16].try_into().unwrap_or_default()),
-        ];
-        // A counter that wrapped (or a driver that reordered) gives no sample.
-        if ticks[1] < ticks[0] {
-            return Ok(None);
-        }
-        let ns = (ticks[1] - ticks[0]) as f64 * f64::from(timer.period_ns);
-        Ok(Some(ns * 1e-6))
+        Ok(ticks_to_ms(&bytes, timer.period_ns))
     }
 
     /// Waits until the GPU has finished all submitted work.
@@ -343,6 +437,7 @@ impl Renderer {
             if up_to_date {
                 continue;
             }
+            self.targets_generation += 1;
             let targets = WallTargets::new(
                 &self.device,
                 &wall.name,
@@ -473,11 +568,33 @@ impl Renderer {
             }
             self.sky_pass.draw(&mut pass, index, view.wall);
         }
-        if let Some(timer) = &self.timer {
+        let mut staged = None;
+        if let Some(timer) = &mut self.timer {
             encoder.write_timestamp(&timer.queries, 1);
             encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
+            timer.frame += 1;
+            if let Some(slot) = timer
+                .slots
+                .iter_mut()
+                .find(|s| s.state.load(Ordering::Acquire) == SLOT_FREE)
+            {
+                encoder.copy_buffer_to_buffer(&timer.resolve, 0, &slot.buffer, 0, 16);
+                slot.frame = timer.frame;
+                slot.state.store(SLOT_IN_FLIGHT, Ordering::Release);
+                staged = Some((slot.buffer.clone(), slot.state.clone()));
+            }
         }
         self.queue.submit([encoder.finish()]);
+        if let Some((buffer, state)) = staged {
+            buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+                let done = if result.is_ok() {
+                    SLOT_DONE
+                } else {
+                    SLOT_FAILED
+                };
+                state.store(done, Ordering::Release);
+            });
+        }
         let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
         let stats = FrameStats {
             views: views.len(),
@@ -588,7 +705,8 @@ impl WallImages {
 }
 
 /// sRGB-encoded colour → the linear clear value an sRGB target needs to store exactly it.
-fn srgb_to_linear_color(c: [f32; 3]) -> wgpu::Color {
+/// An sRGB colour as the clear value of a linear (sRGB-format) target.
+pub fn srgb_to_linear_color(c: [f32; 3]) -> wgpu::Color {
     let lin = |v: f32| {
         let v = f64::from(v);
         if v <= 0.04045 {

@@ -16,6 +16,8 @@ use crate::output::formats::{StereoFormat, frame_packing_gap};
 pub struct PresentUniforms {
     pub params: [u32; 4],
     pub size: [u32; 4],
+    /// Tile origin (target pixels) and composed pixels per target pixel.
+    pub viewport: [f32; 4],
 }
 
 /// What one composed frame shows.
@@ -25,6 +27,16 @@ pub struct PresentParams {
     /// Index of the presented frame (frame-sequential: left eye on even frames).
     pub frame: u64,
     pub swap_eyes: bool,
+}
+
+/// One composed image drawn into a rectangle of a target: a wall window's whole surface, or
+/// one wall of the unfolded preview.
+#[derive(Debug, Clone, Copy)]
+pub struct Tile<'a> {
+    pub binding: &'a PresentBinding,
+    pub params: PresentParams,
+    /// x, y, width, height in target pixels.
+    pub rect: [f32; 4],
 }
 
 /// One pair of eye images bound for composing (made when the eye textures change, not per
@@ -43,6 +55,8 @@ pub struct PresentPass {
     pipeline_layout: wgpu::PipelineLayout,
     shader: wgpu::ShaderModule,
     pipelines: HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>,
+    /// Pipelines built so far (a switch must never build one per frame).
+    pipelines_built: u64,
 }
 
 impl PresentPass {
@@ -84,6 +98,7 @@ impl PresentPass {
             pipeline_layout,
             shader: shaders::module(device, "PresentPass::shader", shaders::PRESENT),
             pipelines: HashMap::new(),
+            pipelines_built: 0,
         }
     }
 
@@ -119,6 +134,12 @@ impl PresentPass {
             cache: None,
         });
         self.pipelines.insert(format, pipeline);
+        self.pipelines_built += 1;
+    }
+
+    /// How many pipelines this pass has built.
+    pub fn pipelines_built(&self) -> u64 {
+        self.pipelines_built
     }
 
     /// Binds a pair of eye textures (same size, single-sampled).
@@ -164,7 +185,8 @@ impl PresentPass {
     }
 
     /// Records the composition into `target` (of `target_format`, whose pipeline must exist;
-    /// nothing is drawn otherwise) and writes the binding's uniforms.
+    /// nothing is drawn otherwise) and writes the binding's uniforms. The target is the
+    /// format's output size.
     pub fn encode(
         &self,
         queue: &wgpu::Queue,
@@ -174,21 +196,54 @@ impl PresentPass {
         target_format: wgpu::TextureFormat,
         params: PresentParams,
     ) {
+        let [w, h] = params.format.output_size(binding.eye_size);
+        let tile = Tile {
+            binding,
+            params,
+            rect: [0.0, 0.0, w as f32, h as f32],
+        };
+        self.encode_tiles(
+            queue,
+            encoder,
+            &[tile],
+            target,
+            target_format,
+            wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+        );
+    }
+
+    /// Records one pass drawing each tile's composed image into its rectangle of `target`
+    /// (scaled to fit it exactly), after `load` (clear or keep). Each binding's uniforms are
+    /// rewritten, so a binding appears in at most one tile per submission.
+    pub fn encode_tiles(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        tiles: &[Tile<'_>],
+        target: &wgpu::TextureView,
+        target_format: wgpu::TextureFormat,
+        load: wgpu::LoadOp<wgpu::Color>,
+    ) {
         let Some(pipeline) = self.pipelines.get(&target_format) else {
             tracing::warn!("no present pipeline for {target_format:?}");
             return;
         };
-        let [w, h] = binding.eye_size;
-        let uniforms = PresentUniforms {
-            params: [
-                params.format.code(),
-                (params.frame % 2) as u32,
-                u32::from(params.swap_eyes),
-                frame_packing_gap(h),
-            ],
-            size: [w, h, u32::from(!target_format.is_srgb()), 0],
-        };
-        queue.write_buffer(&binding.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        for tile in tiles {
+            let [w, h] = tile.binding.eye_size;
+            let [out_w, out_h] = tile.params.format.output_size([w, h]);
+            let [x, y, tw, th] = tile.rect;
+            let uniforms = PresentUniforms {
+                params: [
+                    tile.params.format.code(),
+                    (tile.params.frame % 2) as u32,
+                    u32::from(tile.params.swap_eyes),
+                    frame_packing_gap(h),
+                ],
+                size: [w, h, u32::from(!target_format.is_srgb()), 0],
+                viewport: [x, y, out_w as f32 / tw.max(1.0), out_h as f32 / th.max(1.0)],
+            };
+            queue.write_buffer(&tile.binding.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("PresentPass::pass"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -196,7 +251,7 @@ impl PresentPass {
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    load,
                     store: wgpu::StoreOp::Store,
                 },
             })],
@@ -206,8 +261,15 @@ impl PresentPass {
             multiview_mask: None,
         });
         pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &binding.bind_group, &[]);
-        pass.draw(0..3, 0..1);
+        for tile in tiles {
+            let [x, y, w, h] = tile.rect;
+            if w < 1.0 || h < 1.0 {
+                continue;
+            }
+            pass.set_viewport(x, y, w, h, 0.0, 1.0);
+            pass.set_bind_group(0, &tile.binding.bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
     }
 
     /// Composes into a new image on the CPU (headless output and tests; reads back).

@@ -47,6 +47,8 @@ pub struct ScenePass {
     /// Bumped whenever the view buffer is replaced (bind groups built on it must follow).
     pub view_buffer_generation: u64,
     pipelines: HashMap<PipelineKey, wgpu::RenderPipeline>,
+    /// Pipelines built so far (switching settings must not build any).
+    pub(crate) pipelines_built: u64,
     msaa: u32,
     frame_buffer: wgpu::Buffer,
     view_buffer: wgpu::Buffer,
@@ -158,6 +160,7 @@ impl ScenePass {
             shader,
             view_buffer_generation: 0,
             pipelines: HashMap::new(),
+            pipelines_built: 0,
             msaa,
             frame_buffer,
             view_buffer,
@@ -224,6 +227,7 @@ impl ScenePass {
                     };
                     let pipeline = self.build_pipeline(device, key);
                     self.pipelines.insert(key, pipeline);
+                    self.pipelines_built += 1;
                 }
             }
         }

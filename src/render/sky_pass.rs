@@ -109,6 +109,8 @@ pub struct SkyPass {
     shader: wgpu::ShaderModule,
     /// Indexed by `Variant`.
     pipelines: Vec<wgpu::RenderPipeline>,
+    /// Pipelines built so far (switching settings must not build any).
+    pub(crate) pipelines_built: u64,
     sampler: wgpu::Sampler,
     uniform_buffer: wgpu::Buffer,
     uniform_bind_group: wgpu::BindGroup,
@@ -180,6 +182,7 @@ impl SkyPass {
             pipeline_layout,
             shader,
             pipelines: Vec::new(),
+            pipelines_built: 0,
             sampler,
             uniform_buffer,
             uniform_bind_group,
@@ -282,6 +285,7 @@ impl SkyPass {
             ),
             build("SkyPass::quad_pipeline", "vs_quad", "fs_quad", true),
         ];
+        self.pipelines_built += self.pipelines.len() as u64;
     }
 
     /// Uploads a cube map (all mip levels), replacing any previous one; `None` removes the sky.

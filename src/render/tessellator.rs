@@ -200,6 +200,9 @@ impl Tessellator {
         })
     }
 
+    /// Compute pipelines built by [`Tessellator::new`] (once per renderer).
+    pub const PIPELINES: u64 = 6;
+
     pub fn new(device: &wgpu::Device) -> Self {
         let c = wgpu::ShaderStages::COMPUTE;
         let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
