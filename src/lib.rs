@@ -3,8 +3,10 @@
 //! Layers, with dependencies pointing one way: [`scene`] (glTF → CPU meshes) and [`cave`]
 //! (walls, head, eyes, projections) and [`tess`] (tessellation criteria, CPU twin) and [`sky`]
 //! (cube maps, the sky's eye model) know nothing of the GPU; [`render`] owns GPU resources;
-//! [`output`] composes eye images; [`headless`] and [`bench`] tie them together for the CLI.
+//! [`output`] composes eye images; [`headless`] and [`bench`] tie them together for the CLI;
+//! [`app`] owns windows, the control panel and input.
 
+pub mod app;
 pub mod bench;
 pub mod cave;
 pub mod config;

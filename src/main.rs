@@ -1,4 +1,5 @@
-//! The `omnicave` command line: headless rendering now; the CAVE application joins later.
+//! The `omnicave` command line: the CAVE application (`run`, the default), headless `render`
+//! and `bench`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -9,6 +10,7 @@ use glam::Vec3;
 
 use omnicave::cave::RenderMode;
 use omnicave::cave::omni::{PoleMerge, WarpVariant};
+use omnicave::config::AppMode;
 use omnicave::headless::{self, Overrides};
 use omnicave::output::formats::StereoFormat;
 use omnicave::sky::SkyMode;
@@ -21,16 +23,54 @@ use omnicave::tess::{Criterion, MAX_DEPTH_LIMIT, parse_criterion};
     about = "Omnidirectional stereo rendering for CAVEs"
 )]
 struct Cli {
+    /// Without a command: the bundled scene in the desktop preview (`run --preview`).
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Open the application: a borderless window per wall (CAVE mode) or the unfolded preview,
+    /// with the control panel.
+    Run(RunArgs),
     /// Render one frame headless: every wall for both eyes, written as PNG files.
     Render(RenderArgs),
     /// Measure the frame time of every method in one run; write results.csv and report.md.
     Bench(BenchArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct RunArgs {
+    /// Configuration (TOML); its [app] section says CAVE or preview, monitors and formats.
+    #[arg(long, default_value = "config/cave.toml")]
+    config: PathBuf,
+    /// glTF scene instead of the config's, or "none" for the sky alone.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Force the desktop preview (walls unfolded in one window).
+    #[arg(long, conflicts_with = "cave")]
+    preview: bool,
+    /// Force CAVE mode (a window per wall).
+    #[arg(long)]
+    cave: bool,
+    /// Log frame statistics (fps, CPU and GPU frame time) every SECONDS.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    stats_every: Option<f64>,
+    /// Quit by itself after SECONDS (demos, soak tests).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    quit_after: Option<f64>,
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number of seconds"))?;
+    if v.is_finite() && v > 0.0 && v <= 1e6 {
+        Ok(v)
+    } else {
+        Err(format!("{v} seconds is outside 0..1e6"))
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -290,8 +330,46 @@ fn main() -> ExitCode {
     }
 }
 
+/// The desktop config: beside the working directory's `config/`, else the source tree's.
+fn default_desktop_config() -> PathBuf {
+    let local = PathBuf::from("config/desktop.toml");
+    if local.exists() {
+        return local;
+    }
+    let bundled = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config/desktop.toml");
+    if bundled.exists() { bundled } else { local }
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
-    match cli.command {
+    let command = cli.command.unwrap_or_else(|| {
+        Command::Run(RunArgs {
+            config: default_desktop_config(),
+            scene: None,
+            preview: true,
+            cave: false,
+            stats_every: None,
+            quit_after: None,
+        })
+    });
+    match command {
+        Command::Run(args) => {
+            let mode = if args.preview {
+                Some(AppMode::Preview)
+            } else if args.cave {
+                Some(AppMode::Cave)
+            } else {
+                None
+            };
+            omnicave::app::run(omnicave::app::RunOptions {
+                config: args.config,
+                scene: args.scene,
+                mode,
+                stats_every: args.stats_every,
+                quit_after: args.quit_after,
+            })
+            .context("omnicave stopped")?;
+            Ok(())
+        }
         Command::Bench(args) => {
             let report = omnicave::bench::run(&omnicave::bench::BenchOptions {
                 config: args.config,

@@ -108,6 +108,34 @@ fn config_errors_name_file_field_and_value() {
             vec!["render.mode", "omnistereo", "mono"],
         ),
         (
+            "bad-app-mode.toml",
+            base.replace("mode = \"cave\"", "mode = \"wall\""),
+            vec!["app.mode", "wall", "preview"],
+        ),
+        (
+            "bad-panel.toml",
+            base.replace("panel = \"window\"", "panel = \"overlay:ceiling\""),
+            vec!["app.panel", "overlay:ceiling", "names no wall"],
+        ),
+        (
+            "bad-output.toml",
+            base.replace(
+                "wall_output = \"frame-sequential\"",
+                "wall_output = \"quad-buffer\"",
+            ),
+            vec!["app.wall_output", "quad-buffer", "side-by-side"],
+        ),
+        (
+            "bad-window.toml",
+            base.replace("window_size = [1280, 720]", "window_size = [0, 720]"),
+            vec!["app.window_size", "[0, 720]"],
+        ),
+        (
+            "bad-monitor.toml",
+            base.replace("monitor = 1 ", "monitor = -1 "),
+            vec!["monitor"],
+        ),
+        (
             "no-walls.toml",
             "[cave]\neye_separation = 0.06\n".to_owned(),
             vec!["wall"],
@@ -340,6 +368,21 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
             vec!["render", "--mode", "bogus", "--out", out],
             "unknown mode 'bogus'",
         ),
+        // The application refuses a bad config or scene before opening any window.
+        (
+            vec!["run", "--config", bad_config.to_str().unwrap()],
+            "render.msaa",
+        ),
+        (
+            vec!["run", "--scene", bad_scene.to_str().unwrap()],
+            "cli-bad.glb",
+        ),
+        (vec!["run", "--stats-every", "0"], "outside 0..1e6"),
+        (
+            vec!["run", "--quit-after", "soon"],
+            "not a number of seconds",
+        ),
+        (vec!["run", "--preview", "--cave"], "cannot be used with"),
         (
             vec!["render", "--head", "1,2", "--out", out],
             "expected X,Y,Z",

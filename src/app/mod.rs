@@ -1,0 +1,511 @@
+//! The interactive application: a window per wall (CAVE mode) or one window with the walls
+//! unfolded (preview), the egui control panel, keys and mouse; one process, one wgpu device.
+
+pub mod keys;
+pub mod panel;
+pub mod state;
+pub mod stats;
+mod window;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::PhysicalKey;
+use winit::window::WindowId;
+
+use crate::config::{AppMode, Config, ConfigError, PanelPlacement};
+use crate::headless::load_config_sky;
+use crate::render::gpu::Gpu;
+use crate::render::present::PresentPass;
+use crate::render::{RenderError, Renderer};
+use crate::scene::{Scene, SceneError, load_gltf};
+use crate::sky::CubeMap;
+use keys::HeldKeys;
+use panel::PanelInfo;
+use state::AppState;
+use stats::FrameClock;
+use window::{EguiHost, OutputWindow, Role};
+
+/// Everything that can stop the application from starting or running.
+#[derive(Debug, thiserror::Error)]
+pub enum AppError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error("cannot open the window system: {0}")]
+    EventLoop(String),
+    #[error("cannot create window '{name}': {message}")]
+    Window { name: String, message: String },
+    #[error("cannot present to window '{name}': {message}")]
+    Surface { name: String, message: String },
+    #[error("head position {position} is not usable: {problem}")]
+    Head {
+        position: glam::Vec3,
+        problem: String,
+    },
+}
+
+/// How to start the application.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    pub config: PathBuf,
+    /// A scene instead of the config's (`none`: the sky alone).
+    pub scene: Option<PathBuf>,
+    /// CAVE or preview, instead of the config's `[app] mode`.
+    pub mode: Option<AppMode>,
+    /// Log the frame statistics every this many seconds.
+    pub stats_every: Option<f64>,
+    /// Quit by itself after this many seconds (demos, soak tests).
+    pub quit_after: Option<f64>,
+}
+
+/// Loads config, scene and sky, opens the windows and runs until quit.
+pub fn run(options: RunOptions) -> Result<(), AppError> {
+    let mut config = Config::load(&options.config)?;
+    if let Some(mode) = options.mode {
+        config.app.mode = mode;
+    }
+    if let Some(problem) = config.cave.head_problem(config.head.position) {
+        return Err(AppError::Head {
+            position: config.head.position,
+            problem,
+        });
+    }
+    let scene = match options.scene.clone().or_else(|| config.scene_path.clone()) {
+        Some(path) if path.as_os_str() != "none" => {
+            let scene = load_gltf(&path)?;
+            tracing::info!(
+                "scene {}: {} triangles",
+                path.display(),
+                scene.triangle_count()
+            );
+            scene
+        }
+        _ => Scene::default(),
+    };
+    let sky = load_config_sky(&config);
+    let quit = Arc::new(AtomicBool::new(false));
+    {
+        let quit = quit.clone();
+        // A second handler cannot be installed (tests start several apps in one process):
+        // then Esc and the window close button still quit.
+        if let Err(e) = ctrlc::set_handler(move || quit.store(true, Ordering::SeqCst)) {
+            tracing::debug!("no signal handler: {e}");
+        }
+    }
+    let event_loop = EventLoop::new().map_err(|e| AppError::EventLoop(e.to_string()))?;
+    let mut app = App {
+        state: AppState::new(config),
+        scene,
+        sky,
+        options,
+        quit,
+        gfx: None,
+        result: Ok(()),
+        held: HeldKeys::default(),
+        shift: false,
+        ctrl: false,
+        drag: None,
+        clock: FrameClock::new(),
+        started: Instant::now(),
+        last_frame: None,
+        last_stats_log: Instant::now(),
+        info: PanelInfo::default(),
+        surface_recoveries: 0,
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| AppError::EventLoop(e.to_string()))?;
+    app.result
+}
+
+/// GPU objects and windows (created once the event loop is running).
+struct Graphics {
+    gpu: Gpu,
+    renderer: Renderer,
+    present: PresentPass,
+    windows: Vec<OutputWindow>,
+    egui: Option<EguiHost>,
+}
+
+struct App {
+    state: AppState,
+    scene: Scene,
+    sky: Option<CubeMap>,
+    options: RunOptions,
+    quit: Arc<AtomicBool>,
+    gfx: Option<Graphics>,
+    result: Result<(), AppError>,
+    held: HeldKeys,
+    shift: bool,
+    ctrl: bool,
+    /// Last cursor x while the right button drags (mouse-look).
+    drag: Option<Option<f64>>,
+    clock: FrameClock,
+    started: Instant,
+    last_frame: Option<Instant>,
+    last_stats_log: Instant,
+    info: PanelInfo,
+    surface_recoveries: u64,
+}
+
+/// Radians of turn per pixel of mouse drag.
+const MOUSE_TURN_PER_PIXEL: f32 = 0.004;
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, error: AppError) {
+        tracing::error!("{error}");
+        self.result = Err(error);
+        event_loop.exit();
+    }
+
+    fn start(&mut self, event_loop: &ActiveEventLoop) -> Result<Graphics, AppError> {
+        let instance = wgpu::Instance::new(
+            wgpu::InstanceDescriptor::new_with_display_handle(Box::new(
+                event_loop.owned_display_handle(),
+            ))
+            .with_env(),
+        );
+        let config = &self.state.config;
+        let mut plans = Vec::new();
+        match config.app.mode {
+            AppMode::Preview => plans.push(Role::Preview),
+            AppMode::Cave => {
+                for i in 0..config.cave.walls.len() {
+                    plans.push(Role::Wall(i));
+                }
+                if config.app.panel == PanelPlacement::Window {
+                    plans.push(Role::Operator);
+                }
+            }
+        }
+        let mut windows = Vec::with_capacity(plans.len());
+        let mut gpu: Option<Gpu> = None;
+        for role in plans {
+            let win = window::create_window(event_loop, config, role)?;
+            let surface = instance
+                .create_surface(win.clone())
+                .map_err(|e| AppError::Surface {
+                    name: role.name(config),
+                    message: e.to_string(),
+                })?;
+            if gpu.is_none() {
+                gpu = Some(Gpu::for_surface(instance.clone(), &surface)?);
+            }
+            let Some(g) = gpu.as_ref() else {
+                continue;
+            };
+            windows.push(OutputWindow::new(g, role, win, surface, config)?);
+        }
+        let gpu = match gpu {
+            Some(g) => g,
+            None => Gpu::headless()?,
+        };
+        let mut renderer = Renderer::new(&gpu, self.state.cave(), self.state.render_settings())?;
+        renderer.set_scene(&self.scene);
+        if let Err(e) = renderer.set_sky(self.sky.as_ref()) {
+            tracing::error!("{e}; running without a sky");
+        }
+        let gpu_timing = renderer.enable_gpu_timing(&gpu);
+        let mut present = PresentPass::new(&gpu.device);
+        for w in &windows {
+            present.ensure_pipeline(&gpu.device, w.format());
+        }
+        let host = match (config.app.mode, &config.app.panel) {
+            (AppMode::Preview, _) => windows.iter().position(|w| w.role == Role::Preview),
+            (AppMode::Cave, PanelPlacement::Window) => {
+                windows.iter().position(|w| w.role == Role::Operator)
+            }
+            (AppMode::Cave, PanelPlacement::Overlay(wall)) => {
+                windows.iter().position(|w| w.role == Role::Wall(*wall))
+            }
+            (AppMode::Cave, PanelPlacement::Hidden) => None,
+        };
+        let egui = host.map(|index| EguiHost::new(&gpu, &windows[index], index));
+        let info = gpu.adapter.get_info();
+        self.info.adapter = format!("{} ({:?})", info.name, info.backend);
+        self.info.gpu_timing = gpu_timing;
+        self.info.has_sky = renderer.has_sky();
+        self.info.tessellation_supported = gpu.tessellation_supported();
+        self.info.cave_mode = config.app.mode == AppMode::Cave;
+        tracing::info!(
+            "{} window(s) open in {} mode; F1 shows the key map",
+            windows.len(),
+            match config.app.mode {
+                AppMode::Cave => "CAVE",
+                AppMode::Preview => "preview",
+            }
+        );
+        Ok(Graphics {
+            gpu,
+            renderer,
+            present,
+            windows,
+            egui,
+        })
+    }
+
+    /// Renders the walls once and presents every window.
+    fn frame(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return;
+        };
+        let now = Instant::now();
+        let dt = self
+            .last_frame
+            .map_or(0.0, |t| now.duration_since(t).as_secs_f32().min(0.25));
+        self.last_frame = Some(now);
+        if self.held.any() {
+            self.state.navigate(self.held.input(), dt);
+        }
+
+        // The panel first, so what it changes shows in this frame.
+        let mut egui_frame = None;
+        if let Some(host) = gfx.egui.as_mut() {
+            let win = &gfx.windows[host.window_index];
+            let (frame, requests) = host.run(&gfx.gpu, win, &mut self.state, &self.info);
+            egui_frame = Some(frame);
+            if requests.read_tess_counts {
+                self.info.tess_emitted = read_tess_counts(&gfx.renderer, &self.state);
+            }
+        }
+
+        let settings = self.state.render_settings();
+        if gfx.renderer.settings() != settings
+            && let Err(e) = gfx.renderer.set_settings(settings, self.state.cave())
+        {
+            tracing::error!("{e}; keeping the previous settings");
+            self.state.msaa = gfx.renderer.settings().msaa;
+        }
+        let stats = match gfx.renderer.render(&self.state.frame_params()) {
+            Ok(stats) => stats,
+            Err(e) => {
+                self.fail(event_loop, e.into());
+                return;
+            }
+        };
+        let walls = &self.state.cave().walls;
+        let views_per_wall = stats.views / walls.len().max(1);
+        let per_view = stats.triangles_submitted / stats.views.max(1);
+        self.info.wall_triangles.clear();
+        self.info.wall_triangles.extend(
+            walls
+                .iter()
+                .map(|w| (w.name.clone(), per_view * views_per_wall)),
+        );
+
+        for (index, win) in gfx.windows.iter_mut().enumerate() {
+            let egui = match (&mut gfx.egui, &egui_frame) {
+                (Some(host), Some(frame)) if host.window_index == index => Some((host, frame)),
+                _ => None,
+            };
+            match win.draw(&gfx.gpu, &gfx.renderer, &gfx.present, &self.state, egui) {
+                Ok(recovered) => self.surface_recoveries += u64::from(recovered),
+                Err(e) => tracing::warn!("{e}"),
+            }
+        }
+        if let (Some(host), Some(frame)) = (gfx.egui.as_mut(), egui_frame) {
+            host.free_textures(frame);
+        }
+
+        let gpu_ms = gfx.renderer.poll_gpu_time_ms();
+        self.clock.record(Instant::now(), now.elapsed(), gpu_ms);
+        self.info.stats = self.clock.summary;
+        if let Some(every) = self.options.stats_every
+            && self.last_stats_log.elapsed().as_secs_f64() >= every
+        {
+            self.last_stats_log = Instant::now();
+            tracing::info!(
+                target: "omnicave::stats",
+                "stats: {} | frames {} | mode {} | windows {} | surface recoveries {}",
+                self.clock.summary,
+                self.clock.total_frames,
+                self.state.mode.name(),
+                gfx.windows.len(),
+                self.surface_recoveries
+            );
+        }
+        if self.state.save_requested {
+            self.state.save_requested = false;
+            let path = self.state.save_path.clone();
+            self.info.save_message = Some(match self.state.save(&path) {
+                Ok(()) => {
+                    tracing::info!("settings saved to {}", path.display());
+                    format!("saved to {}", path.display())
+                }
+                Err(e) => {
+                    tracing::error!("{e}");
+                    e.to_string()
+                }
+            });
+        }
+    }
+
+    fn quit_now(&mut self, event_loop: &ActiveEventLoop, why: &str) {
+        tracing::info!("quitting: {why}");
+        if let Some(gfx) = self.gfx.as_ref()
+            && let Err(e) = gfx.renderer.wait_idle()
+        {
+            tracing::warn!("{e}");
+        }
+        // Windows and surfaces are dropped before the device.
+        if let Some(mut gfx) = self.gfx.take() {
+            gfx.egui = None;
+            gfx.windows.clear();
+        }
+        event_loop.exit();
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_some() {
+            return;
+        }
+        match self.start(event_loop) {
+            Ok(gfx) => self.gfx = Some(gfx),
+            Err(e) => self.fail(event_loop, e),
+        }
+        event_loop.set_control_flow(ControlFlow::Poll);
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, id: WindowId, event: WindowEvent) {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return;
+        };
+        let Some(index) = gfx.windows.iter().position(|w| w.id() == id) else {
+            return;
+        };
+        let mut consumed = false;
+        if let Some(host) = gfx.egui.as_mut()
+            && host.window_index == index
+        {
+            consumed = host.on_event(&gfx.windows[index], &event);
+        }
+        match event {
+            WindowEvent::CloseRequested => {
+                let role = gfx.windows[index].role;
+                if matches!(role, Role::Wall(_)) && gfx.windows.len() > 1 {
+                    tracing::info!("window of wall {} closed", role.name(&self.state.config));
+                    let gone = gfx.windows.remove(index);
+                    match gfx.egui.as_ref().map(|h| h.window_index) {
+                        Some(host) if host == index => gfx.egui = None,
+                        Some(host) if host > index => {
+                            if let Some(h) = gfx.egui.as_mut() {
+                                h.window_index -= 1;
+                            }
+                        }
+                        _ => {}
+                    }
+                    drop(gone);
+                } else {
+                    self.quit_now(event_loop, "window closed");
+                }
+            }
+            WindowEvent::Resized(size) => {
+                gfx.windows[index].resize(&gfx.gpu, size.width, size.height);
+            }
+            WindowEvent::ModifiersChanged(m) => {
+                self.shift = m.state().shift_key();
+                self.ctrl = m.state().control_key();
+            }
+            WindowEvent::KeyboardInput { event, .. } => {
+                let PhysicalKey::Code(code) = event.physical_key else {
+                    return;
+                };
+                let pressed = event.state == ElementState::Pressed;
+                if consumed && pressed {
+                    return;
+                }
+                let modified = self.shift || self.ctrl;
+                if !modified && self.held.set(code, pressed) {
+                    return;
+                }
+                if pressed
+                    && !event.repeat
+                    && let Some(action) = keys::action_for_key(code, self.shift, self.ctrl)
+                {
+                    self.state.apply(action);
+                }
+            }
+            WindowEvent::MouseInput {
+                button: MouseButton::Right,
+                state,
+                ..
+            } => {
+                self.drag = (state == ElementState::Pressed && !consumed).then_some(None);
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if let Some(last) = self.drag.as_mut() {
+                    if let Some(x) = *last {
+                        self.state
+                            .turn(-((position.x - x) as f32) * MOUSE_TURN_PER_PIXEL);
+                    }
+                    *last = Some(position.x);
+                }
+            }
+            WindowEvent::Focused(false) => {
+                // Keys released while another window has focus never arrive.
+                self.held = HeldKeys::default();
+                self.drag = None;
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_none() {
+            return;
+        }
+        if self.quit.load(Ordering::SeqCst) {
+            self.quit_now(event_loop, "signal");
+            return;
+        }
+        if self.state.quit_requested {
+            self.quit_now(event_loop, "asked from the keyboard or panel");
+            return;
+        }
+        if let Some(limit) = self.options.quit_after
+            && self.started.elapsed() >= Duration::from_secs_f64(limit.max(0.0))
+        {
+            self.quit_now(event_loop, "--quit-after elapsed");
+            return;
+        }
+        self.frame(event_loop);
+    }
+
+    fn exiting(&mut self, _event_loop: &ActiveEventLoop) {
+        tracing::info!("{} frames rendered", self.clock.total_frames);
+    }
+}
+
+/// Reads the tessellator's counts of the last frame, summed per wall (a blocking read, only
+/// when the user asks for it).
+fn read_tess_counts(renderer: &Renderer, state: &AppState) -> Option<Vec<(String, u32)>> {
+    let stats = match renderer.read_tess_stats() {
+        Ok(s) => s,
+        Err(e) => {
+            tracing::warn!("{e}");
+            return None;
+        }
+    };
+    if stats.is_empty() {
+        return None;
+    }
+    let walls = &state.cave().walls;
+    let mut counts: Vec<(String, u32)> = walls.iter().map(|w| (w.name.clone(), 0)).collect();
+    for (view, s) in renderer.last_views().iter().zip(stats) {
+        if let Some(slot) = counts.get_mut(view.wall) {
+            slot.1 += s.emitted;
+        }
+    }
+    Some(counts)
+}

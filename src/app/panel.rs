@@ -1,0 +1,263 @@
+//! The egui control panel: every run-time setting, frame statistics, saving; and the F1 key map.
+
+use egui::{ComboBox, Slider, Ui};
+
+use super::keys::KEY_MAP;
+use super::state::{AppState, CriterionKind, MAX_EYE_SEPARATION};
+use super::stats::StatsSummary;
+use crate::cave::RenderMode;
+use crate::cave::omni::WarpVariant;
+use crate::output::formats::StereoFormat;
+use crate::sky::SkyMode;
+
+/// What the panel shows but does not change.
+#[derive(Debug, Clone, Default)]
+pub struct PanelInfo {
+    pub adapter: String,
+    pub stats: StatsSummary,
+    /// Whether GPU times are measured (adapter timestamps).
+    pub gpu_timing: bool,
+    /// Per wall: name and triangles submitted (scene triangles × views of that wall).
+    pub wall_triangles: Vec<(String, usize)>,
+    /// Per wall: triangles the tessellator emitted, when last read (button).
+    pub tess_emitted: Option<Vec<(String, u32)>>,
+    /// Whether the scene has a sky loaded.
+    pub has_sky: bool,
+    /// Whether this device can tessellate.
+    pub tessellation_supported: bool,
+    /// True in CAVE mode (one output format per wall window), false in the preview.
+    pub cave_mode: bool,
+    /// Result of the last save (shown under the button).
+    pub save_message: Option<String>,
+}
+
+/// Requests from the panel that need the app (not just state changes).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PanelRequests {
+    /// Read the tessellator's per-view counts once (a blocking read, on demand only).
+    pub read_tess_counts: bool,
+}
+
+/// Draws the whole panel into `ui` (scrolls when the window is short).
+pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelRequests {
+    let mut requests = PanelRequests::default();
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        ui.heading("omnicave");
+        stats_section(ui, info, &mut requests);
+        ui.separator();
+        render_section(ui, state, info);
+        ui.separator();
+        tessellation_section(ui, state, info);
+        ui.separator();
+        head_and_cave_section(ui, state);
+        ui.separator();
+        output_section(ui, state, info);
+        ui.separator();
+        ui.horizontal(|ui| {
+            if ui.button("Save settings").clicked() {
+                state.save_requested = true;
+            }
+            if ui.button("Key map (F1)").clicked() {
+                state.show_help = !state.show_help;
+            }
+            if ui.button("Quit").clicked() {
+                state.quit_requested = true;
+            }
+        });
+        ui.label(format!("save to: {}", state.save_path.display()));
+        if let Some(message) = &info.save_message {
+            ui.label(message);
+        }
+    });
+    requests
+}
+
+fn stats_section(ui: &mut Ui, info: &PanelInfo, requests: &mut PanelRequests) {
+    let s = &info.stats;
+    ui.label(format!("GPU: {}", info.adapter));
+    ui.label(format!("{:.1} fps   frame {:.1} ms", s.fps, s.frame_ms));
+    let gpu = match (info.gpu_timing, s.gpu_ms) {
+        (true, Some(g)) => format!("{g:.2} ms"),
+        (true, None) => "waiting".to_owned(),
+        (false, _) => "n/a (no timestamps)".to_owned(),
+    };
+    ui.label(format!("CPU {:.2} ms   GPU {gpu}", s.cpu_ms));
+    egui::Grid::new("triangles").striped(true).show(ui, |ui| {
+        ui.label("wall");
+        ui.label("submitted");
+        ui.label("tessellated");
+        ui.end_row();
+        for (i, (name, submitted)) in info.wall_triangles.iter().enumerate() {
+            ui.label(name);
+            ui.label(submitted.to_string());
+            let emitted = info
+                .tess_emitted
+                .as_ref()
+                .and_then(|t| t.get(i))
+                .map_or_else(|| "–".to_owned(), |(_, n)| n.to_string());
+            ui.label(emitted);
+            ui.end_row();
+        }
+    });
+    if ui.button("Read tessellation counts").clicked() {
+        requests.read_tess_counts = true;
+    }
+}
+
+fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    ComboBox::from_label("Render mode")
+        .selected_text(state.mode.name())
+        .show_ui(ui, |ui| {
+            for mode in RenderMode::ALL {
+                ui.selectable_value(&mut state.mode, mode, mode.name());
+            }
+        });
+    ComboBox::from_label("Warp")
+        .selected_text(state.warp.name())
+        .show_ui(ui, |ui| {
+            for warp in WarpVariant::ALL {
+                ui.selectable_value(&mut state.warp, warp, warp.name());
+            }
+        });
+    ui.checkbox(&mut state.pole_merge_on, "Pole merge");
+    ui.add_enabled_ui(state.pole_merge_on, |ui| {
+        ui.add(Slider::new(&mut state.pole_merge.start_degrees, 0.0..=90.0).text("merge start °"));
+        let start = state.pole_merge.start_degrees;
+        ui.add(Slider::new(&mut state.pole_merge.end_degrees, start..=90.0).text("merge end °"));
+    });
+    ui.add(
+        Slider::new(&mut state.eye_separation, 0.0..=MAX_EYE_SEPARATION)
+            .text("eye separation m")
+            .step_by(0.001),
+    );
+    ui.add_enabled_ui(info.has_sky, |ui| {
+        ComboBox::from_label("Skybox")
+            .selected_text(state.sky_mode.name())
+            .show_ui(ui, |ui| {
+                for mode in SkyMode::ALL {
+                    ui.selectable_value(&mut state.sky_mode, mode, mode.name());
+                }
+            });
+    });
+    ui.checkbox(&mut state.wireframe, "Wireframe");
+    ui.horizontal(|ui| {
+        ui.label("MSAA");
+        ui.radio_value(&mut state.msaa, 1, "off");
+        ui.radio_value(&mut state.msaa, 4, "4×");
+    });
+}
+
+fn tessellation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    ui.add_enabled_ui(info.tessellation_supported, |ui| {
+        ui.checkbox(&mut state.tess_on, "Adaptive tessellation");
+        ui.add_enabled_ui(state.tess_on, |ui| {
+            ComboBox::from_label("Criterion")
+                .selected_text(state.tess_kind.name())
+                .show_ui(ui, |ui| {
+                    for kind in CriterionKind::ALL {
+                        ui.selectable_value(&mut state.tess_kind, kind, kind.name());
+                    }
+                });
+            let range = state.tess_kind.range();
+            let uniform = state.tess_kind == CriterionKind::Uniform;
+            let mut slider = Slider::new(state.tess_value_mut(), range).text("parameter");
+            if uniform {
+                slider = slider.step_by(1.0);
+            } else {
+                slider = slider.logarithmic(true);
+            }
+            ui.add(slider);
+            ui.add(
+                Slider::new(&mut state.tess_max_depth, 0..=crate::tess::MAX_DEPTH_LIMIT)
+                    .text("max depth"),
+            );
+            ui.checkbox(&mut state.tess_backface_cull, "Back-face cull");
+            ui.checkbox(&mut state.tess_frustum_cull, "Frustum cull");
+        });
+    });
+}
+
+fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
+    ui.label("Head (CAVE space, m)");
+    let mut head = state.head_position;
+    let size = state.cave_size;
+    let mut changed = false;
+    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+        let half = size[axis].max(0.1) / 2.0;
+        let range = if axis == 1 {
+            0.0..=size[1].max(0.1)
+        } else {
+            -half..=half
+        };
+        changed |= ui
+            .add(Slider::new(&mut head[axis], range).text(format!("head {name}")))
+            .changed();
+    }
+    if changed {
+        state.set_head_position(head);
+    }
+    ui.add(Slider::new(&mut state.head_yaw_degrees, -180.0..=180.0).text("head yaw ° (tracked)"));
+    ui.label("CAVE size (walls move live, m)");
+    let mut size = state.cave_size;
+    let base = state.base_cave_size();
+    let mut resized = false;
+    for (axis, name) in ["width", "height", "depth"].iter().enumerate() {
+        if base[axis] > 1e-6 {
+            resized |= ui
+                .add(Slider::new(&mut size[axis], 0.5..=(base[axis] * 3.0).max(1.0)).text(*name))
+                .changed();
+        }
+    }
+    if resized {
+        state.set_cave_size(size);
+    }
+    ui.horizontal(|ui| {
+        if ui.button("Reset view").clicked() {
+            state.apply(super::state::Action::ResetView);
+        }
+        ui.label(format!(
+            "navigation: ({:.2}, {:.2}, {:.2}) m, {:.0}°",
+            state.navigation.position.x,
+            state.navigation.position.y,
+            state.navigation.position.z,
+            state.navigation.yaw.to_degrees()
+        ));
+    });
+}
+
+fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    let format_combo = |ui: &mut Ui, label: &str, format: &mut StereoFormat| {
+        ComboBox::from_label(label)
+            .selected_text(format.name())
+            .show_ui(ui, |ui| {
+                for f in StereoFormat::ALL {
+                    ui.selectable_value(format, f, f.name());
+                }
+            });
+    };
+    if info.cave_mode {
+        let names: Vec<String> = state.cave().walls.iter().map(|w| w.name.clone()).collect();
+        for (name, format) in names.iter().zip(state.wall_outputs.iter_mut()) {
+            format_combo(ui, &format!("output {name}"), format);
+        }
+    } else {
+        format_combo(ui, "Preview output", &mut state.preview_output);
+    }
+    ui.checkbox(&mut state.swap_eyes, "Swap eyes");
+}
+
+/// The F1 key map as a floating window.
+pub fn help_window(ctx: &egui::Context, open: &mut bool) {
+    egui::Window::new("Key map")
+        .open(open)
+        .resizable(false)
+        .show(ctx, |ui| {
+            egui::Grid::new("keys").striped(true).show(ui, |ui| {
+                for (key, what) in KEY_MAP {
+                    ui.label(*key);
+                    ui.label(*what);
+                    ui.end_row();
+                }
+            });
+        });
+}

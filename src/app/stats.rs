@@ -1,0 +1,122 @@
+//! Frame-time statistics: CPU and GPU time and frame rate over the last second, shown by the
+//! panel and logged by `--stats-every`.
+
+use std::time::{Duration, Instant};
+
+/// Rolling frame statistics.
+#[derive(Debug, Clone)]
+pub struct FrameClock {
+    window_start: Instant,
+    frames: u32,
+    cpu_ms_sum: f64,
+    gpu_ms_sum: f64,
+    gpu_samples: u32,
+    last_frame: Option<Instant>,
+    /// Figures of the last completed window.
+    pub summary: StatsSummary,
+    /// Frames rendered since start.
+    pub total_frames: u64,
+}
+
+/// Averages over one window (about a second).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StatsSummary {
+    pub fps: f64,
+    /// CPU time to record and submit a frame (all walls and windows), ms.
+    pub cpu_ms: f64,
+    /// GPU time of the walls' rendering, ms (`None` without timestamps).
+    pub gpu_ms: Option<f64>,
+    /// Time between frames, ms.
+    pub frame_ms: f64,
+}
+
+/// Length of the averaging window.
+const WINDOW: Duration = Duration::from_secs(1);
+
+impl Default for FrameClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FrameClock {
+    pub fn new() -> Self {
+        Self {
+            window_start: Instant::now(),
+            frames: 0,
+            cpu_ms_sum: 0.0,
+            gpu_ms_sum: 0.0,
+            gpu_samples: 0,
+            last_frame: None,
+            summary: StatsSummary::default(),
+            total_frames: 0,
+        }
+    }
+
+    /// Records a finished frame: its CPU time and the newest GPU time available.
+    pub fn record(&mut self, now: Instant, cpu: Duration, gpu_ms: Option<f64>) {
+        self.frames += 1;
+        self.total_frames += 1;
+        self.cpu_ms_sum += cpu.as_secs_f64() * 1e3;
+        if let Some(g) = gpu_ms {
+            self.gpu_ms_sum += g;
+            self.gpu_samples += 1;
+        }
+        self.last_frame = Some(now);
+        let elapsed = now.duration_since(self.window_start);
+        if elapsed >= WINDOW {
+            let n = f64::from(self.frames);
+            let secs = elapsed.as_secs_f64();
+            self.summary = StatsSummary {
+                fps: n / secs,
+                cpu_ms: self.cpu_ms_sum / n,
+                gpu_ms: (self.gpu_samples > 0)
+                    .then(|| self.gpu_ms_sum / f64::from(self.gpu_samples)),
+                frame_ms: secs * 1e3 / n,
+            };
+            self.window_start = now;
+            self.frames = 0;
+            self.cpu_ms_sum = 0.0;
+            self.gpu_ms_sum = 0.0;
+            self.gpu_samples = 0;
+        }
+    }
+}
+
+impl std::fmt::Display for StatsSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:.1} fps, frame {:.1} ms, cpu {:.2} ms, gpu {}",
+            self.fps,
+            self.frame_ms,
+            self.cpu_ms,
+            self.gpu_ms
+                .map_or_else(|| "n/a".to_owned(), |g| format!("{g:.2} ms"))
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_averages_over_the_window() {
+        let mut clock = FrameClock::new();
+        let t0 = clock.window_start;
+        for i in 1..=10 {
+            clock.record(
+                t0 + Duration::from_millis(110 * i),
+                Duration::from_millis(4),
+                Some(20.0),
+            );
+        }
+        let s = clock.summary;
+        // 10 frames over 1.1 s.
+        assert!((s.fps - 10.0 / 1.1).abs() < 1e-6, "{s}");
+        assert!((s.cpu_ms - 4.0).abs() < 1e-9);
+        assert_eq!(s.gpu_ms, Some(20.0));
+        assert!((s.frame_ms - 110.0).abs() < 1e-6);
+    }
+}

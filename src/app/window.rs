@@ -1,0 +1,626 @@
+//! Windows and their surfaces: placing wall windows on monitors, composing each frame into them
+//! (with the panel drawn by egui where it lives), and recovering lost or outdated surfaces.
+
+use std::sync::Arc;
+
+use winit::dpi::{PhysicalPosition, PhysicalSize};
+use winit::event::WindowEvent;
+use winit::event_loop::ActiveEventLoop;
+use winit::monitor::MonitorHandle;
+use winit::window::{Fullscreen, Window, WindowId};
+
+use super::AppError;
+use super::panel::{self, PanelInfo, PanelRequests};
+use super::state::AppState;
+use crate::cave::Eye;
+use crate::config::{Config, MonitorRef};
+use crate::render::Renderer;
+use crate::render::gpu::Gpu;
+use crate::render::present::{PresentBinding, PresentParams, PresentPass, Tile};
+
+/// What a window shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// One wall's image in its output format (CAVE mode).
+    Wall(usize),
+    /// The control panel alone (CAVE mode's operator window).
+    Operator,
+    /// The walls unfolded side by side with the panel docked.
+    Preview,
+}
+
+impl Role {
+    pub fn name(self, config: &Config) -> String {
+        match self {
+            Role::Wall(i) => config
+                .cave
+                .walls
+                .get(i)
+                .map_or_else(|| format!("wall {i}"), |w| w.name.clone()),
+            Role::Operator => "operator".into(),
+            Role::Preview => "preview".into(),
+        }
+    }
+}
+
+/// Opens a window for `role` where the config puts it.
+pub fn create_window(
+    event_loop: &ActiveEventLoop,
+    config: &Config,
+    role: Role,
+) -> Result<Arc<Window>, AppError> {
+    let name = role.name(config);
+    let mut attrs = Window::default_attributes().with_title(format!("omnicave — {name}"));
+    match role {
+        Role::Wall(i) => {
+            let placement = config.app.walls.get(i).ok_or_else(|| AppError::Window {
+                name: name.clone(),
+                message: "no window settings for this wall".into(),
+            })?;
+            attrs = attrs.with_decorations(false);
+            let monitor = placement
+                .monitor
+                .as_ref()
+                .and_then(|m| find_monitor(event_loop, m, &name));
+            match monitor {
+                Some(m) => {
+                    tracing::info!(
+                        "wall {name}: fullscreen on monitor {}",
+                        m.name().unwrap_or_default()
+                    );
+                    attrs = attrs.with_fullscreen(Some(Fullscreen::Borderless(Some(m))));
+                }
+                None => {
+                    attrs = attrs
+                        .with_inner_size(PhysicalSize::new(placement.size[0], placement.size[1]));
+                    if let Some([x, y]) = placement.position {
+                        attrs = attrs.with_position(PhysicalPosition::new(x, y));
+                    }
+                }
+            }
+        }
+        Role::Operator | Role::Preview => {
+            let [w, h] = config.app.window_size;
+            attrs = attrs.with_inner_size(PhysicalSize::new(w, h));
+            if let Some([x, y]) = config.app.window_position {
+                attrs = attrs.with_position(PhysicalPosition::new(x, y));
+            }
+        }
+    }
+    event_loop
+        .create_window(attrs)
+        .map(Arc::new)
+        .map_err(|e| AppError::Window {
+            name,
+            message: e.to_string(),
+        })
+}
+
+/// The monitor a config names, or `None` (with a warning listing what there is).
+fn find_monitor(
+    event_loop: &ActiveEventLoop,
+    wanted: &MonitorRef,
+    wall: &str,
+) -> Option<MonitorHandle> {
+    let monitors: Vec<MonitorHandle> = event_loop.available_monitors().collect();
+    let found = match wanted {
+        MonitorRef::Index(i) => monitors.get(*i).cloned(),
+        MonitorRef::Name(n) => monitors
+            .iter()
+            .find(|m| m.name().as_deref() == Some(n.as_str()))
+            .cloned(),
+    };
+    if found.is_none() {
+        let names: Vec<String> = monitors
+            .iter()
+            .enumerate()
+            .map(|(i, m)| format!("{i}: {}", m.name().unwrap_or_else(|| "?".into())))
+            .collect();
+        tracing::warn!(
+            "wall {wall}: monitor {wanted:?} not found (monitors: {}); using window_position \
+             and window_size",
+            names.join(", ")
+        );
+    }
+    found
+}
+
+/// A window, its surface and the bindings of the eye images it composes.
+pub struct OutputWindow {
+    pub role: Role,
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    surface_config: wgpu::SurfaceConfiguration,
+    /// False while the window has no area (minimised).
+    configured: bool,
+    /// One per wall shown (a wall window: its wall; the preview: every wall).
+    bindings: Vec<PresentBinding>,
+    /// (targets generation, mono) the bindings were made for.
+    bound: Option<(u64, bool)>,
+    /// Frames presented (frame-sequential alternates eyes on this).
+    presented: u64,
+    background: wgpu::Color,
+}
+
+impl OutputWindow {
+    pub fn new(
+        gpu: &Gpu,
+        role: Role,
+        window: Arc<Window>,
+        surface: wgpu::Surface<'static>,
+        config: &Config,
+    ) -> Result<Self, AppError> {
+        let size = window.inner_size();
+        let caps = surface.get_capabilities(&gpu.adapter);
+        // egui paints in gamma space and the present shader encodes sRGB itself, so a plain
+        // 8-bit format is preferred; an sRGB one works too.
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| {
+                matches!(
+                    f,
+                    wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
+                )
+            })
+            .or_else(|| caps.formats.first().copied())
+            .ok_or_else(|| AppError::Surface {
+                name: role.name(config),
+                message: "the adapter cannot present to this window".into(),
+            })?;
+        let mut surface_config = surface
+            .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
+            .ok_or_else(|| AppError::Surface {
+                name: role.name(config),
+                message: "no surface configuration is supported".into(),
+            })?;
+        surface_config.format = format;
+        surface_config.present_mode = if config.app.vsync {
+            wgpu::PresentMode::AutoVsync
+        } else {
+            wgpu::PresentMode::AutoNoVsync
+        };
+        surface_config.desired_maximum_frame_latency = 2;
+        let configured = size.width > 0 && size.height > 0;
+        if configured {
+            surface.configure(&gpu.device, &surface_config);
+        }
+        // A plain-format surface stores sRGB values as they are; an sRGB one wants linear.
+        let background = if format.is_srgb() {
+            crate::render::srgb_to_linear_color(config.background)
+        } else {
+            let [r, g, b] = config.background.map(f64::from);
+            wgpu::Color { r, g, b, a: 1.0 }
+        };
+        tracing::info!(
+            "window {}: {}×{} {:?} {:?}",
+            role.name(config),
+            size.width,
+            size.height,
+            format,
+            surface_config.present_mode
+        );
+        Ok(Self {
+            role,
+            window,
+            surface,
+            surface_config,
+            configured,
+            bindings: Vec::new(),
+            bound: None,
+            presented: 0,
+            background,
+        })
+    }
+
+    pub fn id(&self) -> WindowId {
+        self.window.id()
+    }
+
+    pub fn window(&self) -> &Window {
+        &self.window
+    }
+
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.surface_config.format
+    }
+
+    /// Size in pixels as configured.
+    pub fn size(&self) -> [u32; 2] {
+        [self.surface_config.width, self.surface_config.height]
+    }
+
+    /// Follows a window resize (a zero size pauses drawing until it has an area again).
+    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) {
+        self.configured = width > 0 && height > 0;
+        if self.configured {
+            self.surface_config.width = width;
+            self.surface_config.height = height;
+            self.surface.configure(&gpu.device, &self.surface_config);
+        }
+    }
+
+    /// Rebinds the eye textures when the renderer has replaced them (or mono changed).
+    fn ensure_bindings(
+        &mut self,
+        gpu: &Gpu,
+        renderer: &Renderer,
+        present: &PresentPass,
+        walls: usize,
+    ) {
+        let mono = renderer.last_views().iter().any(|v| v.eye.is_none());
+        let key = (renderer.targets_generation(), mono);
+        if self.bound == Some(key) {
+            return;
+        }
+        let shown: Vec<usize> = match self.role {
+            Role::Wall(i) => vec![i],
+            Role::Preview => (0..walls).collect(),
+            Role::Operator => Vec::new(),
+        };
+        self.bindings = shown
+            .into_iter()
+            .filter_map(|i| {
+                let left = renderer.eye_texture(i, Eye::Left)?;
+                let right = renderer.eye_texture(i, Eye::Right)?;
+                Some(present.bind(&gpu.device, left, right))
+            })
+            .collect();
+        self.bound = Some(key);
+    }
+
+    /// Composes and presents this window's frame; returns whether the surface had to be
+    /// recovered (the frame is then skipped, not an error).
+    pub fn draw(
+        &mut self,
+        gpu: &Gpu,
+        renderer: &Renderer,
+        present: &PresentPass,
+        state: &AppState,
+        egui: Option<(&mut EguiHost, &EguiFrame)>,
+    ) -> Result<bool, AppError> {
+        if !self.configured {
+            return Ok(false);
+        }
+        let walls = &state.cave().walls;
+        self.ensure_bindings(gpu, renderer, present, walls.len());
+        let (frame, suboptimal) = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) => (t, false),
+            wgpu::CurrentSurfaceTexture::Suboptimal(t) => (t, true),
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(false);
+            }
+            wgpu::CurrentSurfaceTexture::Outdated => {
+                let size = self.window.inner_size();
+                self.resize(gpu, size.width, size.height);
+                return Ok(true);
+            }
+            wgpu::CurrentSurfaceTexture::Lost => {
+                // Recreate the surface on the same window (e.g. after a display change).
+                let target: Arc<Window> = self.window.clone();
+                match gpu.instance.create_surface(target) {
+                    Ok(surface) => {
+                        self.surface = surface;
+                        let size = self.window.inner_size();
+                        self.resize(gpu, size.width, size.height);
+                        return Ok(true);
+                    }
+                    Err(e) => {
+                        return Err(AppError::Surface {
+                            name: format!("{:?}", self.role),
+                            message: e.to_string(),
+                        });
+                    }
+                }
+            }
+            other => {
+                return Err(AppError::Surface {
+                    name: format!("{:?}", self.role),
+                    message: format!("{other:?}"),
+                });
+            }
+        };
+        let view = frame.texture.create_view(&wgpu::TextureViewDescriptor {
+            // The surface's own format (plain or sRGB), as the pipelines were built for.
+            format: Some(self.surface_config.format),
+            ..Default::default()
+        });
+        let [w, h] = self.size();
+        let params = |format| PresentParams {
+            format,
+            frame: self.presented,
+            swap_eyes: state.swap_eyes,
+        };
+        let mut tiles = Vec::with_capacity(self.bindings.len());
+        match self.role {
+            Role::Wall(i) => {
+                if let (Some(binding), Some(&format)) =
+                    (self.bindings.first(), state.wall_outputs.get(i))
+                {
+                    tiles.push(Tile {
+                        binding,
+                        params: params(format),
+                        rect: [0.0, 0.0, w as f32, h as f32],
+                    });
+                }
+            }
+            Role::Preview => {
+                let area = egui
+                    .as_ref()
+                    .and_then(|(_, f)| f.central)
+                    .unwrap_or([0.0, 0.0, w as f32, h as f32]);
+                let sizes: Vec<[f32; 2]> = walls.iter().map(|w| w.size_m().to_array()).collect();
+                for (binding, rect) in self.bindings.iter().zip(unfolded_layout(&sizes, area)) {
+                    tiles.push(Tile {
+                        binding,
+                        params: params(state.preview_output),
+                        rect: clamp_rect(rect, [w, h]),
+                    });
+                }
+            }
+            Role::Operator => {}
+        }
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("OutputWindow::frame"),
+            });
+        present.encode_tiles(
+            &gpu.queue,
+            &mut encoder,
+            &tiles,
+            &view,
+            self.surface_config.format,
+            wgpu::LoadOp::Clear(self.background),
+        );
+        let mut extra = Vec::new();
+        if let Some((host, egui_frame)) = egui {
+            extra = host.paint(gpu, &mut encoder, &view, egui_frame, [w, h]);
+        }
+        gpu.queue
+            .submit(extra.into_iter().chain(std::iter::once(encoder.finish())));
+        self.window.pre_present_notify();
+        gpu.queue.present(frame);
+        self.presented += 1;
+        if suboptimal {
+            let size = self.window.inner_size();
+            self.resize(gpu, size.width, size.height);
+        }
+        Ok(suboptimal)
+    }
+}
+
+/// Walls side by side as one continuous strip (each in proportion to its size in metres),
+/// fitted and centred in `area` (x, y, width, height in pixels).
+pub fn unfolded_layout(wall_sizes_m: &[[f32; 2]], area: [f32; 4]) -> Vec<[f32; 4]> {
+    let total_w: f32 = wall_sizes_m.iter().map(|s| s[0]).sum();
+    let max_h = wall_sizes_m.iter().map(|s| s[1]).fold(0.0f32, f32::max);
+    if total_w <= 0.0 || max_h <= 0.0 {
+        return Vec::new();
+    }
+    let [x0, y0, aw, ah] = area;
+    let scale = (aw / total_w).min(ah / max_h).max(0.0);
+    let strip_w = total_w * scale;
+    let mut x = x0 + (aw - strip_w) / 2.0;
+    let y_mid = y0 + ah / 2.0;
+    wall_sizes_m
+        .iter()
+        .map(|s| {
+            let (w, h) = (s[0] * scale, s[1] * scale);
+            // Edges rounded once each, so neighbours share them (no gap, no overlap).
+            let (left, right) = (x.round(), (x + w).round());
+            let top = (y_mid - h / 2.0).round();
+            x += w;
+            [left, top, right - left, (y_mid + h / 2.0).round() - top]
+        })
+        .collect()
+}
+
+/// Keeps a tile inside the target (viewports must not leave it).
+fn clamp_rect(rect: [f32; 4], size: [u32; 2]) -> [f32; 4] {
+    let (tw, th) = (size[0] as f32, size[1] as f32);
+    let x = rect[0].clamp(0.0, tw);
+    let y = rect[1].clamp(0.0, th);
+    [
+        x,
+        y,
+        rect[2].min(tw - x).max(0.0),
+        rect[3].min(th - y).max(0.0),
+    ]
+}
+
+/// One egui frame, ready to paint.
+pub struct EguiFrame {
+    jobs: Vec<egui::ClippedPrimitive>,
+    /// Textures egui released this frame (freed after painting).
+    textures_free: Vec<egui::TextureId>,
+    pixels_per_point: f32,
+    /// The area left beside the docked panel, in pixels (preview).
+    central: Option<[f32; 4]>,
+}
+
+/// The window that shows the control panel: egui's input state and painter.
+pub struct EguiHost {
+    pub window_index: usize,
+    ctx: egui::Context,
+    input: egui_winit::State,
+    painter: egui_wgpu::Renderer,
+    role: Role,
+}
+
+impl EguiHost {
+    pub fn new(gpu: &Gpu, window: &OutputWindow, window_index: usize) -> Self {
+        let ctx = egui::Context::default();
+        let max_side = gpu.device.limits().max_texture_dimension_2d as usize;
+        let input = egui_winit::State::new(
+            ctx.clone(),
+            egui::ViewportId::ROOT,
+            window.window(),
+            Some(window.window().scale_factor() as f32),
+            window.window().theme(),
+            Some(max_side),
+        );
+        let painter = egui_wgpu::Renderer::new(
+            &gpu.device,
+            window.format(),
+            egui_wgpu::RendererOptions::default(),
+        );
+        Self {
+            window_index,
+            ctx,
+            input,
+            painter,
+            role: window.role,
+        }
+    }
+
+    /// Feeds a window event to egui; true if egui used it (typing, clicking on the panel).
+    pub fn on_event(&mut self, window: &OutputWindow, event: &WindowEvent) -> bool {
+        self.input.on_window_event(window.window(), event).consumed
+    }
+
+    /// Runs the panel for this frame.
+    pub fn run(
+        &mut self,
+        gpu: &Gpu,
+        window: &OutputWindow,
+        state: &mut AppState,
+        info: &PanelInfo,
+    ) -> (EguiFrame, PanelRequests) {
+        let raw = self.input.take_egui_input(window.window());
+        let mut requests = PanelRequests::default();
+        let mut central = None;
+        let role = self.role;
+        let output = self.ctx.run_ui(raw, |ui| {
+            match role {
+                Role::Preview => {
+                    if state.show_panel {
+                        egui::Panel::left("controls")
+                            .default_size(340.0)
+                            .resizable(true)
+                            .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
+                    }
+                    central = Some(ui.available_rect_before_wrap());
+                }
+                Role::Operator => {
+                    egui::CentralPanel::default_margins()
+                        .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
+                }
+                Role::Wall(_) => {
+                    if state.show_panel {
+                        egui::Window::new("omnicave controls")
+                            .default_width(340.0)
+                            .show(ui.ctx(), |ui| requests = panel::panel_ui(ui, state, info));
+                    }
+                }
+            }
+            panel::help_window(ui.ctx(), &mut state.show_help);
+        });
+        self.input
+            .handle_platform_output(window.window(), output.platform_output);
+        let ppp = output.pixels_per_point;
+        let jobs = self.ctx.tessellate(output.shapes, ppp);
+        // Uploaded now, whether or not the window can present this frame.
+        let mut textures = output.textures_delta;
+        for (id, deltas) in &textures.set {
+            for delta in deltas {
+                self.painter
+                    .update_texture(&gpu.device, &gpu.queue, *id, delta);
+            }
+        }
+        let textures_free = std::mem::take(&mut textures.free).into_iter().collect();
+        textures.clear();
+        let frame = EguiFrame {
+            jobs,
+            textures_free,
+            pixels_per_point: ppp,
+            central: central.map(|r| {
+                [
+                    r.min.x * ppp,
+                    r.min.y * ppp,
+                    r.width() * ppp,
+                    r.height() * ppp,
+                ]
+            }),
+        };
+        (frame, requests)
+    }
+
+    /// Records the panel over what the window already shows; returns egui's own command
+    /// buffers (submitted before the encoder's).
+    fn paint(
+        &mut self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        view: &wgpu::TextureView,
+        frame: &EguiFrame,
+        size: [u32; 2],
+    ) -> Vec<wgpu::CommandBuffer> {
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: size,
+            pixels_per_point: frame.pixels_per_point,
+        };
+        let buffers =
+            self.painter
+                .update_buffers(&gpu.device, &gpu.queue, encoder, &frame.jobs, &screen);
+        let mut pass = encoder
+            .begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("EguiHost::pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            })
+            .forget_lifetime();
+        self.painter.render(&mut pass, &frame.jobs, &screen);
+        buffers
+    }
+
+    /// Frees the textures egui released this frame (after painting).
+    pub fn free_textures(&mut self, frame: EguiFrame) {
+        for id in &frame.textures_free {
+            self.painter.free_texture(id);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unfolded_walls_form_one_centred_strip() {
+        // Three 3.3 × 2.9 m walls in a 1000 × 500 area at (100, 0).
+        let rects = unfolded_layout(&[[3.3, 2.9]; 3], [100.0, 0.0, 1000.0, 500.0]);
+        assert_eq!(rects.len(), 3);
+        // Width-limited: 1000 px over 9.9 m.
+        let scale = 1000.0 / 9.9;
+        for (i, r) in rects.iter().enumerate() {
+            assert!((r[2] - (3.3 * scale as f32).round()).abs() <= 1.0);
+            if i > 0 {
+                // Adjacent: no gap and no overlap.
+                let prev = rects[i - 1];
+                assert_eq!(prev[0] + prev[2], r[0], "{rects:?}");
+            }
+        }
+        assert!((rects[0][0] - 100.0).abs() <= 1.0);
+        let h = rects[0][3];
+        assert!((rects[0][1] - (250.0 - h / 2.0)).abs() <= 1.0);
+    }
+
+    #[test]
+    fn tiles_never_leave_the_target() {
+        let r = clamp_rect([-5.0, 10.0, 300.0, 300.0], [200, 100]);
+        assert_eq!(r, [0.0, 10.0, 200.0, 90.0]);
+    }
+}

@@ -1,0 +1,333 @@
+//! The control panel driven as a user would, through egui with synthetic pointer clicks on
+//! widgets found by their accessibility labels: every render mode and tessellation criterion
+//! switched from the panel renders what the same settings render headless, on one device and
+//! one renderer, and no pipeline is built after start-up.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+mod common;
+
+use egui::accesskit;
+use glam::Vec3;
+use omnicave::app::panel::{PanelInfo, panel_ui};
+use omnicave::app::state::{AppState, CriterionKind};
+use omnicave::cave::RenderMode;
+use omnicave::config::Config;
+use omnicave::render::{RenderSettings, Renderer, WallImages};
+use omnicave::scene::{Scene, load_gltf};
+use omnicave::tess::Criterion;
+
+/// A tall screen, so the whole panel is visible without scrolling.
+const SCREEN: egui::Vec2 = egui::vec2(420.0, 2400.0);
+
+/// The panel in a headless egui context, clicked by widget label.
+struct PanelDriver {
+    ctx: egui::Context,
+    info: PanelInfo,
+    /// Events for the next frame.
+    pending: Vec<egui::Event>,
+    time: f64,
+}
+
+impl PanelDriver {
+    fn new() -> Self {
+        let ctx = egui::Context::default();
+        ctx.enable_accesskit();
+        Self {
+            ctx,
+            info: PanelInfo {
+                tessellation_supported: true,
+                has_sky: false,
+                ..Default::default()
+            },
+            pending: Vec::new(),
+            time: 0.0,
+        }
+    }
+
+    /// Runs one frame with the pending events; returns the accessibility tree's nodes.
+    fn frame(&mut self, state: &mut AppState) -> Vec<accesskit::Node> {
+        self.time += 0.1;
+        let raw = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, SCREEN)),
+            events: std::mem::take(&mut self.pending),
+            time: Some(self.time),
+            ..Default::default()
+        };
+        let info = self.info.clone();
+        let mut output = self.ctx.run_ui(raw, |ui| {
+            egui::CentralPanel::default_margins().show(ui, |ui| {
+                panel_ui(ui, state, &info);
+            });
+        });
+        output.textures_delta.clear();
+        output
+            .platform_output
+            .accesskit_update
+            .map(|u| u.nodes.into_iter().map(|(_, n)| n).collect())
+            .unwrap_or_default()
+    }
+
+    /// Clicks the first widget `pick` finds in the current tree (a few frames: find, move,
+    /// press, release, settle).
+    fn click_where(
+        &mut self,
+        state: &mut AppState,
+        what: &str,
+        pick: impl Fn(&[accesskit::Node]) -> Option<accesskit::Rect>,
+    ) {
+        let nodes = self.frame(state);
+        let b = pick(&nodes).unwrap_or_else(|| {
+            let known: Vec<_> = nodes
+                .iter()
+                .map(|n| format!("{:?} {:?} {:?}", n.role(), n.label(), n.value()))
+                .collect();
+            panic!("no widget for '{what}'; tree: {known:?}")
+        });
+        let pos = egui::pos2(((b.x0 + b.x1) / 2.0) as f32, ((b.y0 + b.y1) / 2.0) as f32);
+        self.pending.push(egui::Event::PointerMoved(pos));
+        self.frame(state);
+        let button = |pressed| egui::Event::PointerButton {
+            pos,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        };
+        self.pending.push(button(true));
+        self.frame(state);
+        self.pending.push(button(false));
+        self.frame(state);
+        self.frame(state);
+    }
+
+    /// Clicks the button or checkbox labelled `label`.
+    fn click(&mut self, state: &mut AppState, label: &str) {
+        self.click_where(state, label, |nodes| {
+            nodes
+                .iter()
+                .find(|n| n.label() == Some(label) && n.role() != accesskit::Role::Label)
+                .and_then(|n| n.bounds())
+        });
+    }
+
+    /// Opens the combo box beside the text `combo` and picks the entry `option`.
+    fn choose(&mut self, state: &mut AppState, combo: &str, option: &str) {
+        self.click_where(state, combo, |nodes| {
+            let text = nodes
+                .iter()
+                .find(|n| n.role() == accesskit::Role::Label && n.value() == Some(combo))?
+                .bounds()?;
+            // The combo box on the text's row.
+            nodes
+                .iter()
+                .filter(|n| n.role() == accesskit::Role::ComboBox)
+                .filter_map(|n| n.bounds())
+                .find(|b| b.y0 < text.y1 && text.y0 < b.y1)
+        });
+        self.click_where(state, option, |nodes| {
+            nodes
+                .iter()
+                .find(|n| {
+                    !matches!(n.role(), accesskit::Role::ComboBox | accesskit::Role::Label)
+                        && (n.label() == Some(option) || n.value() == Some(option))
+                })
+                .and_then(|n| n.bounds())
+        });
+    }
+}
+
+/// The desktop config at small walls (fast), with the bundled living room.
+fn config() -> Config {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/desktop.toml");
+    let text = std::fs::read_to_string(&path)
+        .expect("config")
+        .replace("resolution = [480, 422]", "resolution = [200, 176]")
+        .replace("msaa = 4", "msaa = 1");
+    Config::from_toml(&text, &path).expect("config")
+}
+
+/// Renders the state's frame on `renderer` and reads it back.
+fn render(renderer: &mut Renderer, state: &AppState) -> Vec<WallImages> {
+    renderer.render(&state.frame_params()).expect("render");
+    renderer.read_images().expect("read")
+}
+
+/// The reference: a fresh renderer set up from a config with the same settings.
+fn reference(config: &Config, scene: &Scene) -> Vec<WallImages> {
+    omnicave::headless::render_images(common::gpu(), config, scene, None).expect("reference")
+}
+
+/// Share of eye-image pixels that differ at all.
+fn differing(a: &[WallImages], b: &[WallImages]) -> f64 {
+    let mut total = 0usize;
+    let mut off = 0usize;
+    for (x, y) in a.iter().zip(b) {
+        for (p, q) in [(&x.left, &y.left), (&x.right, &y.right)] {
+            total += p.pixels().len();
+            off += p.pixels().zip(q.pixels()).filter(|(u, v)| u != v).count();
+        }
+    }
+    off as f64 / total.max(1) as f64
+}
+
+/// Whether at most `limit` of the pixels differ (printing the share when any do).
+fn same_within(a: &[WallImages], b: &[WallImages], limit: f64) -> bool {
+    let share = differing(a, b);
+    if share > 0.0 {
+        println!("{:.4}% of pixels differ", share * 100.0);
+    }
+    share <= limit
+}
+
+/// Untessellated frames are deterministic: the same settings give the same pixels, exactly
+/// (the smallest change of setting, omni on-axis → off-axis, changes 0.046 % of them).
+fn same(a: &[WallImages], b: &[WallImages]) -> bool {
+    same_within(a, b, 0.0)
+}
+
+/// The compute tessellator appends triangles with atomics, so their order varies between runs
+/// and pixels on edges shared at equal depth may take either triangle's shading (measured: 0 to
+/// 0.023 % of pixels); switching the criterion changes 9–53 % of them.
+const TESSELLATION_ORDER_NOISE: f64 = 0.001;
+
+#[test]
+fn every_mode_and_tessellation_setting_switches_from_the_panel() {
+    let gpu = common::gpu();
+    let base = config();
+    let scene = load_gltf(base.scene_path.as_ref().expect("scene")).expect("scene");
+    let mut state = AppState::new(base.clone());
+    // Off-centre and turned, so every mode's eyes differ (tracked stereo follows the yaw).
+    state.set_head_position(Vec3::new(0.3, 1.6, 0.2));
+    state.head_yaw_degrees = 30.0;
+    let mut renderer = Renderer::new(
+        gpu,
+        state.cave(),
+        RenderSettings {
+            msaa: 1,
+            wireframe: false,
+        },
+    )
+    .expect("renderer");
+    renderer.set_scene(&scene);
+    let device = gpu.device.clone();
+    let pipelines_at_start = renderer.pipelines_built();
+    let mut panel = PanelDriver::new();
+
+    let mut previous: Option<(RenderMode, Vec<WallImages>)> = None;
+    for mode in RenderMode::ALL {
+        panel.choose(&mut state, "Render mode", mode.name());
+        assert_eq!(
+            state.mode,
+            mode,
+            "the panel did not switch to {}",
+            mode.name()
+        );
+        let images = render(&mut renderer, &state);
+        let mut expected_config = base.clone();
+        expected_config.mode = mode;
+        expected_config.head = state.head();
+        assert!(
+            same(&images, &reference(&expected_config, &scene)),
+            "{}: the panel's frame differs from the same settings rendered headless",
+            mode.name()
+        );
+        if let Some((prev_mode, prev)) = &previous {
+            assert!(
+                !same(&images, prev),
+                "switching {} → {} did not change the image",
+                prev_mode.name(),
+                mode.name()
+            );
+        }
+        previous = Some((mode, images));
+    }
+
+    // Tessellation in the omnistereo mode: on, then every criterion.
+    assert_eq!(state.mode, RenderMode::OmniOffAxis);
+    let untessellated = render(&mut renderer, &state);
+    panel.click(&mut state, "Adaptive tessellation");
+    assert!(state.tess_on);
+    for kind in CriterionKind::ALL {
+        panel.choose(&mut state, "Criterion", kind.name());
+        assert_eq!(state.tess_kind, kind);
+        let criterion = state.criterion().expect("criterion");
+        let images = render(&mut renderer, &state);
+        let mut expected_config = base.clone();
+        expected_config.mode = RenderMode::OmniOffAxis;
+        expected_config.head = state.head();
+        expected_config.tess.criterion = Some(criterion);
+        assert!(
+            same_within(
+                &images,
+                &reference(&expected_config, &scene),
+                TESSELLATION_ORDER_NOISE
+            ),
+            "{criterion}: the panel's frame differs from the same settings rendered headless"
+        );
+        // Every default parameter refines the room's large quads, which bends their edges
+        // under the warp: the image must change from the plain warp.
+        assert!(
+            !same_within(&images, &untessellated, 0.01),
+            "{criterion} did not change the image"
+        );
+        if kind == CriterionKind::Error {
+            assert_eq!(criterion, Criterion::Error(0.5));
+        }
+    }
+    panel.click(&mut state, "Adaptive tessellation");
+    assert!(!state.tess_on);
+    assert!(same(&render(&mut renderer, &state), &untessellated));
+
+    // Wireframe is a pipeline variant built at start-up, not on demand.
+    panel.click(&mut state, "Wireframe");
+    assert!(state.wireframe);
+    renderer
+        .set_settings(state.render_settings(), state.cave())
+        .expect("settings");
+    let wire = render(&mut renderer, &state);
+    if gpu.wireframe_supported {
+        assert!(!same(&wire, &untessellated), "wireframe did not draw");
+    }
+
+    assert_eq!(
+        renderer.pipelines_built(),
+        pipelines_at_start,
+        "switching built pipelines"
+    );
+    assert!(device == gpu.device, "the device was replaced");
+}
+
+#[test]
+fn saved_settings_load_back_as_they_were() {
+    let mut state = AppState::new(config());
+    state.mode = RenderMode::OmniOnAxis;
+    state.eye_separation = 0.07;
+    state.tess_on = true;
+    state.tess_kind = CriterionKind::Sphere;
+    *state.tess_value_mut() = 12.0;
+    state.pole_merge_on = false;
+    state.set_cave_size(Vec3::new(4.0, 3.0, 3.3));
+    state.set_head_position(Vec3::new(0.2, 1.5, -0.4));
+    state.preview_output = omnicave::output::formats::StereoFormat::RowInterleaved;
+    // Another folder than the config's, so relative asset paths must be rewritten.
+    let dir = std::env::temp_dir().join("omnicave-save-test");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.join("saved.toml");
+    state.save(&path).expect("save");
+    let loaded = AppState::new(Config::load(&path).expect("saved config loads"));
+    assert_eq!(loaded.mode, RenderMode::OmniOnAxis);
+    assert_eq!(loaded.eye_separation, 0.07);
+    assert_eq!(loaded.criterion(), Some(Criterion::Sphere(12.0)));
+    assert_eq!(loaded.omni(), state.omni());
+    assert_eq!(loaded.head_position, state.head_position);
+    assert_eq!(loaded.cave(), state.cave(), "moved walls are saved");
+    assert_eq!(loaded.preview_output, state.preview_output);
+    assert!(
+        loaded
+            .config
+            .scene_path
+            .as_ref()
+            .is_some_and(|p| p.is_file()),
+        "the scene path still resolves from the new folder"
+    );
+}
