@@ -292,15 +292,9 @@ impl App {
                 return;
             }
         };
-        let walls = &self.state.cave().walls;
-        let views_per_wall = stats.views / walls.len().max(1);
-        let per_view = stats.triangles_submitted / stats.views.max(1);
-        self.info.wall_triangles.clear();
-        self.info.wall_triangles.extend(
-            walls
-                .iter()
-                .map(|w| (w.name.clone(), per_view * views_per_wall)),
-        );
+        // Every wall draws the whole scene once per view of it.
+        let walls = self.state.cave().walls.len().max(1);
+        self.info.triangles_per_wall = stats.triangles_submitted / walls;
 
         for (index, win) in gfx.windows.iter_mut().enumerate() {
             let egui = match (&mut gfx.egui, &egui_frame) {
@@ -489,7 +483,7 @@ impl ApplicationHandler for App {
 
 /// Reads the tessellator's counts of the last frame, summed per wall (a blocking read, only
 /// when the user asks for it).
-fn read_tess_counts(renderer: &Renderer, state: &AppState) -> Option<Vec<(String, u32)>> {
+fn read_tess_counts(renderer: &Renderer, state: &AppState) -> Option<Vec<u32>> {
     let stats = match renderer.read_tess_stats() {
         Ok(s) => s,
         Err(e) => {
@@ -500,11 +494,10 @@ fn read_tess_counts(renderer: &Renderer, state: &AppState) -> Option<Vec<(String
     if stats.is_empty() {
         return None;
     }
-    let walls = &state.cave().walls;
-    let mut counts: Vec<(String, u32)> = walls.iter().map(|w| (w.name.clone(), 0)).collect();
+    let mut counts = vec![0; state.cave().walls.len()];
     for (view, s) in renderer.last_views().iter().zip(stats) {
-        if let Some(slot) = counts.get_mut(view.wall) {
-            slot.1 += s.emitted;
+        if let Some(count) = counts.get_mut(view.wall) {
+            *count += s.emitted;
         }
     }
     Some(counts)

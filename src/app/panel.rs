@@ -17,10 +17,10 @@ pub struct PanelInfo {
     pub stats: StatsSummary,
     /// Whether GPU times are measured (adapter timestamps).
     pub gpu_timing: bool,
-    /// Per wall: name and triangles submitted (scene triangles × views of that wall).
-    pub wall_triangles: Vec<(String, usize)>,
-    /// Per wall: triangles the tessellator emitted, when last read (button).
-    pub tess_emitted: Option<Vec<(String, u32)>>,
+    /// Triangles submitted for each wall (scene triangles × views of a wall).
+    pub triangles_per_wall: usize,
+    /// Per wall (in wall order): triangles the tessellator emitted, when last read (button).
+    pub tess_emitted: Option<Vec<u32>>,
     /// Whether the scene has a sky loaded.
     pub has_sky: bool,
     /// Whether this device can tessellate.
@@ -38,12 +38,29 @@ pub struct PanelRequests {
     pub read_tess_counts: bool,
 }
 
+/// A drop-down labelled `label` choosing `value` among `all`, each shown by `name`.
+fn combo<T: Copy + PartialEq>(
+    ui: &mut Ui,
+    label: &str,
+    value: &mut T,
+    all: &[T],
+    name: fn(T) -> &'static str,
+) {
+    ComboBox::from_label(label)
+        .selected_text(name(*value))
+        .show_ui(ui, |ui| {
+            for &item in all {
+                ui.selectable_value(value, item, name(item));
+            }
+        });
+}
+
 /// Draws the whole panel into `ui` (scrolls when the window is short).
 pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelRequests {
     let mut requests = PanelRequests::default();
     egui::ScrollArea::vertical().show(ui, |ui| {
         ui.heading("omnicave");
-        stats_section(ui, info, &mut requests);
+        stats_section(ui, state, info, &mut requests);
         ui.separator();
         render_section(ui, state, info);
         ui.separator();
@@ -72,7 +89,7 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelReq
     requests
 }
 
-fn stats_section(ui: &mut Ui, info: &PanelInfo, requests: &mut PanelRequests) {
+fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo, requests: &mut PanelRequests) {
     let s = &info.stats;
     ui.label(format!("GPU: {}", info.adapter));
     ui.label(format!("{:.1} fps   frame {:.1} ms", s.fps, s.frame_ms));
@@ -87,14 +104,14 @@ fn stats_section(ui: &mut Ui, info: &PanelInfo, requests: &mut PanelRequests) {
         ui.label("submitted");
         ui.label("tessellated");
         ui.end_row();
-        for (i, (name, submitted)) in info.wall_triangles.iter().enumerate() {
-            ui.label(name);
-            ui.label(submitted.to_string());
+        for (i, wall) in state.cave().walls.iter().enumerate() {
+            ui.label(&wall.name);
+            ui.label(info.triangles_per_wall.to_string());
             let emitted = info
                 .tess_emitted
                 .as_ref()
                 .and_then(|t| t.get(i))
-                .map_or_else(|| "–".to_owned(), |(_, n)| n.to_string());
+                .map_or_else(|| "–".to_owned(), u32::to_string);
             ui.label(emitted);
             ui.end_row();
         }
@@ -105,20 +122,20 @@ fn stats_section(ui: &mut Ui, info: &PanelInfo, requests: &mut PanelRequests) {
 }
 
 fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
-    ComboBox::from_label("Render mode")
-        .selected_text(state.mode.name())
-        .show_ui(ui, |ui| {
-            for mode in RenderMode::ALL {
-                ui.selectable_value(&mut state.mode, mode, mode.name());
-            }
-        });
-    ComboBox::from_label("Warp")
-        .selected_text(state.warp.name())
-        .show_ui(ui, |ui| {
-            for warp in WarpVariant::ALL {
-                ui.selectable_value(&mut state.warp, warp, warp.name());
-            }
-        });
+    combo(
+        ui,
+        "Render mode",
+        &mut state.mode,
+        &RenderMode::ALL,
+        RenderMode::name,
+    );
+    combo(
+        ui,
+        "Warp",
+        &mut state.warp,
+        &WarpVariant::ALL,
+        WarpVariant::name,
+    );
     ui.checkbox(&mut state.pole_merge_on, "Pole merge");
     ui.add_enabled_ui(state.pole_merge_on, |ui| {
         ui.add(Slider::new(&mut state.pole_merge.start_degrees, 0.0..=90.0).text("merge start °"));
@@ -131,13 +148,13 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             .step_by(0.001),
     );
     ui.add_enabled_ui(info.has_sky, |ui| {
-        ComboBox::from_label("Skybox")
-            .selected_text(state.sky_mode.name())
-            .show_ui(ui, |ui| {
-                for mode in SkyMode::ALL {
-                    ui.selectable_value(&mut state.sky_mode, mode, mode.name());
-                }
-            });
+        combo(
+            ui,
+            "Skybox",
+            &mut state.sky_mode,
+            &SkyMode::ALL,
+            SkyMode::name,
+        );
     });
     ui.checkbox(&mut state.wireframe, "Wireframe");
     ui.horizontal(|ui| {
@@ -151,13 +168,13 @@ fn tessellation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     ui.add_enabled_ui(info.tessellation_supported, |ui| {
         ui.checkbox(&mut state.tess_on, "Adaptive tessellation");
         ui.add_enabled_ui(state.tess_on, |ui| {
-            ComboBox::from_label("Criterion")
-                .selected_text(state.tess_kind.name())
-                .show_ui(ui, |ui| {
-                    for kind in CriterionKind::ALL {
-                        ui.selectable_value(&mut state.tess_kind, kind, kind.name());
-                    }
-                });
+            combo(
+                ui,
+                "Criterion",
+                &mut state.tess_kind,
+                &CriterionKind::ALL,
+                CriterionKind::name,
+            );
             let range = state.tess_kind.range();
             let uniform = state.tess_kind == CriterionKind::Uniform;
             let mut slider = Slider::new(state.tess_value_mut(), range).text("parameter");
@@ -227,13 +244,7 @@ fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
 
 fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     let format_combo = |ui: &mut Ui, label: &str, format: &mut StereoFormat| {
-        ComboBox::from_label(label)
-            .selected_text(format.name())
-            .show_ui(ui, |ui| {
-                for f in StereoFormat::ALL {
-                    ui.selectable_value(format, f, f.name());
-                }
-            });
+        combo(ui, label, format, &StereoFormat::ALL, StereoFormat::name);
     };
     if info.cave_mode {
         let names: Vec<String> = state.cave().walls.iter().map(|w| w.name.clone()).collect();

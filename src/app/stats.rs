@@ -11,7 +11,6 @@ pub struct FrameClock {
     cpu_ms_sum: f64,
     gpu_ms_sum: f64,
     gpu_samples: u32,
-    last_frame: Option<Instant>,
     /// Figures of the last completed window.
     pub summary: StatsSummary,
     /// Frames rendered since start.
@@ -47,7 +46,6 @@ impl FrameClock {
             cpu_ms_sum: 0.0,
             gpu_ms_sum: 0.0,
             gpu_samples: 0,
-            last_frame: None,
             summary: StatsSummary::default(),
             total_frames: 0,
         }
@@ -62,7 +60,6 @@ impl FrameClock {
             self.gpu_ms_sum += g;
             self.gpu_samples += 1;
         }
-        self.last_frame = Some(now);
         let elapsed = now.duration_since(self.window_start);
         if elapsed >= WINDOW {
             let n = f64::from(self.frames);
