@@ -8,11 +8,20 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
+use std::collections::BTreeMap;
+use std::net::{IpAddr, SocketAddr};
+use std::time::Duration;
+
 use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
+use crate::gamepad::{GamepadMode, GamepadSettings, button_map};
 use crate::output::formats::StereoFormat;
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode, SkySettings};
 use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, parse_criterion};
+use crate::tracking::{
+    Calibration, DEFAULT_OSC_PORT, OneEuroParams, OscMapping, QuaternionOrder, ReceiverSettings,
+    TrackingSettings,
+};
 
 /// Everything that can be wrong with a config file.
 #[derive(Debug, thiserror::Error)]
@@ -55,6 +64,10 @@ pub struct ConfigFile {
     pub skybox: SkyboxSection,
     #[serde(default)]
     pub app: AppSection,
+    #[serde(default)]
+    pub tracking: TrackingSection,
+    #[serde(default)]
+    pub gamepad: GamepadSection,
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
@@ -170,6 +183,206 @@ impl Default for SkyboxSection {
             exposure: 1.0,
         }
     }
+}
+
+/// OSC head tracking (`omnicave run`).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackingSection {
+    /// Listen for head positions over OSC from the start (the panel can switch it).
+    #[serde(default)]
+    pub enabled: bool,
+    /// UDP address:port to listen on; 0.0.0.0 is every interface.
+    #[serde(default = "default_listen")]
+    pub listen: String,
+    /// Senders allowed to move the head (IP addresses); empty: any.
+    #[serde(default)]
+    pub allowed_senders: Vec<String>,
+    /// `x y z` (or + quaternion, or + yaw pitch roll); empty string: off.
+    #[serde(default = "default_position_address")]
+    pub position_address: String,
+    /// A quaternion; empty string: off.
+    #[serde(default = "default_orientation_address")]
+    pub orientation_address: String,
+    /// `yaw pitch roll` in degrees; empty string: off.
+    #[serde(default = "default_euler_address")]
+    pub euler_address: String,
+    /// `wxyz` or `xyzw`.
+    #[serde(default = "default_quaternion_order")]
+    pub quaternion_order: String,
+    /// The NatNet-to-OSC form (`/rigidbody <id> position x y z`); empty string: off.
+    #[serde(default = "default_natnet_address")]
+    pub natnet_address: String,
+    #[serde(default = "default_rigid_body")]
+    pub natnet_rigid_body: i64,
+    /// No packet for this long: "tracking lost", the head holds its last pose.
+    #[serde(default = "default_tracking_timeout")]
+    pub timeout_seconds: f32,
+    #[serde(default)]
+    pub calibration: CalibrationSection,
+    #[serde(default)]
+    pub filter: FilterSection,
+}
+
+impl Default for TrackingSection {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            listen: default_listen(),
+            allowed_senders: Vec::new(),
+            position_address: default_position_address(),
+            orientation_address: default_orientation_address(),
+            euler_address: default_euler_address(),
+            quaternion_order: default_quaternion_order(),
+            natnet_address: default_natnet_address(),
+            natnet_rigid_body: default_rigid_body(),
+            timeout_seconds: default_tracking_timeout(),
+            calibration: CalibrationSection::default(),
+            filter: FilterSection::default(),
+        }
+    }
+}
+
+fn default_listen() -> String {
+    format!("0.0.0.0:{DEFAULT_OSC_PORT}")
+}
+fn default_position_address() -> String {
+    OscMapping::default().position_address
+}
+fn default_orientation_address() -> String {
+    OscMapping::default().orientation_address
+}
+fn default_euler_address() -> String {
+    OscMapping::default().euler_address
+}
+fn default_quaternion_order() -> String {
+    QuaternionOrder::default().name().into()
+}
+fn default_natnet_address() -> String {
+    OscMapping::default().natnet_address
+}
+fn default_rigid_body() -> i64 {
+    OscMapping::default().natnet_rigid_body
+}
+fn default_tracking_timeout() -> f32 {
+    TrackingSettings::default().timeout.as_secs_f32()
+}
+
+/// Tracker frame → CAVE space: `cave = offset + rotation · (scale · axes(tracker))`.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationSection {
+    /// The CAVE's x, y, z as signed tracker axes: ["x", "z", "-y"] for a right-handed z-up
+    /// tracker, ["x", "y", "-z"] for a left-handed y-up one.
+    #[serde(default = "default_axes")]
+    pub axes: [String; 3],
+    /// Tracker units to metres (0.001 for millimetres).
+    #[serde(default = "one")]
+    pub scale: f32,
+    /// Yaw, pitch, roll in degrees, applied after the axis remap.
+    #[serde(default)]
+    pub rotation_degrees: [f32; 3],
+    /// Where the tracker's origin is in CAVE space, metres.
+    #[serde(default)]
+    pub offset: [f32; 3],
+}
+
+impl Default for CalibrationSection {
+    fn default() -> Self {
+        Self {
+            axes: default_axes(),
+            scale: 1.0,
+            rotation_degrees: [0.0; 3],
+            offset: [0.0; 3],
+        }
+    }
+}
+
+fn default_axes() -> [String; 3] {
+    ["x".into(), "y".into(), "z".into()]
+}
+
+/// One Euro filter against tracker jitter.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FilterSection {
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    #[serde(default = "default_min_cutoff")]
+    pub min_cutoff_hz: f32,
+    #[serde(default = "default_beta")]
+    pub beta: f32,
+    #[serde(default = "default_derivative_cutoff")]
+    pub derivative_cutoff_hz: f32,
+}
+
+impl Default for FilterSection {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            min_cutoff_hz: default_min_cutoff(),
+            beta: default_beta(),
+            derivative_cutoff_hz: default_derivative_cutoff(),
+        }
+    }
+}
+
+fn default_min_cutoff() -> f32 {
+    OneEuroParams::default().min_cutoff_hz
+}
+fn default_beta() -> f32 {
+    OneEuroParams::default().beta
+}
+fn default_derivative_cutoff() -> f32 {
+    OneEuroParams::default().derivative_cutoff_hz
+}
+
+/// The gamepad (gilrs, hot-plug).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GamepadSection {
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// `navigate` (move through the scene) or `head` (move the head in the CAVE).
+    #[serde(default = "default_gamepad_mode")]
+    pub mode: String,
+    /// Radial stick dead zone, 0..1.
+    #[serde(default = "default_dead_zone")]
+    pub dead_zone: f32,
+    #[serde(default = "default_trigger_dead_zone")]
+    pub trigger_dead_zone: f32,
+    /// Head speed at full stick (head mode), metres per second.
+    #[serde(default = "default_head_speed")]
+    pub head_speed: f32,
+    /// Button (Xbox label) → action, over the default map; "none" unbinds a button.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub buttons: BTreeMap<String, String>,
+}
+
+impl Default for GamepadSection {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            mode: default_gamepad_mode(),
+            dead_zone: default_dead_zone(),
+            trigger_dead_zone: default_trigger_dead_zone(),
+            head_speed: default_head_speed(),
+            buttons: BTreeMap::new(),
+        }
+    }
+}
+
+fn default_gamepad_mode() -> String {
+    GamepadSettings::default().mode.name().into()
+}
+fn default_dead_zone() -> f32 {
+    GamepadSettings::default().dead_zone
+}
+fn default_trigger_dead_zone() -> f32 {
+    GamepadSettings::default().trigger_dead_zone
+}
+fn default_head_speed() -> f32 {
+    GamepadSettings::default().head_speed
 }
 
 fn default_sky_mode() -> String {
@@ -549,6 +762,15 @@ pub struct AppConfig {
     pub walls: Vec<WallWindow>,
 }
 
+/// The validated `[tracking]` section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackingConfig {
+    /// Start listening at launch.
+    pub enabled: bool,
+    pub receiver: ReceiverSettings,
+    pub settings: TrackingSettings,
+}
+
 /// Lighting ready for the renderer (scene/world space).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Lighting {
@@ -603,6 +825,9 @@ pub struct Config {
     pub sky: SkySettings,
     /// Windows, panel and output formats of the interactive application.
     pub app: AppConfig,
+    /// OSC head tracking.
+    pub tracking: TrackingConfig,
+    pub gamepad: GamepadSettings,
     /// The file as written (to save changed settings back without losing the rest).
     pub file: ConfigFile,
 }
@@ -895,7 +1120,136 @@ impl ConfigFile {
             sky_path,
             sky,
             app: self.validate_app(&ck)?,
+            tracking: self.validate_tracking(&ck)?,
+            gamepad: self.validate_gamepad(&ck)?,
             file: self.clone(),
+        })
+    }
+
+    fn validate_tracking(&self, ck: &Checker<'_>) -> Result<TrackingConfig, ConfigError> {
+        let t = &self.tracking;
+        let listen: SocketAddr = t.listen.trim().parse().map_err(|_| {
+            ck.fail(
+                "tracking.listen",
+                &t.listen,
+                "must be an address:port such as \"0.0.0.0:7000\" or \"[::]:7000\"",
+            )
+        })?;
+        let mut allowed_senders = Vec::with_capacity(t.allowed_senders.len());
+        for (i, s) in t.allowed_senders.iter().enumerate() {
+            let ip: IpAddr = s.trim().parse().map_err(|_| {
+                ck.fail(
+                    &format!("tracking.allowed_senders[{i}]"),
+                    s,
+                    "must be an IP address such as \"192.168.1.20\"",
+                )
+            })?;
+            allowed_senders.push(ip);
+        }
+        for (field, address) in [
+            ("tracking.position_address", &t.position_address),
+            ("tracking.orientation_address", &t.orientation_address),
+            ("tracking.euler_address", &t.euler_address),
+            ("tracking.natnet_address", &t.natnet_address),
+        ] {
+            if !address.is_empty() && (!address.starts_with('/') || address.contains(' ')) {
+                return Err(ck.fail(
+                    field,
+                    address,
+                    "must be an OSC address starting with '/' (no spaces), or \"\" for off",
+                ));
+            }
+        }
+        let quaternion_order =
+            QuaternionOrder::from_name(&t.quaternion_order).ok_or_else(|| {
+                ck.fail(
+                    "tracking.quaternion_order",
+                    &t.quaternion_order,
+                    "must be \"wxyz\" or \"xyzw\"",
+                )
+            })?;
+        let timeout = ck.range("tracking.timeout_seconds", t.timeout_seconds, 0.01, 60.0)?;
+
+        let c = &t.calibration;
+        let remap = Calibration::remap_from_axes(&c.axes)
+            .map_err(|e| ck.fail("tracking.calibration.axes", &c.axes, &e.to_string()))?;
+        let scale = ck.range("tracking.calibration.scale", c.scale, 1e-6, 1e6)?;
+        let [yaw, pitch, roll] = c.rotation_degrees;
+        for v in c.rotation_degrees {
+            ck.range("tracking.calibration.rotation_degrees", v, -360.0, 360.0)?;
+        }
+        let offset = ck.finite3("tracking.calibration.offset", c.offset)?;
+
+        let f = &t.filter;
+        let params = OneEuroParams {
+            min_cutoff_hz: ck.range("tracking.filter.min_cutoff_hz", f.min_cutoff_hz, 1e-3, 1e3)?,
+            beta: ck.range("tracking.filter.beta", f.beta, 0.0, 1e3)?,
+            derivative_cutoff_hz: ck.range(
+                "tracking.filter.derivative_cutoff_hz",
+                f.derivative_cutoff_hz,
+                1e-3,
+                1e3,
+            )?,
+        };
+        Ok(TrackingConfig {
+            enabled: t.enabled,
+            receiver: ReceiverSettings {
+                listen,
+                allowed_senders,
+                mapping: OscMapping {
+                    position_address: t.position_address.clone(),
+                    orientation_address: t.orientation_address.clone(),
+                    euler_address: t.euler_address.clone(),
+                    quaternion_order,
+                    natnet_address: t.natnet_address.clone(),
+                    natnet_rigid_body: t.natnet_rigid_body,
+                },
+            },
+            settings: TrackingSettings {
+                calibration: Calibration {
+                    remap,
+                    scale,
+                    rotation: Head::orientation_from_degrees(yaw, pitch, roll),
+                    offset,
+                },
+                filter: f.enabled.then_some(params),
+                timeout: Duration::from_secs_f32(timeout),
+            },
+        })
+    }
+
+    fn validate_gamepad(&self, ck: &Checker<'_>) -> Result<GamepadSettings, ConfigError> {
+        let g = &self.gamepad;
+        let mode = GamepadMode::from_name(&g.mode)
+            .ok_or_else(|| ck.fail("gamepad.mode", &g.mode, "must be \"navigate\" or \"head\""))?;
+        let buttons = button_map(&g.buttons).map_err(|e| {
+            let (field, value) = match &e {
+                crate::gamepad::ButtonMapError::Button(b) => {
+                    (format!("gamepad.buttons.{b}"), b.clone())
+                }
+                crate::gamepad::ButtonMapError::Action(a) => {
+                    let key = g
+                        .buttons
+                        .iter()
+                        .find(|(_, v)| *v == a)
+                        .map_or_else(String::new, |(k, _)| k.clone());
+                    (format!("gamepad.buttons.{key}"), a.clone())
+                }
+            };
+            ck.fail(&field, value, &e.to_string())
+        })?;
+        Ok(GamepadSettings {
+            enabled: g.enabled,
+            mode,
+            dead_zone: ck.range("gamepad.dead_zone", g.dead_zone, 0.0, 0.9)?,
+            trigger_dead_zone: ck.range(
+                "gamepad.trigger_dead_zone",
+                g.trigger_dead_zone,
+                0.0,
+                0.9,
+            )?,
+            head_speed: ck.range("gamepad.head_speed", g.head_speed, 0.0, 10.0)?,
+            buttons,
         })
     }
 

@@ -252,3 +252,16 @@ pub fn fit_line(points: &[(f32, f32)]) -> (f32, f32) {
     let a = (sy - b * sx) / n;
     (a as f32, b as f32)
 }
+
+/// Receive drops the kernel counted for the UDP socket on `port` (Linux /proc/net/udp).
+pub fn udp_kernel_drops(port: u16) -> Option<u64> {
+    let table = std::fs::read_to_string("/proc/net/udp").ok()?;
+    let port_hex = format!(":{port:04X}");
+    table.lines().skip(1).find_map(|line| {
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        let local = fields.get(1)?;
+        local
+            .ends_with(&port_hex)
+            .then(|| fields.last()?.parse().ok())?
+    })
+}
