@@ -15,6 +15,8 @@ use omnicave::headless::{self, Overrides};
 use omnicave::output::formats::StereoFormat;
 use omnicave::sky::SkyMode;
 use omnicave::tess::{Criterion, MAX_DEPTH_LIMIT, parse_criterion};
+use omnicave::tracking::sim::{Pattern, SimForm, SimOptions};
+use omnicave::tracking::{Calibration, OscMapping, QuaternionOrder};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -37,6 +39,111 @@ enum Command {
     Render(RenderArgs),
     /// Measure the frame time of every method in one run; write results.csv and report.md.
     Bench(BenchArgs),
+    /// Send a moving head over OSC (circle, figure eight or a recorded path), as a tracker
+    /// would: to test head tracking without one.
+    TrackSim(TrackSimArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct TrackSimArgs {
+    /// Where the application listens: HOST:PORT.
+    #[arg(long, default_value = "127.0.0.1:7000")]
+    target: String,
+    /// A config whose [tracking] addresses, quaternion order, rigid body and calibration to
+    /// use (the path is given in CAVE space and sent in the tracker's frame).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// circle, figure-eight or still.
+    #[arg(long, default_value = "circle", value_parser = parse_pattern_name)]
+    pattern: PatternName,
+    /// Replay a recorded path instead: CSV lines t,x,y,z[,qw,qx,qy,qz] (s, CAVE m), looping.
+    #[arg(long, value_name = "CSV")]
+    replay: Option<PathBuf>,
+    /// Centre of the circle or figure eight, CAVE metres X,Y,Z; default: the config's head.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    centre: Option<Vec3>,
+    /// Radius (half-width of the figure eight), metres.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_radius)]
+    radius: f32,
+    /// Seconds per lap.
+    #[arg(long, default_value_t = 8.0, value_parser = parse_period)]
+    period: f32,
+    /// Packets per second.
+    #[arg(long, default_value_t = 60.0, value_parser = parse_rate)]
+    rate: f64,
+    /// Stop after SECONDS (default: until Ctrl+C).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    duration: Option<f64>,
+    /// Message form: position, pose (x y z + quaternion), bundle (position + orientation
+    /// messages), euler (position + yaw pitch roll), natnet (/rigidbody <id> position/quat).
+    #[arg(long, default_value = "bundle", value_parser = parse_sim_form)]
+    form: SimForm,
+    /// Quaternion order to send (default: the config's).
+    #[arg(long, value_parser = parse_quaternion_order)]
+    quaternion_order: Option<QuaternionOrder>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PatternName {
+    Circle,
+    FigureEight,
+    Still,
+}
+
+fn parse_pattern_name(s: &str) -> Result<PatternName, String> {
+    match s.trim() {
+        "circle" => Ok(PatternName::Circle),
+        "figure-eight" => Ok(PatternName::FigureEight),
+        "still" => Ok(PatternName::Still),
+        _ => Err(format!(
+            "unknown pattern '{s}'; expected circle, figure-eight or still (or --replay FILE)"
+        )),
+    }
+}
+
+fn parse_sim_form(s: &str) -> Result<SimForm, String> {
+    SimForm::from_name(s.trim()).ok_or_else(|| {
+        let names: Vec<_> = SimForm::ALL.iter().map(|f| f.name()).collect();
+        format!("unknown form '{s}'; expected one of: {}", names.join(", "))
+    })
+}
+
+fn parse_quaternion_order(s: &str) -> Result<QuaternionOrder, String> {
+    QuaternionOrder::from_name(s.trim())
+        .ok_or_else(|| format!("unknown quaternion order '{s}'; expected wxyz or xyzw"))
+}
+
+fn parse_radius(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s, "metres")?;
+    if (0.0..=100.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("radius {v} m is outside 0..100 m"))
+    }
+}
+
+fn parse_period(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s, "seconds")?;
+    if (0.01..=1e6).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("period {v} s is outside 0.01..1e6 s"))
+    }
+}
+
+fn parse_rate(s: &str) -> Result<f64, String> {
+    let v = f64::from(parse_finite(s, "packets per second")?);
+    if (0.1..=10_000.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("rate {v} Hz is outside 0.1..10000 Hz"))
+    }
+}
+
+fn parse_listen(s: &str) -> Result<std::net::SocketAddr, String> {
+    s.trim().parse().map_err(|_| {
+        format!("'{s}' is not an address:port to listen on (e.g. 0.0.0.0:7000, 127.0.0.1:0)")
+    })
 }
 
 #[derive(Debug, clap::Args)]
@@ -59,6 +166,10 @@ struct RunArgs {
     /// Quit by itself after SECONDS (demos, soak tests).
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     quit_after: Option<f64>,
+    /// Listen for OSC head tracking on ADDRESS:PORT (switches tracking on; port 0 picks a free
+    /// port, which is logged).
+    #[arg(long, value_name = "ADDRESS:PORT", value_parser = parse_listen)]
+    osc_listen: Option<std::net::SocketAddr>,
 }
 
 fn parse_seconds(s: &str) -> Result<f64, String> {
@@ -324,10 +435,27 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_text(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes on one line, each said once (an I/O error that a message already
+/// quotes is not repeated).
+fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let part = cause.to_string();
+        if text.contains(&part) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&part);
+    }
+    text
 }
 
 /// The desktop config: beside the working directory's `config/`, else the source tree's.
@@ -349,6 +477,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             cave: false,
             stats_every: None,
             quit_after: None,
+            osc_listen: None,
         })
     });
     match command {
@@ -366,6 +495,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 mode,
                 stats_every: args.stats_every,
                 quit_after: args.quit_after,
+                osc_listen: args.osc_listen,
             })
             .context("omnicave stopped")?;
             Ok(())
@@ -387,6 +517,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::TrackSim(args) => track_sim(args),
         Command::Render(args) => {
             let overrides = Overrides {
                 scene: args.scene,
@@ -413,4 +544,85 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
+    use std::net::ToSocketAddrs;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    let config = args
+        .config
+        .as_ref()
+        .map(|p| omnicave::config::Config::load(p))
+        .transpose()?;
+    let (mut mapping, calibration, head) = match &config {
+        Some(c) => (
+            c.tracking.receiver.mapping.clone(),
+            c.tracking.settings.calibration,
+            c.head.position,
+        ),
+        None => (
+            OscMapping::default(),
+            Calibration::default(),
+            Vec3::new(0.0, 1.7, 0.0),
+        ),
+    };
+    if let Some(order) = args.quaternion_order {
+        mapping.quaternion_order = order;
+    }
+    let target = args
+        .target
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| omnicave::tracking::TrackingError::Target {
+            target: args.target.clone(),
+            message: "expected HOST:PORT, e.g. 127.0.0.1:7000".into(),
+        })?;
+    let centre = args.centre.unwrap_or(head);
+    let pattern = match &args.replay {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|source| {
+                omnicave::tracking::TrackingError::Read {
+                    path: path.clone(),
+                    source,
+                }
+            })?;
+            Pattern::Replay(omnicave::tracking::sim::parse_csv(&text, path)?)
+        }
+        None => match args.pattern {
+            PatternName::Circle => Pattern::Circle {
+                centre,
+                radius: args.radius,
+                period: args.period,
+            },
+            PatternName::FigureEight => Pattern::FigureEight {
+                centre,
+                radius: args.radius,
+                period: args.period,
+            },
+            PatternName::Still => Pattern::Still { centre },
+        },
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        if let Err(e) = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)) {
+            tracing::debug!("no signal handler: {e}");
+        }
+    }
+    omnicave::tracking::sim::run(
+        &SimOptions {
+            target,
+            pattern,
+            rate_hz: args.rate,
+            duration: args.duration,
+            form: args.form,
+            mapping,
+            calibration,
+        },
+        &stop,
+    )?;
+    Ok(())
 }

@@ -309,6 +309,10 @@ fn saved_settings_load_back_as_they_were() {
     state.set_cave_size(Vec3::new(4.0, 3.0, 3.3));
     state.set_head_position(Vec3::new(0.2, 1.5, -0.4));
     state.preview_output = omnicave::output::formats::StereoFormat::RowInterleaved;
+    state.tracking_on = true;
+    state.tracking_filter.beta = 3.5;
+    state.gamepad_mode = omnicave::gamepad::GamepadMode::Head;
+    state.navigation_speed = 4.0;
     // Another folder than the config's, so relative asset paths must be rewritten.
     let dir = std::env::temp_dir().join("omnicave-save-test");
     std::fs::create_dir_all(&dir).expect("dir");
@@ -322,6 +326,10 @@ fn saved_settings_load_back_as_they_were() {
     assert_eq!(loaded.head_position, state.head_position);
     assert_eq!(loaded.cave(), state.cave(), "moved walls are saved");
     assert_eq!(loaded.preview_output, state.preview_output);
+    assert!(loaded.tracking_on);
+    assert_eq!(loaded.tracking_filter(), state.tracking_filter());
+    assert_eq!(loaded.gamepad_mode, state.gamepad_mode);
+    assert_eq!(loaded.navigation_speed, 4.0);
     assert!(
         loaded
             .config
@@ -330,4 +338,53 @@ fn saved_settings_load_back_as_they_were() {
             .is_some_and(|p| p.is_file()),
         "the scene path still resolves from the new folder"
     );
+}
+
+#[test]
+fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
+    use omnicave::gamepad::GamepadMode;
+    use omnicave::tracking::TrackingStatus;
+
+    let mut state = AppState::new(config());
+    let mut driver = PanelDriver::new();
+    assert!(!state.tracking_on);
+    driver.click(&mut state, "Use OSC tracking");
+    assert!(state.tracking_on);
+    let filter = state.tracking_filter_on;
+    driver.click(&mut state, "One Euro filter");
+    assert_eq!(state.tracking_filter_on, !filter);
+    driver.choose(&mut state, "Sticks drive", "head");
+    assert_eq!(state.gamepad_mode, GamepadMode::Head);
+
+    // The receiver reports a loss: the panel says so at the top and in its section.
+    driver.info.tracking.listening = Some("127.0.0.1:7000".parse().expect("address"));
+    driver.info.tracking.status = Some(TrackingStatus::Lost);
+    driver.info.tracking.lost_for = Some(2.5);
+    let texts = |nodes: &[accesskit::Node]| -> Vec<String> {
+        nodes
+            .iter()
+            .filter(|n| n.role() == accesskit::Role::Label)
+            .filter_map(|n| n.value().map(str::to_owned))
+            .collect()
+    };
+    let shown = texts(&driver.frame(&mut state));
+    assert!(
+        shown
+            .iter()
+            .any(|t| t == "OSC: tracking lost for 2.5 s: head holds its last pose"),
+        "{shown:?}"
+    );
+    assert!(
+        shown.iter().any(|t| t == "listening on 127.0.0.1:7000"),
+        "{shown:?}"
+    );
+    driver.info.tracking.status = Some(TrackingStatus::Tracking);
+    driver.info.tracking.lost_for = None;
+    let shown = texts(&driver.frame(&mut state));
+    assert!(shown.iter().any(|t| t == "OSC: tracking"), "{shown:?}");
+    // Switched off, the status line goes.
+    driver.click(&mut state, "Use OSC tracking");
+    assert!(!state.tracking_on);
+    let shown = texts(&driver.frame(&mut state));
+    assert!(!shown.iter().any(|t| t.starts_with("OSC:")), "{shown:?}");
 }

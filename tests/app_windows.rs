@@ -214,6 +214,30 @@ impl AppProcess {
         }
     }
 
+    /// Waits until a log line satisfies `find` (at most `limit`); returns what it found.
+    fn wait_for_line<T>(
+        &mut self,
+        what: &str,
+        limit: Duration,
+        find: impl Fn(&str) -> Option<T>,
+    ) -> T {
+        let start = Instant::now();
+        loop {
+            let log = self.log();
+            if let Some(found) = log.lines().find_map(&find) {
+                return found;
+            }
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!("omnicave exited early ({status}) waiting for {what}:\n{log}");
+            }
+            assert!(
+                start.elapsed() < limit,
+                "no {what} within {limit:?}:\n{log}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
     /// SIGTERM, then the exit status must be success within 30 s.
     fn quit(mut self) -> String {
         let status = Command::new("kill")
@@ -281,6 +305,83 @@ fn assert_panel_drawn(region: &RgbImage, what: &str) {
         "{what}: no text ({:.2}% light pixels)",
         text * 100.0
     );
+}
+
+/// The preview window in a screenshot (placed at the configured position and size: Xvfb has
+/// no window manager to move it).
+fn preview_window(shot: &RgbImage) -> RgbImage {
+    crop(
+        shot,
+        OPERATOR_POS[0] as u32,
+        OPERATOR_POS[1] as u32,
+        OPERATOR_SIZE[0],
+        OPERATOR_SIZE[1],
+    )
+}
+
+/// The unfolded walls in a preview window: the bounding box (x, y, w, h) of what is neither
+/// background nor panel right of the docked panel. Asserts the walls meet without a gap.
+fn preview_strip(window: &RgbImage, config: &Config) -> (u32, u32, u32, u32) {
+    let (width, height) = window.dimensions();
+    let bg = config.background.map(|c| (c * 255.0).round() as u8);
+    let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
+    // The panel's right edge: its fill reaches the window's bottom row.
+    let panel_edge = (0..width)
+        .rev()
+        .find(|&x| {
+            let p = window.get_pixel(x, height - 2).0;
+            p[0] == p[1] && p[1] == p[2] && (20..=40).contains(&p[0])
+        })
+        .expect("panel");
+    // The strip's extent along the window's middle row and then its middle column (a
+    // separator line beside the panel is skipped by starting two columns further).
+    let mid_y = height / 2;
+    let row: Vec<u32> = (panel_edge + 2..width)
+        .filter(|&x| is_scene(window.get_pixel(x, mid_y)))
+        .collect();
+    let (x0, x1) = (row[0], row[row.len() - 1]);
+    // The walls meet without a gap: every column of the strip shows the scene.
+    assert_eq!(
+        row.len() as u32,
+        x1 - x0 + 1,
+        "a gap between walls in the preview"
+    );
+    let column: Vec<u32> = (0..height)
+        .filter(|&y| is_scene(window.get_pixel((x0 + x1) / 2, y)))
+        .collect();
+    let (y0, y1) = (column[0], column[column.len() - 1]);
+    (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+}
+
+/// Share of `strip` pixels that do not match `reference` scaled (nearest texel) to it. Two
+/// nearest samplings of one image on slightly different grids pick neighbouring texels at
+/// edges, so a pixel counts as matching if one of the 3×3 reference texels around its place
+/// does (within 3 levels per channel).
+fn unmatched_share(strip: &RgbImage, reference: &RgbaImage) -> f64 {
+    let (w, h) = strip.dimensions();
+    let (rw, rh) = reference.dimensions();
+    let mut misses = 0usize;
+    for (x, y, p) in strip.enumerate_pixels() {
+        let cx = ((x as f32 + 0.5) * rw as f32 / w as f32) as i64;
+        let cy = ((y as f32 + 0.5) * rh as f32 / h as f32) as i64;
+        let hit = (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (qx, qy) = (cx + dx, cy + dy);
+                qx >= 0
+                    && qy >= 0
+                    && qx < i64::from(rw)
+                    && qy < i64::from(rh)
+                    && reference
+                        .get_pixel(qx as u32, qy as u32)
+                        .0
+                        .iter()
+                        .zip(p.0)
+                        .all(|(&a, b)| a.abs_diff(b) <= 3)
+            })
+        });
+        misses += usize::from(!hit);
+    }
+    misses as f64 / f64::from(w * h)
 }
 
 fn out_dir() -> PathBuf {
@@ -396,46 +497,11 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
     let log = app.quit();
     assert!(log.contains("1 window(s) open in preview mode"), "{log}");
 
-    // The preview window is at the configured position and size.
-    let window = crop(
-        &shot,
-        OPERATOR_POS[0] as u32,
-        OPERATOR_POS[1] as u32,
-        OPERATOR_SIZE[0],
-        OPERATOR_SIZE[1],
-    );
+    let window = preview_window(&shot);
     window.save(out.join("preview-window.png")).expect("save");
     // The docked panel on the left.
     assert_panel_drawn(&crop(&window, 0, 0, 200, OPERATOR_SIZE[1]), "preview panel");
-    // The walls: the bounding box of what is neither background nor panel, right of it.
-    let bg = config.background.map(|c| (c * 255.0).round() as u8);
-    let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
-    // The panel's right edge: its fill reaches the window's bottom row.
-    let panel_edge = (0..OPERATOR_SIZE[0])
-        .rev()
-        .find(|&x| {
-            let p = window.get_pixel(x, OPERATOR_SIZE[1] - 2).0;
-            p[0] == p[1] && p[1] == p[2] && (20..=40).contains(&p[0])
-        })
-        .expect("panel");
-    // The strip's extent along the window's middle row and then its middle column (a
-    // separator line beside the panel is skipped by starting two columns further).
-    let mid_y = OPERATOR_SIZE[1] / 2;
-    let row: Vec<u32> = (panel_edge + 2..OPERATOR_SIZE[0])
-        .filter(|&x| is_scene(window.get_pixel(x, mid_y)))
-        .collect();
-    let (x0, x1) = (row[0], row[row.len() - 1]);
-    // The walls meet without a gap: every column of the strip shows the scene.
-    assert_eq!(
-        row.len() as u32,
-        x1 - x0 + 1,
-        "a gap between walls in the preview"
-    );
-    let column: Vec<u32> = (0..OPERATOR_SIZE[1])
-        .filter(|&y| is_scene(window.get_pixel((x0 + x1) / 2, y)))
-        .collect();
-    let (y0, y1) = (column[0], column[column.len() - 1]);
-    let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
+    let (x0, y0, w, h) = preview_strip(&window, &config);
     // Three 3.3 m walls 2.9 m high: aspect 9.9/2.9. One pixel of rounding per side.
     let aspect = w as f32 / h as f32;
     let expected_aspect = 9.9 / 2.9;
@@ -443,35 +509,8 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
         "preview strip {w}×{h} at ({x0}, {y0}), aspect {aspect:.3} (expected {expected_aspect:.3})"
     );
     assert!((aspect - expected_aspect).abs() < expected_aspect * 2.0 / h as f32 + 0.02);
-    // Its content: the unfolded anaglyph, scaled (nearest texel) to the strip. Two nearest
-    // samplings of one image on slightly different grids pick neighbouring texels at edges, so
-    // a pixel counts as matching if one of the 3×3 reference texels around its place does.
     let strip = crop(&window, x0, y0, w, h);
-    let unmatched = |reference: &RgbaImage| {
-        let (rw, rh) = reference.dimensions();
-        let mut misses = 0usize;
-        for (x, y, p) in strip.enumerate_pixels() {
-            let cx = ((x as f32 + 0.5) * rw as f32 / w as f32) as i64;
-            let cy = ((y as f32 + 0.5) * rh as f32 / h as f32) as i64;
-            let hit = (-1..=1).any(|dy| {
-                (-1..=1).any(|dx| {
-                    let (qx, qy) = (cx + dx, cy + dy);
-                    qx >= 0
-                        && qy >= 0
-                        && qx < i64::from(rw)
-                        && qy < i64::from(rh)
-                        && reference
-                            .get_pixel(qx as u32, qy as u32)
-                            .0
-                            .iter()
-                            .zip(p.0)
-                            .all(|(&a, b)| a.abs_diff(b) <= 3)
-                })
-            });
-            misses += usize::from(!hit);
-        }
-        misses as f64 / f64::from(w * h)
-    };
+    let unmatched = |reference: &RgbaImage| unmatched_share(&strip, reference);
     let share = unmatched(&reference);
     // For scale: the same strip against the left eyes alone (a wrong output format), which
     // differs from the anaglyph only where the eyes see different things.
@@ -488,4 +527,191 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
         "{:.2}% of the strip does not match",
         share * 100.0
     );
+}
+
+/// The headless unfolded anaglyph (the preview's default output) for `config`.
+fn unfolded_anaglyph(config: &Config, scene: &omnicave::scene::Scene) -> RgbaImage {
+    let sky = headless::load_config_sky(config);
+    let images =
+        headless::render_images(common::gpu(), config, scene, sky.as_ref()).expect("render");
+    let anaglyphs: Vec<RgbaImage> = images
+        .iter()
+        .map(|w| omnicave::output::anaglyph(&w.left, &w.right).expect("anaglyph"))
+        .collect();
+    omnicave::output::unfold(&anaglyphs.iter().collect::<Vec<_>>())
+}
+
+/// `omnicave track-sim` with these arguments, sending to `port`.
+fn track_sim(port: u16, args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_omnicave"))
+        .arg("track-sim")
+        .args(["--target", &format!("127.0.0.1:{port}"), "--rate", "60"])
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start track-sim")
+}
+
+/// Head position and latency (in frames) of a `tracking: tracking, …` stats line.
+fn tracked_stats(line: &str) -> Option<(glam::Vec3, f64)> {
+    let rest = line.split("tracking: tracking, ").nth(1)?;
+    let head = rest.split("head (").nth(1)?.split(") m").next()?;
+    let v: Vec<f32> = head
+        .split(", ")
+        .filter_map(|c| c.trim().parse().ok())
+        .collect();
+    let frames = rest
+        .split(" ms (")
+        .nth(1)?
+        .split(" frame)")
+        .next()?
+        .parse()
+        .ok()?;
+    (v.len() == 3).then(|| (glam::Vec3::new(v[0], v[1], v[2]), frames))
+}
+
+#[test]
+fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
+    let out = out_dir();
+    let config_path = write_config(&out, "tracking-test.toml");
+    // Unfiltered, so the rendered head is exactly the sent one; lost after 0.5 s of silence.
+    let text = std::fs::read_to_string(&config_path).expect("config")
+        + "\n[tracking]\ntimeout_seconds = 0.5\n\n[tracking.filter]\nenabled = false\n";
+    std::fs::write(&config_path, text).expect("write config");
+    let mut config = Config::load(&config_path).expect("config");
+    let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
+    let at_start = unfolded_anaglyph(&config, &scene);
+    let tracked_head = glam::Vec3::new(0.5, 1.5, -0.4);
+    config.head.position = tracked_head;
+    let at_tracked = unfolded_anaglyph(&config, &scene);
+
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let mut app = AppProcess::start(
+        &x.display,
+        &[
+            "--config",
+            config_path.to_str().expect("utf8"),
+            "--preview",
+            "--osc-listen",
+            "127.0.0.1:0",
+        ],
+    );
+    let port: u16 = app.wait_for_line("the OSC port", Duration::from_secs(120), |l| {
+        l.split("OSC head tracking: listening on 127.0.0.1:")
+            .nth(1)?
+            .trim()
+            .parse()
+            .ok()
+    });
+    app.wait_frames(3);
+    let strip = |x: &Xvfb, name: &str| {
+        let window = preview_window(&x.screenshot(&out.join(format!("tracking-{name}.png"))));
+        let (x0, y0, w, h) = preview_strip(&window, &config);
+        crop(&window, x0, y0, w, h)
+    };
+    let before = strip(&x, "before");
+
+    // A still head sent as a tracker would (NatNet form): the walls show that head.
+    let mut sim = track_sim(
+        port,
+        &[
+            "--pattern",
+            "still",
+            "--centre",
+            "0.5,1.5,-0.4",
+            "--form",
+            "natnet",
+            "--duration",
+            "4",
+        ],
+    );
+    app.wait_for_line("the tracked head", Duration::from_secs(60), |l| {
+        tracked_stats(l).filter(|(h, _)| (*h - tracked_head).length() < 1e-3)
+    });
+    // The stats line is logged after its frame was presented: this frame has the head.
+    let tracked = strip(&x, "tracked");
+    let matches_tracked = unmatched_share(&tracked, &at_tracked);
+    let matches_start = unmatched_share(&tracked, &at_start);
+    let before_vs_start = unmatched_share(&before, &at_start);
+    println!(
+        "before tracking vs headless at the config's head: {:.2}% unmatched; tracked: {:.2}% \
+         vs headless at the tracked head, {:.2}% vs at the config's head",
+        before_vs_start * 100.0,
+        matches_tracked * 100.0,
+        matches_start * 100.0
+    );
+    // The same tolerance as the preview test; the other head must differ by far more.
+    assert!(before_vs_start < 0.01 && matches_tracked < 0.01);
+    assert!(matches_start > 0.2, "the head did not move the image");
+
+    // The simulator stops: tracking is lost, reported, and the head holds.
+    assert!(sim.wait().expect("track-sim").success());
+    app.wait_for_line("tracking lost", Duration::from_secs(30), |l| {
+        l.contains("tracking lost: no packet for 0.50 s")
+            .then_some(())
+    });
+    app.wait_for_line("the lost status", Duration::from_secs(30), |l| {
+        l.contains("tracking: tracking lost, ").then_some(())
+    });
+    let held = strip(&x, "lost");
+    let held_share = unmatched_share(&held, &at_tracked);
+    println!(
+        "while lost: {:.2}% unmatched vs the tracked head",
+        held_share * 100.0
+    );
+    assert!(held_share < 0.01);
+
+    // Packets resume on a circle: tracking recovers and the head follows it.
+    let mut sim = track_sim(
+        port,
+        &[
+            "--pattern",
+            "circle",
+            "--centre",
+            "0,1.7,0",
+            "--radius",
+            "0.4",
+            "--period",
+            "3",
+            "--form",
+            "bundle",
+            "--duration",
+            "4",
+        ],
+    );
+    app.wait_for_line("tracking resumed", Duration::from_secs(30), |l| {
+        l.contains("tracking resumed after").then_some(())
+    });
+    assert!(sim.wait().expect("track-sim").success());
+    let log = app.quit();
+    let resumed_at = log.find("tracking resumed after").expect("resumed");
+    let on_circle: Vec<(glam::Vec3, f64)> = log[resumed_at..]
+        .lines()
+        .filter_map(tracked_stats)
+        .collect();
+    println!("{} stats lines while tracking the circle", on_circle.len());
+    assert!(on_circle.len() >= 3, "{log}");
+    for (head, _) in &on_circle {
+        let r = glam::Vec2::new(head.x, head.z).length();
+        // The simulator's f32 circle, printed to the millimetre.
+        assert!(
+            (r - 0.4).abs() < 2e-3 && (head.y - 1.7).abs() < 2e-3,
+            "{head}"
+        );
+    }
+    let first = on_circle[0].0;
+    assert!(on_circle.iter().any(|(h, _)| (*h - first).length() > 0.05));
+    // Latency: every packet used by the frame after its arrival. The arrival is stamped as
+    // the datagram leaves the socket, a few microseconds before it is stored, so a frame
+    // starting in between takes it one frame later than it could by that much: 1 % slack.
+    let worst = log
+        .lines()
+        .filter_map(tracked_stats)
+        .map(|(_, f)| f)
+        .fold(0.0, f64::max);
+    println!("largest packet-to-frame latency: {worst:.2} frame");
+    assert!(worst <= 1.01, "latency {worst} frames");
 }

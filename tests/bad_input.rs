@@ -363,6 +363,8 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
     .unwrap();
     let bad_scene = tmp("cli-bad.glb");
     std::fs::write(&bad_scene, b"glTF\x02\x00\x00\x00\xff\xff\xff\xff").unwrap();
+    let bad_path = tmp("cli-bad-path.csv");
+    std::fs::write(&bad_path, "t,x,y,z\n0,0,1.7,0\n0.5,0.1,1.7\n").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["render", "--mode", "bogus", "--out", out],
@@ -450,6 +452,36 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
         ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
+        (
+            vec!["run", "--osc-listen", "everywhere"],
+            "'everywhere' is not an address:port",
+        ),
+        (
+            vec!["track-sim", "--target", "nohost"],
+            "'nohost' is not a host:port",
+        ),
+        (
+            vec!["track-sim", "--pattern", "spiral"],
+            "unknown pattern 'spiral'",
+        ),
+        (vec!["track-sim", "--form", "smoke"], "unknown form 'smoke'"),
+        (vec!["track-sim", "--rate", "0"], "outside 0.1..10000 Hz"),
+        (
+            vec!["track-sim", "--quaternion-order", "zwxy"],
+            "unknown quaternion order",
+        ),
+        (
+            vec!["track-sim", "--replay", "no-such-path.csv"],
+            "cannot read path file no-such-path.csv",
+        ),
+        (
+            vec!["track-sim", "--replay", bad_path.to_str().unwrap()],
+            "cli-bad-path.csv, line 3: 3 fields",
+        ),
+        (
+            vec!["track-sim", "--config", bad_config.to_str().unwrap()],
+            "render.msaa",
+        ),
         (
             vec!["render", "--config", "nope.toml", "--out", out],
             "nope.toml",

@@ -1,6 +1,7 @@
 //! The interactive application: a window per wall (CAVE mode) or one window with the walls
 //! unfolded (preview), the egui control panel, keys and mouse; one process, one wgpu device.
 
+pub mod devices;
 pub mod keys;
 pub mod panel;
 pub mod state;
@@ -25,6 +26,7 @@ use crate::render::present::PresentPass;
 use crate::render::{RenderError, Renderer};
 use crate::scene::{Scene, SceneError, load_gltf};
 use crate::sky::CubeMap;
+use devices::{Gamepads, Tracking};
 use keys::HeldKeys;
 use panel::PanelInfo;
 use state::AppState;
@@ -65,6 +67,8 @@ pub struct RunOptions {
     pub stats_every: Option<f64>,
     /// Quit by itself after this many seconds (demos, soak tests).
     pub quit_after: Option<f64>,
+    /// Listen for OSC head tracking on this address (switches tracking on).
+    pub osc_listen: Option<std::net::SocketAddr>,
 }
 
 /// Loads config, scene and sky, opens the windows and runs until quit.
@@ -72,6 +76,10 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
     let mut config = Config::load(&options.config)?;
     if let Some(mode) = options.mode {
         config.app.mode = mode;
+    }
+    if let Some(listen) = options.osc_listen {
+        config.tracking.receiver.listen = listen;
+        config.tracking.enabled = true;
     }
     if let Some(problem) = config.cave.head_problem(config.head.position) {
         return Err(AppError::Head {
@@ -102,6 +110,16 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         }
     }
     let event_loop = EventLoop::new().map_err(|e| AppError::EventLoop(e.to_string()))?;
+    let tracking = Tracking::new(config.tracking.clone());
+    let mut info = PanelInfo::default();
+    let gamepads = match Gamepads::start(config.gamepad.clone()) {
+        Ok(g) => g,
+        Err(e) => {
+            tracing::warn!("{e}; running without a gamepad");
+            info.tracking.gamepad_error = Some(e);
+            None
+        }
+    };
     let mut app = App {
         state: AppState::new(config),
         scene,
@@ -118,8 +136,10 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         started: Instant::now(),
         last_frame: None,
         last_stats_log: Instant::now(),
-        info: PanelInfo::default(),
+        info,
         surface_recoveries: 0,
+        tracking,
+        gamepads,
     };
     event_loop
         .run_app(&mut app)
@@ -155,6 +175,8 @@ struct App {
     last_stats_log: Instant,
     info: PanelInfo,
     surface_recoveries: u64,
+    tracking: Tracking,
+    gamepads: Option<Gamepads>,
 }
 
 /// Radians of turn per pixel of mouse drag.
@@ -263,8 +285,18 @@ impl App {
             .last_frame
             .map_or(0.0, |t| now.duration_since(t).as_secs_f32().min(0.25));
         self.last_frame = Some(now);
+        // The newest tracked pose first: the latency from its arrival ends here.
+        self.tracking.poll(&mut self.state, now);
+        if let Some(pads) = self.gamepads.as_mut() {
+            let head_tracked = self.tracking.drives_head(&self.state);
+            pads.poll(&mut self.state, dt, head_tracked);
+        }
         if self.held.any() {
             self.state.navigate(self.held.input(), dt);
+        }
+        self.tracking.info(now, &mut self.info.tracking);
+        if let Some(pads) = self.gamepads.as_ref() {
+            self.info.tracking.gamepads = pads.names();
         }
 
         // The panel first, so what it changes shows in this frame.
@@ -326,6 +358,30 @@ impl App {
                 gfx.windows.len(),
                 self.surface_recoveries
             );
+            let t = &self.info.tracking;
+            let head = self.state.head_position;
+            if let Some(status) = t.status.filter(|_| self.state.tracking_on) {
+                let c = &t.counters;
+                tracing::info!(
+                    target: "omnicave::stats",
+                    "tracking: {}, {:.1} Hz, head ({:.3}, {:.3}, {:.3}) m, latency avg {:.2} ms \
+                     max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
+                     {} dropped, {} clamped",
+                    status.describe(),
+                    t.stats.rate_hz,
+                    head.x,
+                    head.y,
+                    head.z,
+                    t.stats.latency_avg_ms,
+                    t.stats.latency_max_ms,
+                    t.stats.latency_max_frames,
+                    c.received,
+                    c.accepted,
+                    c.ignored,
+                    c.dropped(),
+                    t.stats.clamped
+                );
+            }
         }
         if self.state.save_requested {
             self.state.save_requested = false;

@@ -2,13 +2,16 @@
 
 use egui::{ComboBox, Slider, Ui};
 
+use super::devices::TrackingInfo;
 use super::keys::KEY_MAP;
 use super::state::{AppState, CriterionKind, MAX_EYE_SEPARATION};
 use super::stats::StatsSummary;
 use crate::cave::RenderMode;
 use crate::cave::omni::WarpVariant;
+use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
 use crate::sky::SkyMode;
+use crate::tracking::TrackingStatus;
 
 /// What the panel shows but does not change.
 #[derive(Debug, Clone, Default)]
@@ -29,6 +32,8 @@ pub struct PanelInfo {
     pub cave_mode: bool,
     /// Result of the last save (shown under the button).
     pub save_message: Option<String>,
+    /// OSC tracking and gamepads.
+    pub tracking: TrackingInfo,
 }
 
 /// Requests from the panel that need the app (not just state changes).
@@ -68,6 +73,8 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelReq
         ui.separator();
         head_and_cave_section(ui, state);
         ui.separator();
+        tracking_section(ui, state, &info.tracking);
+        ui.separator();
         output_section(ui, state, info);
         ui.separator();
         ui.horizontal(|ui| {
@@ -99,6 +106,18 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo, requests: &mut
         (false, _) => "n/a (no timestamps)".to_owned(),
     };
     ui.label(format!("CPU {:.2} ms   GPU {gpu}", s.cpu_ms));
+    // Tracking's state at the top, where an operator looks first.
+    if state.tracking_on {
+        match (&info.tracking.error, tracking_status(&info.tracking)) {
+            (Some(e), _) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, format!("OSC: {e}"));
+            }
+            (None, Some((colour, text))) => {
+                ui.colored_label(colour, format!("OSC: {text}"));
+            }
+            (None, None) => {}
+        }
+    }
     egui::Grid::new("triangles").striped(true).show(ui, |ui| {
         ui.label("wall");
         ui.label("submitted");
@@ -240,6 +259,96 @@ fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
             state.navigation.yaw.to_degrees()
         ));
     });
+}
+
+/// The tracking status line and its colour (`None` while the receiver is not running).
+fn tracking_status(info: &TrackingInfo) -> Option<(egui::Color32, String)> {
+    let status = info.status?;
+    let text = match (status, info.lost_for) {
+        (TrackingStatus::Lost | TrackingStatus::NotVisible, Some(s)) => {
+            format!(
+                "{} for {s:.1} s: head holds its last pose",
+                status.describe()
+            )
+        }
+        _ => status.describe().to_owned(),
+    };
+    let colour = match status {
+        TrackingStatus::Tracking => egui::Color32::LIGHT_GREEN,
+        TrackingStatus::Waiting => egui::Color32::LIGHT_YELLOW,
+        TrackingStatus::Lost | TrackingStatus::NotVisible => egui::Color32::LIGHT_RED,
+    };
+    Some((colour, text))
+}
+
+fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
+    ui.checkbox(&mut state.tracking_on, "Use OSC tracking");
+    if let Some(error) = &info.error {
+        ui.colored_label(egui::Color32::LIGHT_RED, error);
+    }
+    if state.tracking_on
+        && let (Some(address), Some((colour, text))) = (info.listening, tracking_status(info))
+    {
+        ui.label(format!("listening on {address}"));
+        ui.colored_label(colour, text);
+        let s = &info.stats;
+        ui.label(format!(
+            "{:.0} Hz, latency {:.1} ms avg, {:.1} ms max ({:.2} frame)",
+            s.rate_hz, s.latency_avg_ms, s.latency_max_ms, s.latency_max_frames
+        ));
+        let c = &info.counters;
+        ui.label(format!(
+            "packets {} · accepted {} · ignored {} · malformed {} · non-finite {} · refused {} \
+             · clamped {}",
+            c.received, c.accepted, c.ignored, c.malformed, c.non_finite, c.refused, s.clamped
+        ));
+    }
+    ui.checkbox(&mut state.tracking_filter_on, "One Euro filter");
+    ui.add_enabled_ui(state.tracking_filter_on, |ui| {
+        let f = &mut state.tracking_filter;
+        ui.add(
+            Slider::new(&mut f.min_cutoff_hz, 0.01..=20.0)
+                .logarithmic(true)
+                .text("min cutoff Hz"),
+        );
+        ui.add(
+            Slider::new(&mut f.beta, 0.0..=100.0)
+                .logarithmic(true)
+                .text("beta"),
+        );
+        ui.add(
+            Slider::new(&mut f.derivative_cutoff_hz, 0.01..=20.0)
+                .logarithmic(true)
+                .text("speed cutoff Hz"),
+        );
+    });
+    ui.label("Gamepad");
+    match (&info.gamepad_error, info.gamepads.is_empty()) {
+        (Some(e), _) => {
+            ui.label(e);
+        }
+        (None, true) => {
+            ui.label("no gamepad connected");
+        }
+        (None, false) => {
+            ui.label(info.gamepads.join(", "));
+        }
+    }
+    combo(
+        ui,
+        "Sticks drive",
+        &mut state.gamepad_mode,
+        &GamepadMode::ALL,
+        GamepadMode::name,
+    );
+    ui.add(
+        Slider::new(
+            &mut state.navigation_speed,
+            super::state::MIN_NAVIGATION_SPEED..=super::state::MAX_NAVIGATION_SPEED,
+        )
+        .logarithmic(true)
+        .text("navigation m/s"),
+    );
 }
 
 fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {

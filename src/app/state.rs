@@ -8,10 +8,12 @@ use glam::{Mat4, Quat, Vec3};
 use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode};
 use crate::config::{Config, ConfigFile};
+use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
 use crate::render::{FrameParams, RenderSettings};
 use crate::sky::{SkyMode, SkySettings};
 use crate::tess::{Criterion, MAX_DEPTH_LIMIT, TessSettings};
+use crate::tracking::{HeadPose, OneEuroParams};
 
 /// The kind of tessellation criterion the panel offers; its parameter is kept separately so
 /// switching kinds and back keeps each value.
@@ -90,6 +92,12 @@ pub enum Action {
     SwapEyes,
     /// Change the eye separation by this many metres.
     EyeSeparation(f32),
+    /// Next (+1) or previous (−1) render mode.
+    StepMode(i32),
+    /// Multiply the navigation speed by this factor.
+    ScaleNavigationSpeed(f32),
+    ToggleGamepadMode,
+    ToggleTracking,
     /// Move the head by this many metres in CAVE space.
     MoveHead(Vec3),
     ResetView,
@@ -131,6 +139,17 @@ pub struct AppState {
     pub swap_eyes: bool,
     pub show_help: bool,
     pub show_panel: bool,
+    /// Navigation speed, metres per second (keys and gamepad).
+    pub navigation_speed: f32,
+    /// Whether OSC head tracking moves the head.
+    pub tracking_on: bool,
+    /// Whether the One Euro filter smooths the tracked head, and its parameters.
+    pub tracking_filter_on: bool,
+    pub tracking_filter: OneEuroParams,
+    /// The tracked head orientation (used by tracked-stereo while tracking is on).
+    pub tracked_orientation: Option<Quat>,
+    /// What the gamepad's sticks drive.
+    pub gamepad_mode: GamepadMode,
     pub quit_requested: bool,
     pub save_requested: bool,
     /// Where "save" writes.
@@ -186,6 +205,12 @@ impl AppState {
             swap_eyes: false,
             show_help: false,
             show_panel: true,
+            navigation_speed: config.app.navigation_speed,
+            tracking_on: config.tracking.enabled,
+            tracking_filter_on: config.tracking.settings.filter.is_some(),
+            tracking_filter: config.tracking.settings.filter.unwrap_or_default(),
+            tracked_orientation: None,
+            gamepad_mode: config.gamepad.mode,
             quit_requested: false,
             save_requested: false,
             save_path,
@@ -234,27 +259,56 @@ impl AppState {
         self.set_head_position(self.head_position);
     }
 
-    /// Sets the head, kept inside the walls' bounding box (and in front of every wall).
-    pub fn set_head_position(&mut self, p: Vec3) {
+    /// Where the head may be: the walls' bounding box less a margin (flat axes, as of a single
+    /// wall, are unbounded).
+    pub fn head_bounds(&self) -> (Vec3, Vec3) {
         let (min, max) = bounds(&self.cave);
         let margin = Vec3::splat(HEAD_MARGIN_M);
-        let lo = min + margin;
-        let hi = (max - margin).max(lo);
-        let mut p = if p.is_finite() { p } else { self.head_position };
-        // Flat axes (a single wall) do not bound the head.
+        let mut lo = min + margin;
+        let mut hi = (max - margin).max(lo);
         for axis in 0..3 {
-            if max[axis] - min[axis] > 2.0 * HEAD_MARGIN_M {
-                p[axis] = p[axis].clamp(lo[axis], hi[axis]);
+            if max[axis] - min[axis] <= 2.0 * HEAD_MARGIN_M {
+                lo[axis] = f32::NEG_INFINITY;
+                hi[axis] = f32::INFINITY;
             }
         }
+        (lo, hi)
+    }
+
+    /// Sets the head, kept inside the walls' bounding box (and in front of every wall).
+    pub fn set_head_position(&mut self, p: Vec3) {
+        let (lo, hi) = self.head_bounds();
+        let p = if p.is_finite() { p } else { self.head_position };
+        let p = p.clamp(lo, hi);
         if self.cave.head_problem(p).is_none() {
             self.head_position = p;
         }
     }
 
+    /// Applies a pose from the tracker.
+    pub fn apply_tracked_pose(&mut self, pose: HeadPose) {
+        self.set_head_position(pose.position);
+        if let Some(q) = pose.orientation.filter(|q| q.is_finite()) {
+            self.tracked_orientation = Some(q);
+        }
+    }
+
+    /// The tracker's filter parameters as the panel has them (`None`: off).
+    pub fn tracking_filter(&self) -> Option<OneEuroParams> {
+        self.tracking_filter_on.then_some(self.tracking_filter)
+    }
+
     /// The head's pose (the panel's yaw turns the configured orientation, keeping its pitch
     /// and roll).
     pub fn head(&self) -> Head {
+        if self.tracking_on
+            && let Some(orientation) = self.tracked_orientation
+        {
+            return Head {
+                position: self.head_position,
+                orientation,
+            };
+        }
         let base_yaw = yaw_degrees(self.config.head.orientation);
         let turn = Quat::from_rotation_y((self.head_yaw_degrees - base_yaw).to_radians());
         Head {
@@ -345,7 +399,7 @@ impl AppState {
         if !(dt.is_finite() && dt > 0.0) {
             return;
         }
-        let speed = self.config.app.navigation_speed;
+        let speed = self.navigation_speed;
         let nav = &mut self.navigation;
         nav.yaw += input.turn.clamp(-1.0, 1.0) * TURN_RATE * dt;
         let rotation = Quat::from_rotation_y(nav.yaw);
@@ -391,12 +445,34 @@ impl AppState {
                 }
             }
             Action::SwapEyes => self.swap_eyes = !self.swap_eyes,
+            Action::StepMode(step) => {
+                let n = RenderMode::ALL.len() as i32;
+                let i = RenderMode::ALL
+                    .iter()
+                    .position(|m| *m == self.mode)
+                    .unwrap_or(0) as i32;
+                self.mode = RenderMode::ALL[(i + step).rem_euclid(n) as usize];
+            }
+            Action::ScaleNavigationSpeed(factor) => {
+                if factor.is_finite() && factor > 0.0 {
+                    self.navigation_speed = (self.navigation_speed * factor)
+                        .clamp(MIN_NAVIGATION_SPEED, MAX_NAVIGATION_SPEED);
+                }
+            }
+            Action::ToggleGamepadMode => {
+                self.gamepad_mode = match self.gamepad_mode {
+                    GamepadMode::Navigate => GamepadMode::Head,
+                    GamepadMode::Head => GamepadMode::Navigate,
+                }
+            }
+            Action::ToggleTracking => self.tracking_on = !self.tracking_on,
             Action::EyeSeparation(delta) => {
                 self.eye_separation = (self.eye_separation + delta).clamp(0.0, MAX_EYE_SEPARATION)
             }
             Action::MoveHead(delta) => self.set_head_position(self.head_position + delta),
             Action::ResetView => {
                 self.navigation = Navigation::default();
+                self.navigation_speed = self.config.app.navigation_speed;
                 self.set_head_position(self.config.head.position);
             }
             Action::ToggleHelp => self.show_help = !self.show_help,
@@ -431,6 +507,13 @@ impl AppState {
         file.tessellation.frustum_cull = self.tess_frustum_cull;
         file.skybox.mode = self.sky_mode.name().into();
         file.app.preview_output = self.preview_output.name().into();
+        file.app.navigation_speed = self.navigation_speed;
+        file.tracking.enabled = self.tracking_on;
+        file.tracking.filter.enabled = self.tracking_filter_on;
+        file.tracking.filter.min_cutoff_hz = self.tracking_filter.min_cutoff_hz;
+        file.tracking.filter.beta = self.tracking_filter.beta;
+        file.tracking.filter.derivative_cutoff_hz = self.tracking_filter.derivative_cutoff_hz;
+        file.gamepad.mode = self.gamepad_mode.name().into();
         for ((section, wall), output) in file
             .walls
             .iter_mut()
@@ -481,6 +564,10 @@ impl AppState {
         })
     }
 }
+
+/// Navigation speed limits (bumpers and panel), metres per second.
+pub const MIN_NAVIGATION_SPEED: f32 = 0.05;
+pub const MAX_NAVIGATION_SPEED: f32 = 200.0;
 
 /// Largest eye separation the panel and keys allow, metres.
 pub const MAX_EYE_SEPARATION: f32 = 0.2;

@@ -1,0 +1,210 @@
+//! The application's input devices: the OSC receiver with its head tracker, and gamepads
+//! (gilrs, hot-plug). Both are polled once per frame and never block it.
+
+use std::net::SocketAddr;
+use std::time::Instant;
+
+use super::state::{Action, AppState, NavInput};
+use crate::config::TrackingConfig;
+use crate::gamepad::{GamepadAction, GamepadMapper, GamepadMode, GamepadSettings};
+use crate::tracking::{Counters, HeadTracker, OscReceiver, TrackingStats, TrackingStatus};
+
+/// What the panel and the stats line show about tracking.
+#[derive(Debug, Clone, Default)]
+pub struct TrackingInfo {
+    /// Where the receiver listens (None: not started).
+    pub listening: Option<SocketAddr>,
+    /// Why the receiver could not start.
+    pub error: Option<String>,
+    pub status: Option<TrackingStatus>,
+    pub lost_for: Option<f64>,
+    pub stats: TrackingStats,
+    pub counters: Counters,
+    /// Names of connected gamepads.
+    pub gamepads: Vec<String>,
+    /// Why gamepads are unavailable, if they are.
+    pub gamepad_error: Option<String>,
+}
+
+/// OSC tracking: the receiver (started when tracking is switched on) and the head tracker.
+#[derive(Debug)]
+pub struct Tracking {
+    config: TrackingConfig,
+    receiver: Option<OscReceiver>,
+    tracker: HeadTracker,
+    error: Option<String>,
+    /// Tracking was on last frame (a switch on retries a failed bind once).
+    was_on: bool,
+}
+
+impl Tracking {
+    pub fn new(config: TrackingConfig) -> Self {
+        Self {
+            tracker: HeadTracker::new(config.settings),
+            config,
+            receiver: None,
+            error: None,
+            was_on: false,
+        }
+    }
+
+    /// Once per frame, at its start: applies the newest tracked pose to the state.
+    pub fn poll(&mut self, state: &mut AppState, now: Instant) {
+        if !state.tracking_on {
+            self.was_on = false;
+            return;
+        }
+        if !self.was_on && self.receiver.is_none() {
+            match OscReceiver::start(&self.config.receiver) {
+                Ok(r) => {
+                    self.receiver = Some(r);
+                    self.error = None;
+                }
+                Err(e) => {
+                    tracing::error!("{e}; head tracking stays off");
+                    self.error = Some(e.to_string());
+                }
+            }
+        }
+        self.was_on = true;
+        let Some(receiver) = &self.receiver else {
+            return;
+        };
+        self.tracker.settings.filter = state.tracking_filter();
+        let sample = receiver.feed().try_latest();
+        if let Some(pose) = self.tracker.update(sample, now, Some(state.head_bounds())) {
+            state.apply_tracked_pose(pose);
+        }
+    }
+
+    /// Whether the tracker is driving the head (gamepad head mode yields to it).
+    pub fn drives_head(&self, state: &AppState) -> bool {
+        state.tracking_on && self.receiver.is_some()
+    }
+
+    pub fn info(&self, now: Instant, into: &mut TrackingInfo) {
+        into.listening = self.receiver.as_ref().map(OscReceiver::local_addr);
+        into.error = self.error.clone();
+        into.status = self.receiver.as_ref().map(|_| self.tracker.status());
+        into.lost_for = self.tracker.lost_for(now);
+        into.stats = self.tracker.stats();
+        into.counters = self
+            .receiver
+            .as_ref()
+            .map(|r| r.feed().counters())
+            .unwrap_or_default();
+    }
+}
+
+/// Gamepads through gilrs; absent (with a logged reason) where gilrs cannot start.
+pub struct Gamepads {
+    gilrs: gilrs::Gilrs,
+    mapper: GamepadMapper,
+}
+
+impl std::fmt::Debug for Gamepads {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gamepads")
+            .field("mapper", &self.mapper)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Gamepads {
+    /// Starts gilrs if gamepads are enabled; `Err` says why there are none.
+    pub fn start(settings: GamepadSettings) -> Result<Option<Self>, String> {
+        if !settings.enabled {
+            return Ok(None);
+        }
+        let gilrs = match gilrs::Gilrs::new() {
+            Ok(g) => g,
+            Err(gilrs::Error::NotImplemented(g)) => {
+                tracing::info!("gamepads: not supported on this platform");
+                g
+            }
+            Err(e) => return Err(format!("gamepads unavailable: {e}")),
+        };
+        for (_, pad) in gilrs.gamepads() {
+            tracing::info!("gamepad connected: {}", pad.name());
+        }
+        Ok(Some(Self {
+            gilrs,
+            mapper: GamepadMapper::new(settings),
+        }))
+    }
+
+    /// Once per frame: applies button actions and stick motion for `dt` seconds.
+    pub fn poll(&mut self, state: &mut AppState, dt: f32, head_tracked: bool) {
+        while let Some(event) = self.gilrs.next_event() {
+            match event.event {
+                gilrs::EventType::Connected => {
+                    let name = self.gilrs.gamepad(event.id).name().to_owned();
+                    tracing::info!("gamepad connected: {name}");
+                }
+                gilrs::EventType::Disconnected => {
+                    tracing::info!("gamepad disconnected");
+                }
+                _ => {}
+            }
+            if let Some(action) = self.mapper.handle(&event.event) {
+                state.apply(app_action(action));
+            }
+        }
+        let axes = self.mapper.axes();
+        if axes.is_idle() {
+            return;
+        }
+        let motion = axes.motion(state.gamepad_mode);
+        match state.gamepad_mode {
+            GamepadMode::Navigate => state.navigate(
+                NavInput {
+                    forward: motion.forward,
+                    right: motion.right,
+                    up: motion.up,
+                    turn: motion.turn,
+                },
+                dt,
+            ),
+            GamepadMode::Head if !head_tracked => {
+                let step = motion.head * self.mapper.settings.head_speed * dt.clamp(0.0, 0.25);
+                state.apply(Action::MoveHead(step));
+            }
+            GamepadMode::Head => {}
+        }
+    }
+
+    pub fn names(&self) -> Vec<String> {
+        self.gilrs
+            .gamepads()
+            .map(|(_, pad)| pad.name().to_owned())
+            .collect()
+    }
+}
+
+/// Eye separation step of the D-pad, metres.
+const IPD_STEP_M: f32 = 0.002;
+/// Navigation speed factor of a bumper press.
+const SPEED_STEP: f32 = 1.5;
+
+/// The state action of a gamepad action.
+pub fn app_action(action: GamepadAction) -> Action {
+    match action {
+        GamepadAction::NextRenderMode => Action::StepMode(1),
+        GamepadAction::PreviousRenderMode => Action::StepMode(-1),
+        GamepadAction::ToggleTessellation => Action::ToggleTessellation,
+        GamepadAction::NextSkybox => Action::CycleSky,
+        GamepadAction::ToggleWireframe => Action::ToggleWireframe,
+        GamepadAction::TogglePoleMerge => Action::TogglePoleMerge,
+        GamepadAction::NextWarp => Action::CycleWarp,
+        GamepadAction::NextOutput => Action::CycleOutput,
+        GamepadAction::SwapEyes => Action::SwapEyes,
+        GamepadAction::EyeSeparationUp => Action::EyeSeparation(IPD_STEP_M),
+        GamepadAction::EyeSeparationDown => Action::EyeSeparation(-IPD_STEP_M),
+        GamepadAction::ResetView => Action::ResetView,
+        GamepadAction::ToggleGamepadMode => Action::ToggleGamepadMode,
+        GamepadAction::SpeedUp => Action::ScaleNavigationSpeed(SPEED_STEP),
+        GamepadAction::SpeedDown => Action::ScaleNavigationSpeed(1.0 / SPEED_STEP),
+        GamepadAction::TogglePanel => Action::TogglePanel,
+        GamepadAction::ToggleTracking => Action::ToggleTracking,
+    }
+}
