@@ -197,7 +197,9 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
     let scene = load_gltf(base.scene_path.as_ref().expect("scene")).expect("scene");
     let mut state = AppState::new(base.clone());
     // Off-centre and turned, so every mode's eyes differ (tracked stereo follows the yaw).
-    state.set_head_position(Vec3::new(0.3, 1.6, 0.2));
+    state
+        .set_head_position(Vec3::new(0.3, 1.6, 0.2))
+        .expect("head inside");
     state.head_yaw_degrees = 30.0;
     let mut renderer = Renderer::new(
         gpu,
@@ -307,7 +309,9 @@ fn saved_settings_load_back_as_they_were() {
     *state.tess_value_mut() = 12.0;
     state.pole_merge_on = false;
     state.set_cave_size(Vec3::new(4.0, 3.0, 3.3));
-    state.set_head_position(Vec3::new(0.2, 1.5, -0.4));
+    state
+        .set_head_position(Vec3::new(0.2, 1.5, -0.4))
+        .expect("head inside");
     state.preview_output = omnicave::output::formats::StereoFormat::RowInterleaved;
     state.tracking_on = true;
     state.tracking_filter.beta = 3.5;

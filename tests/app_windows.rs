@@ -137,6 +137,18 @@ impl Xvfb {
 
 impl Drop for Xvfb {
     fn drop(&mut self) {
+        // SIGTERM lets Xvfb remove its lock file and socket (SIGKILL would leave them, and
+        // repeated runs on one machine would use up the display numbers); SIGKILL if it hangs.
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(3) {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -664,7 +676,9 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     );
     assert!(held_share < 0.01);
 
-    // Packets resume on a circle: tracking recovers and the head follows it.
+    // Packets resume on a circle: tracking recovers and the head follows it (the log is read
+    // from here on: a starved simulator could have lost and resumed tracking before).
+    let resume_from = app.log().len();
     let mut sim = track_sim(
         port,
         &[
@@ -682,12 +696,15 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
             "4",
         ],
     );
-    app.wait_for_line("tracking resumed", Duration::from_secs(30), |l| {
-        l.contains("tracking resumed after").then_some(())
-    });
+    let resumed = |log: &str| log[resume_from..].find("tracking resumed after");
+    let start = Instant::now();
+    while resumed(&app.log()).is_none() {
+        assert!(start.elapsed() < Duration::from_secs(30), "{}", app.log());
+        std::thread::sleep(Duration::from_millis(50));
+    }
     assert!(sim.wait().expect("track-sim").success());
     let log = app.quit();
-    let resumed_at = log.find("tracking resumed after").expect("resumed");
+    let resumed_at = resume_from + resumed(&log).expect("resumed");
     let on_circle: Vec<(glam::Vec3, f64)> = log[resumed_at..]
         .lines()
         .filter_map(tracked_stats)
@@ -704,14 +721,14 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     }
     let first = on_circle[0].0;
     assert!(on_circle.iter().any(|(h, _)| (*h - first).length() > 0.05));
-    // Latency: every packet used by the frame after its arrival. The arrival is stamped as
-    // the datagram leaves the socket, a few microseconds before it is stored, so a frame
-    // starting in between takes it one frame later than it could by that much: 1 % slack.
+    // Latency: every pose was used by the first frame that started after it was ready (the
+    // frame fraction is measured from when the receiver stored it, so it is at most 1 unless a
+    // frame skipped a ready pose; printed with two decimals).
     let worst = log
         .lines()
         .filter_map(tracked_stats)
         .map(|(_, f)| f)
         .fold(0.0, f64::max);
     println!("largest packet-to-frame latency: {worst:.2} frame");
-    assert!(worst <= 1.01, "latency {worst} frames");
+    assert!(worst <= 1.0, "latency {worst} frames");
 }

@@ -175,9 +175,22 @@ fn datagram() -> impl Strategy<Value = Vec<u8>> {
     prop_oneof![
         1 => vec(any::<u8>(), 0..256),
         1 => vec(any::<u8>(), 0..64).prop_map(|tail| [b"#bundle\0".as_slice(), &tail].concat()),
+        1 => (0usize..12).prop_map(nested_arrays),
         3 => packet().prop_map(|p| encode::bytes(&p)),
         4 => (packet(), vec(mutation(), 1..6)).prop_map(|(p, m)| mutate(encode::bytes(&p), &m)),
     ]
+}
+
+/// A message whose type tags open `depth` arrays (and close them), built byte by byte.
+fn nested_arrays(depth: usize) -> Vec<u8> {
+    let mut bytes = b"/other\0\0,".to_vec();
+    bytes.extend(std::iter::repeat_n(b'[', depth));
+    bytes.extend(std::iter::repeat_n(b']', depth));
+    bytes.push(0);
+    while !bytes.len().is_multiple_of(4) {
+        bytes.push(0);
+    }
+    bytes
 }
 
 /// A bundle nested `depth` levels around a position message, built byte by byte.
@@ -352,13 +365,15 @@ fn the_receiver_survives_a_stream_of_bad_packets_and_keeps_working() {
             assert!(start.elapsed() < Duration::from_secs(5), "receiver stopped");
             std::thread::sleep(Duration::from_millis(2));
         }
-        // The deep bundle through the real thread too.
-        socket.send_to(&nested_bundle(3000), target).expect("send");
-        let before = c.malformed;
-        let start = Instant::now();
-        while feed.counters().malformed == before {
-            assert!(start.elapsed() < Duration::from_secs(5), "receiver stopped");
-            std::thread::sleep(Duration::from_millis(2));
+        // The deep bundle and the deep arrays through the real thread too.
+        for deep in [nested_bundle(3000), nested_arrays(30_000)] {
+            let before = feed.counters().malformed;
+            socket.send_to(&deep, target).expect("send");
+            let start = Instant::now();
+            while feed.counters().malformed == before {
+                assert!(start.elapsed() < Duration::from_secs(5), "receiver stopped");
+                std::thread::sleep(Duration::from_millis(2));
+            }
         }
     });
 }

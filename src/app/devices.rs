@@ -7,6 +7,7 @@ use std::time::Instant;
 use super::state::{Action, AppState, NavInput};
 use crate::config::TrackingConfig;
 use crate::gamepad::{GamepadAction, GamepadMapper, GamepadMode, GamepadSettings};
+use crate::tracking::receiver::{LOG_INTERVAL, LogLimiter};
 use crate::tracking::{Counters, HeadTracker, OscReceiver, TrackingStats, TrackingStatus};
 
 /// What the panel and the stats line show about tracking.
@@ -35,6 +36,7 @@ pub struct Tracking {
     error: Option<String>,
     /// Tracking was on last frame (a switch on retries a failed bind once).
     was_on: bool,
+    refused_log: LogLimiter,
 }
 
 impl Tracking {
@@ -45,6 +47,7 @@ impl Tracking {
             receiver: None,
             error: None,
             was_on: false,
+            refused_log: LogLimiter::default(),
         }
     }
 
@@ -70,21 +73,31 @@ impl Tracking {
         let Some(receiver) = &self.receiver else {
             return;
         };
-        self.tracker.settings.filter = state.tracking_filter();
+        self.tracker.set_filter(state.tracking_filter());
         let sample = receiver.feed().try_latest();
-        if let Some(pose) = self.tracker.update(sample, now, Some(state.head_bounds())) {
-            state.apply_tracked_pose(pose);
+        if let Some(pose) = self.tracker.update(sample, now, Some(state.head_bounds()))
+            && let Err(problem) = state.apply_tracked_pose(pose)
+            && let Some(held) = self.refused_log.allow(now, LOG_INTERVAL)
+        {
+            tracing::warn!(
+                "tracked head refused: {problem}; the head holds ({held} more not logged)"
+            );
         }
     }
 
-    /// Whether the tracker is driving the head (gamepad head mode yields to it).
+    /// Whether the tracker is driving the head (gamepad head mode yields to it; while tracking
+    /// is lost or not started, the pad may move the head).
     pub fn drives_head(&self, state: &AppState) -> bool {
-        state.tracking_on && self.receiver.is_some()
+        state.tracking_on
+            && self.receiver.is_some()
+            && self.tracker.status() == TrackingStatus::Tracking
     }
 
     pub fn info(&self, now: Instant, into: &mut TrackingInfo) {
         into.listening = self.receiver.as_ref().map(OscReceiver::local_addr);
-        into.error = self.error.clone();
+        if into.error != self.error {
+            into.error.clone_from(&self.error);
+        }
         into.status = self.receiver.as_ref().map(|_| self.tracker.status());
         into.lost_for = self.tracker.lost_for(now);
         into.stats = self.tracker.stats();
@@ -100,6 +113,8 @@ impl Tracking {
 pub struct Gamepads {
     gilrs: gilrs::Gilrs,
     mapper: GamepadMapper,
+    /// Names of the connected pads, rebuilt only when one comes or goes.
+    names: Vec<String>,
 }
 
 impl std::fmt::Debug for Gamepads {
@@ -124,27 +139,39 @@ impl Gamepads {
             }
             Err(e) => return Err(format!("gamepads unavailable: {e}")),
         };
-        for (_, pad) in gilrs.gamepads() {
-            tracing::info!("gamepad connected: {}", pad.name());
+        let names: Vec<String> = gilrs
+            .gamepads()
+            .map(|(_, pad)| pad.name().to_owned())
+            .collect();
+        for name in &names {
+            tracing::info!("gamepad connected: {name}");
         }
         Ok(Some(Self {
             gilrs,
             mapper: GamepadMapper::new(settings),
+            names,
         }))
     }
 
     /// Once per frame: applies button actions and stick motion for `dt` seconds.
     pub fn poll(&mut self, state: &mut AppState, dt: f32, head_tracked: bool) {
         while let Some(event) = self.gilrs.next_event() {
-            match event.event {
-                gilrs::EventType::Connected => {
-                    let name = self.gilrs.gamepad(event.id).name().to_owned();
-                    tracing::info!("gamepad connected: {name}");
-                }
-                gilrs::EventType::Disconnected => {
-                    tracing::info!("gamepad disconnected");
-                }
-                _ => {}
+            if matches!(
+                event.event,
+                gilrs::EventType::Connected | gilrs::EventType::Disconnected
+            ) {
+                let pad = self.gilrs.gamepad(event.id);
+                let verb = if pad.is_connected() {
+                    "connected"
+                } else {
+                    "disconnected"
+                };
+                tracing::info!("gamepad {verb}: {}", pad.name());
+                self.names = self
+                    .gilrs
+                    .gamepads()
+                    .map(|(_, pad)| pad.name().to_owned())
+                    .collect();
             }
             if let Some(action) = self.mapper.handle(&event.event) {
                 state.apply(app_action(action));
@@ -173,11 +200,9 @@ impl Gamepads {
         }
     }
 
-    pub fn names(&self) -> Vec<String> {
-        self.gilrs
-            .gamepads()
-            .map(|(_, pad)| pad.name().to_owned())
-            .collect()
+    /// Names of the connected gamepads.
+    pub fn names(&self) -> &[String] {
+        &self.names
     }
 }
 

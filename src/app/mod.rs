@@ -295,8 +295,10 @@ impl App {
             self.state.navigate(self.held.input(), dt);
         }
         self.tracking.info(now, &mut self.info.tracking);
-        if let Some(pads) = self.gamepads.as_ref() {
-            self.info.tracking.gamepads = pads.names();
+        if let Some(pads) = self.gamepads.as_ref()
+            && self.info.tracking.gamepads != pads.names()
+        {
+            self.info.tracking.gamepads = pads.names().to_vec();
         }
 
         // The panel first, so what it changes shows in this frame.

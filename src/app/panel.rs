@@ -230,7 +230,8 @@ fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
             .changed();
     }
     if changed {
-        state.set_head_position(head);
+        // A slider move that would put the head behind a wall is not taken.
+        let _ = state.set_head_position(head);
     }
     ui.add(Slider::new(&mut state.head_yaw_degrees, -180.0..=180.0).text("head yaw ° (tracked)"));
     ui.label("CAVE size (walls move live, m)");

@@ -256,7 +256,8 @@ impl AppState {
             size,
             self.base_size,
         );
-        self.set_head_position(self.head_position);
+        // The head was valid before; if the moved walls exclude it, it stays where it was.
+        let _ = self.set_head_position(self.head_position);
     }
 
     /// Where the head may be: the walls' bounding box less a margin (flat axes, as of a single
@@ -275,22 +276,28 @@ impl AppState {
         (lo, hi)
     }
 
-    /// Sets the head, kept inside the walls' bounding box (and in front of every wall).
-    pub fn set_head_position(&mut self, p: Vec3) {
+    /// Sets the head, kept inside the walls' bounding box; a position behind a wall (a CAVE
+    /// that is not a box) is refused with the reason, and the head stays.
+    pub fn set_head_position(&mut self, p: Vec3) -> Result<(), String> {
         let (lo, hi) = self.head_bounds();
         let p = if p.is_finite() { p } else { self.head_position };
         let p = p.clamp(lo, hi);
-        if self.cave.head_problem(p).is_none() {
-            self.head_position = p;
+        match self.cave.head_problem(p) {
+            None => {
+                self.head_position = p;
+                Ok(())
+            }
+            Some(problem) => Err(problem),
         }
     }
 
-    /// Applies a pose from the tracker.
-    pub fn apply_tracked_pose(&mut self, pose: HeadPose) {
-        self.set_head_position(pose.position);
+    /// Applies a pose from the tracker (the position is refused, with the reason, if it is
+    /// behind a wall; the orientation is taken either way).
+    pub fn apply_tracked_pose(&mut self, pose: HeadPose) -> Result<(), String> {
         if let Some(q) = pose.orientation.filter(|q| q.is_finite()) {
             self.tracked_orientation = Some(q);
         }
+        self.set_head_position(pose.position)
     }
 
     /// The tracker's filter parameters as the panel has them (`None`: off).
@@ -469,11 +476,15 @@ impl AppState {
             Action::EyeSeparation(delta) => {
                 self.eye_separation = (self.eye_separation + delta).clamp(0.0, MAX_EYE_SEPARATION)
             }
-            Action::MoveHead(delta) => self.set_head_position(self.head_position + delta),
+            Action::MoveHead(delta) => {
+                // A step behind a wall is not taken.
+                let _ = self.set_head_position(self.head_position + delta);
+            }
             Action::ResetView => {
                 self.navigation = Navigation::default();
                 self.navigation_speed = self.config.app.navigation_speed;
-                self.set_head_position(self.config.head.position);
+                // The configured head was validated at load.
+                let _ = self.set_head_position(self.config.head.position);
             }
             Action::ToggleHelp => self.show_help = !self.show_help,
             Action::TogglePanel => self.show_panel = !self.show_panel,

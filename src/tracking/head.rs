@@ -68,7 +68,9 @@ pub struct TrackingStats {
     /// From a packet coming off the socket to the start of the frame that used it, ms.
     pub latency_avg_ms: f64,
     pub latency_max_ms: f64,
-    /// The largest latency as a fraction of its frame's interval (≤ 1: used by the next frame).
+    /// The largest wait from a pose being ready (decoded and stored) to the frame that used it,
+    /// as a fraction of that frame's interval: ≤ 1 means every pose was used by the first
+    /// frame that started after it was ready.
     pub latency_max_frames: f64,
     /// Positions clamped into the CAVE since start.
     pub clamped: u64,
@@ -120,6 +122,15 @@ impl HeadTracker {
             stats: TrackingStats::default(),
             clamp_log: LogLimiter::default(),
         }
+    }
+
+    /// Sets the filter; switching it on starts from the next sample (no stale history).
+    pub fn set_filter(&mut self, filter: Option<OneEuroParams>) {
+        if filter.is_some() && self.settings.filter.is_none() {
+            self.position_filter.reset();
+            self.orientation_filter.reset();
+        }
+        self.settings.filter = filter;
     }
 
     pub fn status(&self) -> TrackingStatus {
@@ -177,7 +188,8 @@ impl HeadTracker {
         self.window.latency_sum_ms += latency_ms;
         self.window.latency_max_ms = self.window.latency_max_ms.max(latency_ms);
         if let Some(interval) = frame_interval.filter(|i| !i.is_zero()) {
-            let frames = latency.as_secs_f64() / interval.as_secs_f64();
+            let waited = now.saturating_duration_since(sample.stored);
+            let frames = waited.as_secs_f64() / interval.as_secs_f64();
             self.window.latency_max_frames = self.window.latency_max_frames.max(frames);
         }
 
@@ -305,6 +317,7 @@ mod tests {
         TrackerSample {
             seq,
             arrived,
+            stored: arrived,
             position: Some(p),
             orientation: None,
             tracked: None,

@@ -21,6 +21,11 @@ use crate::cave::Head;
 /// level, and a 64 KiB datagram could otherwise nest thousands of levels deep.
 pub const MAX_BUNDLE_DEPTH: usize = 8;
 
+/// Deepest nesting of OSC arrays (`[` … `]` in a message's type tags) accepted. No head message
+/// uses arrays, but other senders' messages may; the decoder builds any depth, and dropping a
+/// value tens of thousands of arrays deep would overflow the receiver's stack.
+pub const MAX_ARRAY_DEPTH: usize = 4;
+
 /// The order of a quaternion's four numbers in a message (trackers disagree).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum QuaternionOrder {
@@ -160,13 +165,14 @@ enum Problem {
     NonFinite(String),
 }
 
-/// Refuses bundles nested deeper than [`MAX_BUNDLE_DEPTH`] by reading only bundle headers and
-/// element sizes (what the decoder would recurse into). Anything else malformed is left to the
-/// decoder.
+/// Refuses bundles nested deeper than [`MAX_BUNDLE_DEPTH`] and arrays deeper than
+/// [`MAX_ARRAY_DEPTH`], reading only bundle headers, element sizes and type tags (the
+/// structures the decoder would recurse into or build without bound). Anything else malformed
+/// is left to the decoder.
 fn check_nesting(bytes: &[u8], depth: usize) -> Result<(), String> {
     const TAG: &[u8] = b"#bundle\0";
     if !bytes.starts_with(TAG) {
-        return Ok(());
+        return check_arrays(bytes);
     }
     if depth >= MAX_BUNDLE_DEPTH {
         return Err(format!("bundles nested deeper than {MAX_BUNDLE_DEPTH}"));
@@ -180,6 +186,30 @@ fn check_nesting(bytes: &[u8], depth: usize) -> Result<(), String> {
         };
         check_nesting(element, depth + 1)?;
         rest = &rest[4 + size..];
+    }
+    Ok(())
+}
+
+/// A message's array nesting, from its type tag string (after the padded address).
+fn check_arrays(message: &[u8]) -> Result<(), String> {
+    let Some(end) = message.iter().position(|&b| b == 0) else {
+        return Ok(()); // no terminated address: the decoder reports it
+    };
+    let tags_start = (end / 4 + 1) * 4;
+    let tags = message.get(tags_start..).unwrap_or(&[]);
+    let tags = &tags[..tags.iter().position(|&b| b == 0).unwrap_or(tags.len())];
+    let mut depth = 0usize;
+    for &t in tags {
+        match t {
+            b'[' => {
+                depth += 1;
+                if depth > MAX_ARRAY_DEPTH {
+                    return Err(format!("arrays nested deeper than {MAX_ARRAY_DEPTH}"));
+                }
+            }
+            b']' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
     }
     Ok(())
 }
@@ -541,6 +571,29 @@ mod tests {
         let deeper = bundle(vec![packet]);
         assert!(matches!(
             decode_packet(&bytes(&deeper), &m),
+            PacketOutcome::Malformed(_)
+        ));
+    }
+
+    #[test]
+    fn deep_arrays_are_refused_before_decoding() {
+        // Arrays 30 000 deep are in tests/tracking_fuzz.rs (through the real thread too).
+        let m = OscMapping::default();
+        let nested = |depth: usize| {
+            let mut value = OscType::Int(1);
+            for _ in 0..depth {
+                value = OscType::Array(rosc::OscArray {
+                    content: vec![value],
+                });
+            }
+            bytes(&message("/other", vec![value]))
+        };
+        assert_eq!(
+            decode_packet(&nested(MAX_ARRAY_DEPTH), &m),
+            PacketOutcome::Ignored
+        );
+        assert!(matches!(
+            decode_packet(&nested(MAX_ARRAY_DEPTH + 1), &m),
             PacketOutcome::Malformed(_)
         ));
     }

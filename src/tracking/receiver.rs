@@ -38,6 +38,9 @@ pub struct TrackerSample {
     pub seq: u64,
     /// When the newest accepted packet came off the socket.
     pub arrived: Instant,
+    /// When it was decoded and stored for the render loop (microseconds after `arrived`,
+    /// unless the receiver thread was preempted in between).
+    pub stored: Instant,
     pub position: Option<Vec3>,
     pub orientation: Option<TrackedOrientation>,
     /// The tracker's own flag (NatNet `tracked`), if it sends one.
@@ -259,6 +262,7 @@ impl PacketSink {
         let sample = TrackerSample {
             seq: self.seq,
             arrived,
+            stored: Instant::now(),
             position: update.position.or(previous.and_then(|p| p.position)),
             orientation,
             tracked: update.tracked.or(previous.and_then(|p| p.tracked)),

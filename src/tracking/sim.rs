@@ -330,7 +330,12 @@ pub fn run(
     use std::time::{Duration, Instant};
 
     let sender = SimSender::new(options.target)?;
-    let period = Duration::from_secs_f64(1.0 / options.rate_hz.clamp(0.1, 10_000.0));
+    let rate = if options.rate_hz.is_finite() {
+        options.rate_hz.clamp(0.1, 10_000.0)
+    } else {
+        60.0
+    };
+    let period = Duration::from_secs_f64(1.0 / rate);
     let start = Instant::now();
     let mut sent = 0u64;
     let mut failed = super::receiver::LogLimiter::default();
@@ -403,6 +408,29 @@ mod tests {
         assert!(e.to_string().contains("does not come after"), "{e}");
         let e = parse_csv("0,nan,1.7,0\n", Path::new("p.csv")).expect_err("bad");
         assert!(e.to_string().contains("not a finite"), "{e}");
+    }
+
+    #[test]
+    fn euler_form_keeps_pitch_and_roll() {
+        // The decoder reads yaw, pitch, roll as Ry·Rx·Rz (Head::orientation_from_degrees); the
+        // simulator must write them in that order for any orientation, not only a yaw.
+        let q =
+            Quat::from_rotation_y(0.7) * Quat::from_rotation_x(-0.3) * Quat::from_rotation_z(0.2);
+        let pose = HeadPose {
+            position: Vec3::new(0.1, 1.6, -0.2),
+            orientation: Some(q),
+        };
+        let calibration = Calibration {
+            rotation: Quat::from_rotation_y(0.4),
+            ..Calibration::default()
+        };
+        let mapping = OscMapping::default();
+        let bytes = encode::bytes(&packet_for(pose, SimForm::Euler, &mapping, &calibration));
+        let PacketOutcome::Pose(u) = decode_packet(&bytes, &mapping) else {
+            panic!("euler packet");
+        };
+        let got = calibration.orientation_in_cave_axes(u.orientation_cave_axes.expect("ypr"));
+        assert!(got.angle_between(q) < 1e-4, "{got} vs {q}");
     }
 
     #[test]
