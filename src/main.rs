@@ -207,6 +207,10 @@ struct BenchArgs {
     /// Output folder.
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
+    /// Run the stability sweep instead (head positions over the whole CAVE, every warp
+    /// configuration): writes stability.md and stability.csv.
+    #[arg(long)]
+    stability: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -441,6 +445,38 @@ fn main() -> ExitCode {
     }
 }
 
+/// A progress bar on stderr while the bench runs (only on a terminal: logs stay clean).
+#[derive(Debug, Default)]
+struct ProgressBar {
+    started: Option<std::time::Instant>,
+}
+
+impl ProgressBar {
+    fn show(&mut self, done: usize, total: usize, what: &str) {
+        use std::io::{IsTerminal, Write};
+        let mut err = std::io::stderr();
+        if !err.is_terminal() {
+            return;
+        }
+        let start = *self.started.get_or_insert_with(std::time::Instant::now);
+        const WIDTH: usize = 30;
+        let filled = (done * WIDTH).checked_div(total).unwrap_or(WIDTH);
+        let elapsed = start.elapsed().as_secs();
+        let _ = write!(
+            err,
+            "\r[{}{}] {done}/{total} {}:{:02} {what:<60.60}",
+            "#".repeat(filled),
+            " ".repeat(WIDTH - filled),
+            elapsed / 60,
+            elapsed % 60
+        );
+        if done >= total {
+            let _ = writeln!(err);
+        }
+        let _ = err.flush();
+    }
+}
+
 /// The error and its causes on one line, each said once (an I/O error that a message already
 /// quotes is not repeated).
 fn error_text(e: &anyhow::Error) -> String {
@@ -500,16 +536,28 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             .context("omnicave stopped")?;
             Ok(())
         }
+        Command::Bench(args) if args.stability => {
+            for f in omnicave::bench::run_stability(&args.config, &args.out)
+                .context("stability sweep failed")?
+            {
+                tracing::info!("wrote {}", f.display());
+            }
+            Ok(())
+        }
         Command::Bench(args) => {
-            let report = omnicave::bench::run(&omnicave::bench::BenchOptions {
-                config: args.config,
-                scenes: args.scene,
-                sky: args.skybox,
-                out: args.out,
-                quick: args.quick,
-                frames: args.frames.map(|f| f as usize),
-                size: args.size,
-            })
+            let mut bar = ProgressBar::default();
+            let report = omnicave::bench::run(
+                &omnicave::bench::BenchOptions {
+                    config: args.config,
+                    scenes: args.scene,
+                    sky: args.skybox,
+                    out: args.out,
+                    quick: args.quick,
+                    frames: args.frames.map(|f| f as usize),
+                    size: args.size,
+                },
+                &mut |done, total, what| bar.show(done, total, what),
+            )
             .context("bench failed")?;
             tracing::info!("adapter: {}", report.adapter);
             for f in &report.files {

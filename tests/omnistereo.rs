@@ -7,8 +7,8 @@ mod common;
 use common::*;
 use glam::{Mat4, Vec2, Vec3};
 use image::RgbaImage;
-use omnicave::cave::omni::{OmniSettings, PoleMerge, WarpVariant, omni_eye, wall_plane, warp};
-use omnicave::cave::{Cave, Eye, Head, RenderMode, Wall, off_axis_projection};
+use omnicave::cave::omni::{PoleMerge, omni_eye};
+use omnicave::cave::{Cave, Eye, Head, RenderMode, Wall};
 use omnicave::render::RenderSettings;
 use omnicave::scene::load_gltf;
 
@@ -227,229 +227,24 @@ fn every_horizontal_direction_has_the_disparity_of_a_viewer_facing_it() {
     assert!(checked >= 16, "only {checked} directions checked");
 }
 
-// ------------------------------------------------------------------ stability sweep (CPU)
-
-/// Failure counts of one warp configuration over the sweep.
-#[derive(Debug, Default, Clone, Copy)]
-struct Failures {
-    vertices: usize,
-    triangles: usize,
-    non_finite: usize,
-    ghost_vertices: usize,
-    misplaced_vertices: usize,
-    exploded_triangles: usize,
-    torn_triangles: usize,
-}
-
-fn project(m: Mat4, wall: &Wall, near: f32, p: Vec3) -> Option<Vec2> {
-    let clip = m * p.extend(1.0);
-    if !clip.is_finite() || clip.w <= near {
-        return None;
-    }
-    Some(Vec2::new(
-        (clip.x / clip.w * 0.5 + 0.5) * wall.resolution[0] as f32,
-        (0.5 - clip.y / clip.w * 0.5) * wall.resolution[1] as f32,
-    ))
-}
-
-fn diag(points: &[Vec2]) -> f32 {
-    let lo = points
-        .iter()
-        .fold(Vec2::splat(f32::INFINITY), |a, p| a.min(*p));
-    let hi = points
-        .iter()
-        .fold(Vec2::splat(f32::NEG_INFINITY), |a, p| a.max(*p));
-    (hi - lo).length()
-}
-
-/// Triangles around `head`: small ones (flag `true`) in every direction including 0.1° from
-/// the poles, behind the viewer and along the seams, near and far, plus large ones spanning
-/// walls and the pole (whose corners rightly have different eyes).
-fn sweep_triangles(head: Vec3) -> Vec<([Vec3; 3], bool)> {
-    let mut tris = Vec::new();
-    for az in (0..360).step_by(30) {
-        for el in [-89.9f32, -80.0, -45.0, 0.0, 30.0, 70.0, 85.0, 89.9] {
-            for dist in [0.4f32, 2.0, 12.0] {
-                let (a, e) = ((az as f32 + 7.0).to_radians(), el.to_radians());
-                let dir = Vec3::new(-a.sin() * e.cos(), e.sin(), -a.cos() * e.cos());
-                let centre = head + dist * dir;
-                let side = dir.cross(Vec3::Y).normalize_or(Vec3::X);
-                let up = side.cross(dir).normalize();
-                let s = 0.08 * dist;
-                tris.push((
-                    [centre - s * side, centre + s * side, centre + s * up],
-                    true,
-                ));
-            }
-        }
-    }
-    // Large triangles crossing the wall seams and the pole.
-    for k in 0..8 {
-        let a = (k as f32 * 45.0 + 10.0).to_radians();
-        let b = a + 70f32.to_radians();
-        let p = |ang: f32, d: f32, y: f32| head + Vec3::new(-ang.sin() * d, y, -ang.cos() * d);
-        tris.push((
-            [p(a, 4.0, -1.0), p(b, 4.0, -1.0), p(0.5 * (a + b), 4.0, 1.5)],
-            false,
-        ));
-        tris.push((
-            [
-                p(a, 0.6, 1.0),
-                p(b, 0.6, 1.0),
-                p(a + std::f32::consts::PI, 0.6, 1.2),
-            ],
-            false,
-        ));
-    }
-    tris
-}
-
-fn sweep(cave: &Cave, settings: OmniSettings) -> Failures {
-    let mut f = Failures::default();
-    let coords = [-1.60f32, -1.0, -0.3, 0.3, 1.0, 1.60];
-    let heights = [0.3f32, 1.2, 1.8, 2.85];
-    let c = cave.projection_centre;
-    let projections: Vec<(Mat4, glam::Vec4)> = cave
-        .walls
-        .iter()
-        .map(|w| {
-            (
-                off_axis_projection(w, c, cave.near, cave.far).clip_from_cave,
-                wall_plane(w),
-            )
-        })
-        .collect();
-    for &x in &coords {
-        for &z in &coords {
-            for &y in &heights {
-                let head = Vec3::new(x, y, z);
-                for (tri, small) in sweep_triangles(head) {
-                    for (wall, (m, plane)) in cave.walls.iter().zip(&projections) {
-                        for eye in Eye::BOTH {
-                            f.triangles += 1;
-                            let eyes =
-                                tri.map(|v| omni_eye(head, v, IPD, eye, settings.pole_merge));
-                            // Torn: two corners of one small triangle whose eyes jumped by more
-                            // than half the IPD (eyes flipping across the pole).
-                            let torn = small
-                                && (0..3)
-                                    .any(|i| (eyes[i] - eyes[(i + 1) % 3]).length() > 0.5 * IPD);
-                            let mut drawn = [None; 3];
-                            let mut exact = [None; 3];
-                            for i in 0..3 {
-                                f.vertices += 1;
-                                let warped = warp(settings.warp, tri[i], eyes[i], c, *plane);
-                                if !warped.is_finite() {
-                                    f.non_finite += 1;
-                                    continue;
-                                }
-                                drawn[i] = project(*m, wall, cave.near, warped);
-                                exact[i] = wall.pixel_of_ray(eyes[i], tri[i]);
-                                match (drawn[i], exact[i]) {
-                                    (Some(_), None) => f.ghost_vertices += 1,
-                                    (Some(d), Some(e)) if (d - e).length() > 1.0 => {
-                                        f.misplaced_vertices += 1;
-                                    }
-                                    _ => {}
-                                }
-                            }
-                            if torn && drawn.iter().any(Option::is_some) {
-                                f.torn_triangles += 1;
-                            }
-                            // Exploded: drawn far larger than the exact image of the triangle
-                            // (its edges sampled and seen each from its own eye) says.
-                            if let [Some(a), Some(b), Some(cc)] = drawn {
-                                let mut samples = Vec::with_capacity(24);
-                                let mut complete = exact.iter().all(Option::is_some);
-                                for i in 0..3 {
-                                    for s in 0..8 {
-                                        let p = tri[i].lerp(tri[(i + 1) % 3], s as f32 / 8.0);
-                                        let e = omni_eye(head, p, IPD, eye, settings.pole_merge);
-                                        match wall.pixel_of_ray(e, p) {
-                                            Some(px) => samples.push(px),
-                                            None => complete = false,
-                                        }
-                                    }
-                                }
-                                let drawn_size = diag(&[a, b, cc]);
-                                let exact_size = if samples.is_empty() {
-                                    0.0
-                                } else {
-                                    diag(&samples)
-                                };
-                                if (complete && drawn_size > 2.0 * exact_size + 10.0)
-                                    || (!complete && samples.is_empty() && drawn_size > 10.0)
-                                {
-                                    f.exploded_triangles += 1;
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-    f
-}
-
 #[test]
 fn stability_sweep_similar_triangles_never_fail_and_the_others_are_counted() {
+    use omnicave::bench::stability::{configurations, markdown, sweep};
     let cave = omnicave::cave::thesis_cave();
-    let pole = Some(PoleMerge::default());
-    let configs = [
-        (
-            "similar triangles, pole merge 60–75°",
-            WarpVariant::SimilarTriangles,
-            pole,
-        ),
-        (
-            "intersection point, pole merge 60–75°",
-            WarpVariant::IntersectionPoint,
-            pole,
-        ),
-        (
-            "similar triangles, pole merge off",
-            WarpVariant::SimilarTriangles,
-            None,
-        ),
-    ];
-    println!(
-        "{:<40} {:>9} {:>9} {:>10} {:>6} {:>10} {:>9} {:>6}",
-        "warp", "vertices", "triangles", "non-finite", "ghost", "misplaced", "exploded", "torn"
-    );
-    let mut results = Vec::new();
-    for (name, warp_variant, pole_merge) in configs {
-        let f = sweep(
-            &cave,
-            OmniSettings {
-                warp: warp_variant,
-                pole_merge,
-            },
-        );
-        println!(
-            "{name:<40} {:>9} {:>9} {:>10} {:>6} {:>10} {:>9} {:>6}",
-            f.vertices,
-            f.triangles,
-            f.non_finite,
-            f.ghost_vertices,
-            f.misplaced_vertices,
-            f.exploded_triangles,
-            f.torn_triangles
-        );
-        results.push(f);
-    }
-    let similar = results[0];
-    assert_eq!(similar.non_finite, 0);
-    assert_eq!(similar.ghost_vertices, 0);
-    assert_eq!(similar.misplaced_vertices, 0);
-    assert_eq!(similar.exploded_triangles, 0);
-    assert_eq!(similar.torn_triangles, 0);
+    let results: Vec<_> = configurations()
+        .into_iter()
+        .map(|(name, settings)| (name, sweep(&cave, IPD, settings)))
+        .collect();
+    println!("{}", markdown(&results));
+    let similar = results[0].1;
+    assert_eq!(similar.heads, 144);
+    assert_eq!(similar.total(), 0, "{similar:?}");
     // The methods the thesis says fail must show it here.
-    let intersection = results[1];
+    let intersection = results[1].1;
     assert!(
         intersection.ghost_vertices + intersection.non_finite + intersection.exploded_triangles > 0
     );
-    let no_pole = results[2];
+    let no_pole = results[2].1;
     assert!(no_pole.torn_triangles > 0);
 }
 

@@ -125,6 +125,76 @@ pub fn edge_errors(
     per_edge.into_values().collect()
 }
 
+/// Error samples along every drawn source edge of `out` in view `drawn`, against the exact
+/// image of the same points in view `ideal` (the same wall and eye in omnistereo, where every
+/// point is seen from its own eye; `ideal` may be `drawn` itself). Samples are spaced about
+/// `spacing_px` apart along the drawn segment (at least 2, at most 256 per segment), so the
+/// distribution weighs edges by their length on screen: its 99th percentile says how much of
+/// the picture is wrong by more than that, its maximum how wrong the worst edge is. Points the
+/// ideal shows on an edge that is not drawn at all (wholly behind the near plane) count as off
+/// by the image's diagonal.
+pub fn edge_error_samples(
+    scene: &Scene,
+    drawn: &TessView<'_>,
+    out: &TessOutput,
+    ideal: &TessView<'_>,
+    spacing_px: f32,
+) -> Vec<f32> {
+    let [w, h] = ideal.wall.resolution.map(|v| v as f32);
+    let mut errors = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for tri in &out.triangles {
+        let p = source_positions(scene, tri.source);
+        let corners = tri.corners.map(|c| project(drawn, point_position(p, c)));
+        for k in 0..3 {
+            let (a, b) = (tri.corners[k], tri.corners[(k + 1) % 3]);
+            let zero = |c: Bary| [c.b0() == 0, c.b1 == 0, c.b2 == 0];
+            if !(0..3).any(|i| zero(a)[i] && zero(b)[i]) {
+                continue; // an interior edge: not a scene edge
+            }
+            // Each sub-edge once (neighbouring output triangles share it).
+            let key = (tri.source, a.min(b), a.max(b));
+            if !seen.insert(key) {
+                continue;
+            }
+            // An edge wholly behind the near plane is not drawn at all: whatever of it the
+            // ideal shows is missing, counted as off by the image's diagonal.
+            let segment = drawn_segment(corners[k], corners[(k + 1) % 3], drawn);
+            let length = segment.map_or(
+                (project(ideal, point_position(p, a)).pixel
+                    - project(ideal, point_position(p, b)).pixel)
+                    .length(),
+                |(da, db)| (da - db).length(),
+            );
+            let n = if length.is_finite() {
+                (length / spacing_px.max(0.1)).clamp(2.0, 256.0) as u32
+            } else {
+                256
+            };
+            for i in 0..=n {
+                let s = i as f32 / n as f32;
+                let (b1, b2) = lerp_bary(a, b, s);
+                let inv = 1.0 / super::BARY_ONE as f32;
+                let (w1, w2) = (b1 * inv, b2 * inv);
+                let world = (1.0 - w1 - w2) * p[0] + w1 * p[1] + w2 * p[2];
+                let exact = project(ideal, world);
+                if exact.clip.w <= ideal.near {
+                    continue;
+                }
+                let q = exact.pixel;
+                if !q.is_finite() || q.x < 0.0 || q.y < 0.0 || q.x > w || q.y > h {
+                    continue;
+                }
+                errors.push(match segment {
+                    Some((da, db)) => point_segment_distance(q, da, db),
+                    None => w.hypot(h),
+                });
+            }
+        }
+    }
+    errors
+}
+
 /// Where the rasteriser draws the scene point `world`, which lies on source triangle `source`
 /// at barycentric weights (w1, w2): inside the output triangle that contains it, the point is
 /// interpolated linearly between the *warped* corners (perspective-correct interpolation is

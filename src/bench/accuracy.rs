@@ -1,0 +1,85 @@
+//! Accuracy of a bench method, from the CPU twin: the geometric error of what the method draws
+//! against the exact omnistereo image (every point seen from its own eye), and the triangles it
+//! draws after culling and tessellation.
+
+use glam::{Mat4, Vec3};
+
+use super::Method;
+use crate::cave::{Head, RenderMode, view_setups};
+use crate::config::Config;
+use crate::scene::Scene;
+use crate::tess::error::{ErrorStats, edge_error_samples};
+use crate::tess::{TessSettings, double_sided_flags, tess_view, tessellate};
+
+/// Output budget of the CPU twin per view (the GPU's default is 1 M; the CPU twin needs no
+/// more than the largest setting the bench uses).
+const CAPACITY: usize = 1 << 21;
+/// Spacing of error samples along drawn edges, pixels.
+const SAMPLE_SPACING_PX: f32 = 4.0;
+
+/// What a method draws and how far it is from the omnistereo ideal.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Accuracy {
+    pub error: ErrorStats,
+    /// Source triangles over all views, before culling.
+    pub input: u64,
+    /// Culled before drawing (back faces, warp-aware frustum) over all views.
+    pub culled: u64,
+    /// Triangles drawn over all views.
+    pub emitted: u64,
+}
+
+/// The accuracy of `method` for `scene` seen from `head`, every wall and eye of the config.
+///
+/// The ideal is the omnistereo image: each point where the ray from its own eye meets the wall
+/// (the off-axis warp's projection, which puts vertices exactly there). Off-axis stereo and
+/// mono are measured against it too, so their error is the wrong parallax of directions away
+/// from the assumed view direction; mono against both eyes.
+pub fn accuracy(
+    config: &Config,
+    scene: &Scene,
+    head: Vec3,
+    world_from_cave: Mat4,
+    method: &Method,
+) -> Accuracy {
+    let cave = &config.cave;
+    let head = Head::at(head);
+    let ipd = config.eye_separation;
+    let omni = config.omni;
+    let ideal_views = view_setups(cave, &head, RenderMode::OmniOffAxis, ipd);
+    let flags = double_sided_flags(scene);
+    let settings = if method.mode.is_omni() {
+        method.tess
+    } else {
+        // Without the warp nothing is tessellated; culling as the compute pass would.
+        TessSettings {
+            criterion: None,
+            ..method.tess
+        }
+    };
+    let mut samples = Vec::new();
+    let mut result = Accuracy::default();
+    for view in view_setups(cave, &head, method.mode, ipd) {
+        let wall = &cave.walls[view.wall];
+        let drawn = tess_view(&view, wall, world_from_cave, Some(omni), cave.near);
+        let out = tessellate(scene, &flags, &drawn, &settings, CAPACITY);
+        result.input += u64::from(out.stats.input);
+        result.culled += u64::from(out.stats.culled_backface + out.stats.culled_frustum);
+        result.emitted += u64::from(out.stats.emitted);
+        for ideal in ideal_views
+            .iter()
+            .filter(|i| i.wall == view.wall && (view.eye.is_none() || i.eye == view.eye))
+        {
+            let ideal = tess_view(ideal, wall, world_from_cave, Some(omni), cave.near);
+            samples.extend(edge_error_samples(
+                scene,
+                &drawn,
+                &out,
+                &ideal,
+                SAMPLE_SPACING_PX,
+            ));
+        }
+    }
+    result.error = ErrorStats::from_samples(samples);
+    result
+}

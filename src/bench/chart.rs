@@ -1,0 +1,312 @@
+//! The speed-against-accuracy chart of the bench, written as SVG by hand (no plotting
+//! dependency): frame time against 99th-percentile error on log axes, one series per method
+//! family, the Pareto front marked.
+
+use std::fmt::Write as _;
+
+/// One method on the chart.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChartPoint {
+    /// The series (render mode and criterion kind).
+    pub family: String,
+    /// The point's own label (the criterion's parameter, or empty).
+    pub label: String,
+    pub time_ms: f64,
+    pub error_px: f64,
+}
+
+/// Smallest error drawn: exact methods (0 px) sit on this floor, labelled as such.
+pub const ERROR_FLOOR_PX: f64 = 0.001;
+
+/// Indices of the points no other point beats in both time and error (ties kept), in order
+/// of increasing time.
+pub fn pareto_front(points: &[ChartPoint]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i].time_ms.is_finite() && points[i].error_px.is_finite())
+        .collect();
+    order.sort_by(|&a, &b| {
+        points[a]
+            .time_ms
+            .total_cmp(&points[b].time_ms)
+            .then(points[a].error_px.total_cmp(&points[b].error_px))
+    });
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in order {
+        if points[i].error_px < best {
+            best = points[i].error_px;
+            front.push(i);
+        }
+    }
+    front
+}
+
+const PALETTE: [&str; 10] = [
+    "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2",
+    "#7f7f7f", "#bcbd22",
+];
+
+/// Log-scale axis: the decades and 2/5 steps covering `lo..hi`.
+fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let mut ticks = Vec::new();
+    let mut decade = 10f64.powf(lo.log10().floor());
+    while decade <= hi * 1.0001 {
+        for m in [1.0, 2.0, 5.0] {
+            let t = decade * m;
+            if t >= lo * 0.9999 && t <= hi * 1.0001 {
+                ticks.push(t);
+            }
+        }
+        decade *= 10.0;
+    }
+    ticks
+}
+
+fn tick_label(v: f64) -> String {
+    if v >= 1.0 {
+        format!("{v:.0}")
+    } else {
+        let digits = (-v.log10().floor()) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+/// Padded log range of positive values.
+fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for v in values.filter(|v| v.is_finite() && *v > 0.0) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.1, 10.0);
+    }
+    (
+        10f64.powf(lo.log10().floor()),
+        10f64.powf((hi * 1.05).log10().ceil()),
+    )
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// The chart as an SVG document.
+pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
+    let (w, h) = (960.0, 600.0);
+    let (left, right, top, bottom) = (80.0, 290.0, 70.0, 70.0);
+    let (pw, ph) = (w - left - right, h - top - bottom);
+    let shown = |p: &ChartPoint| p.error_px.max(ERROR_FLOOR_PX);
+    let (x0, x1) = log_range(points.iter().map(|p| p.time_ms));
+    let (y0, y1) = log_range(points.iter().map(shown));
+    let y0 = y0.min(ERROR_FLOOR_PX);
+    let sx = |v: f64| left + (v.log10() - x0.log10()) / (x1.log10() - x0.log10()) * pw;
+    let sy = |v: f64| top + ph - (v.log10() - y0.log10()) / (y1.log10() - y0.log10()) * ph;
+
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="Ubuntu, DejaVu Sans, Arial, sans-serif" font-size="13">"#
+    );
+    let _ = writeln!(out, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    let _ = writeln!(
+        out,
+        r#"<text x="{left}" y="28" font-size="18" font-weight="bold">{}</text>"#,
+        escape(title)
+    );
+    let _ = writeln!(
+        out,
+        r##"<text x="{left}" y="50" fill="#444">{}</text>"##,
+        escape(subtitle)
+    );
+    // Grid and ticks.
+    for t in log_ticks(x0, x1) {
+        let x = sx(t);
+        let _ = writeln!(
+            out,
+            r##"<line x1="{x:.1}" y1="{top}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
+            top + ph,
+            top + ph + 18.0,
+            tick_label(t)
+        );
+    }
+    for t in log_ticks(y0, y1) {
+        let y = sy(t);
+        let label = if (t - ERROR_FLOOR_PX).abs() < 1e-12 {
+            "≤ 0.001".to_owned()
+        } else {
+            tick_label(t)
+        };
+        let _ = writeln!(
+            out,
+            r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{label}</text>"##,
+            left + pw,
+            left - 6.0,
+            y + 4.0
+        );
+    }
+    let _ = writeln!(
+        out,
+        r#"<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
+    );
+    let _ = writeln!(
+        out,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">frame time of the whole stereo frame, ms (log)</text>"#,
+        left + pw / 2.0,
+        h - 22.0
+    );
+    let _ = writeln!(
+        out,
+        r#"<text transform="translate(22 {:.1}) rotate(-90)" text-anchor="middle">99th-percentile geometric error, px (log)</text>"#,
+        top + ph / 2.0
+    );
+
+    // Series: points of one family joined in the order given (coarse to fine).
+    let mut families: Vec<&str> = Vec::new();
+    for p in points {
+        if !families.contains(&p.family.as_str()) {
+            families.push(&p.family);
+        }
+    }
+    for (k, family) in families.iter().enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        let members: Vec<&ChartPoint> = points.iter().filter(|p| p.family == *family).collect();
+        if members.len() > 1 {
+            let path: Vec<String> = members
+                .iter()
+                .map(|p| format!("{:.1},{:.1}", sx(p.time_ms), sy(shown(p))))
+                .collect();
+            let _ = writeln!(
+                out,
+                r#"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="1.5"/>"#,
+                path.join(" ")
+            );
+        }
+        for p in &members {
+            let (x, y) = (sx(p.time_ms), sy(shown(p)));
+            let _ = writeln!(
+                out,
+                r#"<circle cx="{x:.1}" cy="{y:.1}" r="4.5" fill="{colour}"/>"#
+            );
+            if !p.label.is_empty() {
+                let _ = writeln!(
+                    out,
+                    r#"<text x="{:.1}" y="{:.1}" font-size="10" fill="{colour}">{}</text>"#,
+                    x + 6.0,
+                    y - 5.0,
+                    escape(&p.label)
+                );
+            }
+        }
+        let ly = top + 10.0 + 20.0 * k as f64;
+        let lx = left + pw + 20.0;
+        let _ = writeln!(
+            out,
+            r#"<circle cx="{lx:.1}" cy="{ly:.1}" r="4.5" fill="{colour}"/><text x="{:.1}" y="{:.1}">{}</text>"#,
+            lx + 10.0,
+            ly + 4.0,
+            escape(family)
+        );
+    }
+    // The Pareto front: rings and a dashed staircase.
+    let front = pareto_front(points);
+    let mut stairs = Vec::new();
+    for (n, &i) in front.iter().enumerate() {
+        let (x, y) = (sx(points[i].time_ms), sy(shown(&points[i])));
+        if n > 0 {
+            let prev_y = sy(shown(&points[front[n - 1]]));
+            stairs.push(format!("{x:.1},{prev_y:.1}"));
+        }
+        stairs.push(format!("{x:.1},{y:.1}"));
+        let _ = writeln!(
+            out,
+            r#"<circle cx="{x:.1}" cy="{y:.1}" r="8" fill="none" stroke="black" stroke-width="1.5"/>"#
+        );
+    }
+    if stairs.len() > 1 {
+        let _ = writeln!(
+            out,
+            r#"<polyline points="{}" fill="none" stroke="black" stroke-dasharray="5,4"/>"#,
+            stairs.join(" ")
+        );
+    }
+    let ly = top + 10.0 + 20.0 * families.len() as f64 + 10.0;
+    let lx = left + pw + 20.0;
+    let _ = writeln!(
+        out,
+        r#"<circle cx="{lx:.1}" cy="{ly:.1}" r="8" fill="none" stroke="black" stroke-width="1.5"/><text x="{:.1}" y="{:.1}">Pareto front (nothing faster</text><text x="{:.1}" y="{:.1}">is also more accurate)</text>"#,
+        lx + 14.0,
+        ly + 4.0,
+        lx + 14.0,
+        ly + 20.0
+    );
+    out.push_str("</svg>\n");
+    out
+}
+
+/// The chart rendered to PNG (the SVG through resvg, text in egui's bundled Ubuntu font).
+pub fn png(svg: &str) -> Result<Vec<u8>, String> {
+    let mut options = resvg::usvg::Options::default();
+    options
+        .fontdb_mut()
+        .load_font_data(epaint_default_fonts::UBUNTU_LIGHT.to_vec());
+    options.fontdb_mut().set_sans_serif_family("Ubuntu");
+    let tree = resvg::usvg::Tree::from_str(svg, &options).map_err(|e| e.to_string())?;
+    let size = tree.size().to_int_size();
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(size.width(), size.height())
+        .ok_or_else(|| format!("cannot make a {size:?} image"))?;
+    resvg::render(
+        &tree,
+        resvg::tiny_skia::Transform::default(),
+        &mut pixmap.as_mut(),
+    );
+    pixmap.encode_png().map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(family: &str, t: f64, e: f64) -> ChartPoint {
+        ChartPoint {
+            family: family.into(),
+            label: String::new(),
+            time_ms: t,
+            error_px: e,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_points() {
+        let points = [
+            p("a", 10.0, 5.0),
+            p("b", 12.0, 6.0), // slower and worse than a
+            p("c", 15.0, 0.5),
+            p("d", 20.0, 0.5), // slower, not better than c
+            p("e", 30.0, 0.0),
+        ];
+        assert_eq!(pareto_front(&points), vec![0, 2, 4]);
+    }
+
+    #[test]
+    fn svg_has_axes_units_legend_and_every_point() {
+        let points = [
+            p("stereo", 10.0, 3.0),
+            p("omni", 12.0, 0.0),
+            p("omni", 20.0, 0.2),
+        ];
+        let s = svg(&points, "title", "sub");
+        assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
+        assert!(s.contains("frame time of the whole stereo frame, ms (log)"));
+        assert!(s.contains("geometric error, px (log)"));
+        assert!(s.contains(">stereo</text>") && s.contains(">omni</text>"));
+        // Three points, three legend dots, plus rings of the front.
+        assert!(s.matches("r=\"4.5\"").count() == 5, "{s}");
+        assert_eq!(
+            log_ticks(1.0, 100.0),
+            vec![1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0]
+        );
+    }
+}

@@ -1,0 +1,189 @@
+//! `omnicave bench --quick` for real (headless, lavapipe in CI): its files are complete and
+//! sane — every method for every case, errors finite and ordered, the recommended
+//! configuration within its error target, the report's answers and a readable chart.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::process::Command;
+
+use omnicave::bench::{TARGET_P99_PX, methods};
+
+#[test]
+fn quick_bench_writes_complete_and_sane_results() {
+    let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-out/bench-quick");
+    let _ = std::fs::remove_dir_all(&out);
+    let run = Command::new(env!("CARGO_BIN_EXE_omnicave"))
+        .args(["bench", "--quick", "--config", "config/cave.toml", "--out"])
+        .arg(&out)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run the bench");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "bench failed:\n{stderr}");
+
+    let csv = std::fs::read_to_string(out.join("results.csv")).expect("results.csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for r in &rows {
+        assert_eq!(r.len(), header.len(), "{r:?}");
+    }
+    let (scene, head, method) = (col("scene"), col("head"), col("method"));
+    let num = |r: &[&str], c: &str| -> f64 { r[col(c)].parse().unwrap_or(f64::NAN) };
+
+    // Every method for every case: the config's scene and the city, and the sky alone, each
+    // at the quick run's two heads.
+    let mut cases: HashMap<(String, String), Vec<String>> = HashMap::new();
+    for r in &rows {
+        cases
+            .entry((r[scene].into(), r[head].into()))
+            .or_default()
+            .push(r[method].into());
+    }
+    assert_eq!(cases.len(), 3 * 2, "{:?}", cases.keys());
+    let expected: Vec<String> = methods(true).iter().map(|m| m.name.clone()).collect();
+    for (case, got) in &cases {
+        assert_eq!(got, &expected, "{case:?}");
+    }
+
+    for r in &rows {
+        let what = format!("{} / {} / {}", r[scene], r[head], r[method]);
+        let median = num(r, "median_ms");
+        assert!(
+            median > 0.0 && median.is_finite(),
+            "{what}: median {median}"
+        );
+        assert!(
+            num(r, "min_ms") <= median && median <= num(r, "max_ms"),
+            "{what}"
+        );
+        if r[scene] == "sky only" {
+            assert_eq!(
+                r[col("error_p99_px")],
+                "",
+                "{what}: the sky alone has no edges"
+            );
+            continue;
+        }
+        let (p99, max) = (num(r, "error_p99_px"), num(r, "error_max_px"));
+        assert!(
+            p99.is_finite() && max.is_finite() && p99 >= 0.0 && p99 <= max,
+            "{what}: p99 {p99}, max {max}"
+        );
+        assert!(num(r, "error_samples") > 1000.0, "{what}");
+        assert!(num(r, "cpu_drawn_triangles") > 0.0, "{what}");
+    }
+
+    // The recommended configuration (omnistereo, off-axis warp, error:0.5) meets its target
+    // everywhere; off-axis stereo, with the wrong parallax away from the front wall, does not.
+    let p99_of = |s: &str, h: &str, m: &str| {
+        let r = rows
+            .iter()
+            .find(|r| r[scene] == s && r[head] == h && r[method] == m)
+            .unwrap_or_else(|| panic!("no row {s} / {h} / {m}"));
+        num(r, "error_p99_px")
+    };
+    for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
+        let reference = p99_of(s, h, "omni-offaxis + tess error:0.5");
+        let stereo = p99_of(s, h, "stereo");
+        println!("{s}, {h}: p99 error:0.5 {reference:.3} px, stereo {stereo:.3} px");
+        assert!(
+            reference <= f64::from(TARGET_P99_PX),
+            "{s}, {h}: {reference}"
+        );
+        assert!(stereo > 2.0 * reference, "{s}, {h}: stereo {stereo}");
+    }
+
+    let report = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    for needle in [
+        "adapter:",
+        "## Speed against accuracy: living-room",
+        "## Speed against accuracy: city",
+        "**At ≤ 0.5 px p99 error** (living-room): the fastest omnistereo + tessellation method is",
+        "× off-axis stereo",
+        "| omni-offaxis + tess error | error:",
+        "●",
+    ] {
+        assert!(report.contains(needle), "report.md lacks '{needle}'");
+    }
+
+    let svg = std::fs::read_to_string(out.join("speed-vs-accuracy.svg")).expect("svg");
+    for label in [
+        "ms (log)",
+        "px (log)",
+        ">stereo<",
+        ">omni-offaxis + tess error<",
+        "Pareto front",
+    ] {
+        assert!(svg.contains(label), "chart lacks '{label}'");
+    }
+    let png = image::open(out.join("speed-vs-accuracy.png")).expect("png");
+    assert_eq!((png.width(), png.height()), (960, 600));
+    // Text and points drawn, not a blank image: a good share of non-white pixels.
+    let ink = png
+        .to_rgb8()
+        .pixels()
+        .filter(|p| p.0.iter().any(|&c| c < 200))
+        .count();
+    assert!(ink > 5_000, "{ink} inked pixels");
+}
+
+#[test]
+fn stability_sweep_writes_its_table_and_the_failing_methods_fail() {
+    let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-out/bench-stability");
+    let _ = std::fs::remove_dir_all(&out);
+    let run = Command::new(env!("CARGO_BIN_EXE_omnicave"))
+        .args([
+            "bench",
+            "--stability",
+            "--config",
+            "config/cave.toml",
+            "--out",
+        ])
+        .arg(&out)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run the sweep");
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("stability.csv")).expect("stability.csv");
+    let rows: Vec<Vec<u64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .skip(1)
+                .map(|v| v.parse().expect("count"))
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    // heads, vertices, triangles, non-finite, ghost, misplaced, exploded, torn
+    let failures = |r: &[u64]| r[3..].iter().sum::<u64>();
+    assert_eq!(rows[0][0], 144);
+    assert_eq!(
+        failures(&rows[0]),
+        0,
+        "recommended configuration failed: {csv}"
+    );
+    assert!(
+        rows[1][4] > 0 && rows[1][6] > 0,
+        "intersection point: {csv}"
+    );
+    assert!(rows[2][7] > 0, "pole merge off: {csv}");
+    let md = std::fs::read_to_string(out.join("stability.md")).expect("stability.md");
+    assert!(md.contains("no failure of any kind"), "{md}");
+}
