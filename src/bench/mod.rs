@@ -17,7 +17,7 @@ use accuracy::Accuracy;
 use crate::cave::{Head, RenderMode};
 use crate::config::{Config, ConfigError};
 use crate::headless::frame_params;
-use crate::render::{Gpu, RenderError, RenderSettings, Renderer};
+use crate::render::{Gpu, RenderError, RenderSettings, Renderer, WallImages};
 use crate::scene::{Scene, SceneError, load_gltf};
 use crate::sky::{CubeMap, SkyError, SkyMode, load_sky};
 use crate::tess::{Criterion, TessSettings};
@@ -181,6 +181,9 @@ pub struct Row {
     pub drawn_triangles: usize,
     /// Error against the omnistereo ideal and the CPU twin's counts (`None`: the sky alone).
     pub accuracy: Option<Accuracy>,
+    /// Share of eye-image pixels (%) that differ visibly from the reference render
+    /// (`None`: the sky alone).
+    pub image_diff_pct: Option<f64>,
 }
 
 impl Row {
@@ -440,6 +443,25 @@ fn measure(
             }));
         }
     }
+    // The picture against the reference render (one read-back per method, outside the timing).
+    let mut diffs: Vec<Option<f64>> = vec![None; methods.len()];
+    if scene.is_some() {
+        renderer.render(&params(&reference_method()))?;
+        let reference = renderer.read_images()?;
+        for (i, m) in methods.iter().enumerate() {
+            let base = methods[..i]
+                .iter()
+                .position(|o| o.mode == m.mode && o.tess == m.tess)
+                .and_then(|j| diffs[j]);
+            diffs[i] = Some(match base {
+                Some(d) => d,
+                None => {
+                    renderer.render(&params(m))?;
+                    image_difference_pct(&renderer.read_images()?, &reference)
+                }
+            });
+        }
+    }
     Ok(methods
         .iter()
         .enumerate()
@@ -459,6 +481,7 @@ fn measure(
                 input_triangles: input,
                 drawn_triangles: drawn[i],
                 accuracy: accuracies[i],
+                image_diff_pct: diffs[i],
             }
         })
         .collect())
@@ -507,7 +530,7 @@ fn write_outputs(
         "scene,head,method,mode,tessellation,sky,frames,timer,median_ms,p25_ms,p75_ms,min_ms,\
          max_ms,wall_median_ms,input_triangles,drawn_triangles,ratio_to_stereo,ratio_to_no_sky,\
          error_max_px,error_p99_px,error_samples,cpu_input_triangles,cpu_culled_triangles,\
-         cpu_drawn_triangles\n",
+         cpu_drawn_triangles,image_diff_pct\n",
     );
     for r in rows {
         let ratio = |other: Option<&Row>| {
@@ -521,7 +544,7 @@ fn write_outputs(
         });
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{accuracy}",
+            "{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{accuracy},{}",
             r.scene,
             r.head,
             r.method.name,
@@ -547,6 +570,8 @@ fn write_outputs(
             } else {
                 String::new()
             },
+            r.image_diff_pct
+                .map_or(String::new(), |d| format!("{d:.3}")),
         );
     }
     let csv_path = options.out.join("results.csv");
@@ -729,6 +754,8 @@ pub struct MethodSummary {
     /// Worst over heads.
     pub error_p99: f32,
     pub error_max: f32,
+    /// Worst over heads: share of pixels differing visibly from the reference render, %.
+    pub image_diff_pct: f64,
     /// Largest over heads (CPU twin, all views).
     pub drawn_triangles: u64,
 }
@@ -796,6 +823,10 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                         ratio_to_stereo: ratio,
                         error_p99: acc(|a| a.error.p99),
                         error_max: acc(|a| a.error.max),
+                        image_diff_pct: mine
+                            .iter()
+                            .filter_map(|r| r.image_diff_pct)
+                            .fold(0.0, f64::max),
                         drawn_triangles: mine
                             .iter()
                             .filter_map(|r| r.accuracy.map(|a| a.emitted))
@@ -832,6 +863,44 @@ pub fn chart_points(summary: &SceneSummary) -> Vec<chart::ChartPoint> {
         .collect()
 }
 
+/// The reference render for the image comparison: the off-axis warp tessellated until the
+/// geometric error is below 0.05 px (DESIGN.md's reference), deep enough for the city's
+/// ground quad.
+pub fn reference_method() -> Method {
+    Method {
+        name: "reference: omni-offaxis + tess error:0.05, depth 10".into(),
+        mode: RenderMode::OmniOffAxis,
+        tess: TessSettings {
+            criterion: Some(Criterion::Error(0.05)),
+            max_depth: 10,
+            ..TessSettings::default()
+        },
+        sky: None,
+    }
+}
+
+/// A pixel differs visibly when a channel is off by more than this (of 255): a different
+/// surface or a shifted texture, not a shading nuance (lighting from the per-vertex eye differs
+/// by a few levels at most).
+pub const VISIBLE_DIFFERENCE: u8 = 24;
+
+/// Share (%) of pixels of `images` that differ visibly from `reference`.
+pub fn image_difference_pct(images: &[WallImages], reference: &[WallImages]) -> f64 {
+    let mut total = 0usize;
+    let mut differing = 0usize;
+    for (a, b) in images.iter().zip(reference) {
+        for (p, q) in [(&a.left, &b.left), (&a.right, &b.right)] {
+            total += p.pixels().len();
+            differing += p
+                .pixels()
+                .zip(q.pixels())
+                .filter(|(u, v)| (0..3).any(|c| u.0[c].abs_diff(v.0[c]) > VISIBLE_DIFFERENCE))
+                .count();
+        }
+    }
+    100.0 * differing as f64 / total.max(1) as f64
+}
+
 /// The error target the report answers for (px, 99th percentile).
 pub const TARGET_P99_PX: f32 = 0.5;
 
@@ -845,22 +914,26 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
              between where each method draws points along the scene's edges and where the \
              omnistereo ideal puts them (each point seen from its own eye), sampled every 4 px \
              along every drawn edge of every wall and eye (CPU twin); p99 and max are the worst \
-             over the head positions. Time: median over the head positions.\n",
+             over the head positions. Pixels off: share of eye-image pixels differing by more \
+             than {VISIBLE_DIFFERENCE}/255 from the reference render (omni-offaxis + \
+             error:0.05 at depth 10), worst over the heads. Time: median over the head \
+             positions.\n",
             s.scene, s.heads
         );
         let _ = writeln!(
             md,
-            "| method | median ms | × stereo | p99 error px | max error px | drawn triangles | Pareto |\n|---|---:|---:|---:|---:|---:|:---:|"
+            "| method | median ms | × stereo | p99 error px | max error px | pixels off % | drawn triangles | Pareto |\n|---|---:|---:|---:|---:|---:|---:|:---:|"
         );
         for (i, m) in s.methods.iter().enumerate() {
             let _ = writeln!(
                 md,
-                "| {} | {:.2} | {} | {:.3} | {:.2} | {} | {} |",
+                "| {} | {:.2} | {} | {:.3} | {:.2} | {:.2} | {} | {} |",
                 m.method.name,
                 m.time_ms,
                 m.ratio_to_stereo.map_or("–".into(), |r| format!("{r:.3}")),
                 m.error_p99,
                 m.error_max,
+                m.image_diff_pct,
                 m.drawn_triangles,
                 if front.contains(&i) { "●" } else { "" }
             );
