@@ -169,7 +169,7 @@ const HEAD_MARGIN_M: f32 = 0.05;
 
 impl AppState {
     pub fn new(config: Config) -> Self {
-        let (min, max) = bounds(&config.cave);
+        let (min, max) = Cave::bounding_box(&config.cave.walls);
         let base_size = max - min;
         let scale_origin = Vec3::new((min.x + max.x) / 2.0, min.y, (min.z + max.z) / 2.0);
         let (tess_kind, value) = config
@@ -263,7 +263,7 @@ impl AppState {
     /// Where the head may be: the walls' bounding box less a margin (flat axes, as of a single
     /// wall, are unbounded).
     pub fn head_bounds(&self) -> (Vec3, Vec3) {
-        let (min, max) = bounds(&self.cave);
+        let (min, max) = Cave::bounding_box(&self.cave.walls);
         let margin = Vec3::splat(HEAD_MARGIN_M);
         let mut lo = min + margin;
         let mut hi = (max - margin).max(lo);
@@ -624,18 +624,4 @@ fn yaw_degrees(q: Quat) -> f32 {
     let forward = q * Vec3::NEG_Z;
     // + 0.0 turns −0 into 0 for display.
     (-forward.x).atan2(-forward.z).to_degrees() + 0.0
-}
-
-/// Axis-aligned bounds of every wall corner.
-fn bounds(cave: &Cave) -> (Vec3, Vec3) {
-    let mut min = Vec3::splat(f32::INFINITY);
-    let mut max = Vec3::splat(f32::NEG_INFINITY);
-    for w in &cave.walls {
-        let upper_right = w.upper_left + (w.lower_right - w.lower_left);
-        for p in [w.lower_left, w.lower_right, w.upper_left, upper_right] {
-            min = min.min(p);
-            max = max.max(p);
-        }
-    }
-    (min, max)
 }

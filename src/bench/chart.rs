@@ -302,7 +302,7 @@ mod tests {
         assert!(s.contains("frame time of the whole stereo frame, ms (log)"));
         assert!(s.contains("geometric error, px (log)"));
         assert!(s.contains(">stereo</text>") && s.contains(">omni</text>"));
-        // Three points, three legend dots, plus rings of the front.
+        // Three points and two legend dots (one per family); the front's rings are larger.
         assert!(s.matches("r=\"4.5\"").count() == 5, "{s}");
         assert_eq!(
             log_ticks(1.0, 100.0),

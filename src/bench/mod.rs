@@ -214,18 +214,7 @@ pub struct BenchReport {
 /// (0.35 m from two walls); `--quick`: the first and the third. Placed relative to the walls'
 /// bounding box (front = −z), and skipped with a warning where that is behind a wall.
 pub fn heads(config: &Config, quick: bool) -> Vec<(String, Vec3)> {
-    let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for w in &config.cave.walls {
-        for p in [
-            w.lower_left,
-            w.lower_right,
-            w.upper_left,
-            w.upper_left + (w.lower_right - w.lower_left),
-        ] {
-            min = min.min(p);
-            max = max.max(p);
-        }
-    }
+    let (min, max) = crate::cave::Cave::bounding_box(&config.cave.walls);
     let h = config.head.position;
     let size = max - min;
     let candidates = [

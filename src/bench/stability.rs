@@ -122,14 +122,7 @@ pub fn sweep_triangles(head: Vec3) -> Vec<([Vec3; 3], bool)> {
 /// ones 5 cm from the walls) and four heights (the top one 5 cm under the walls' top edge);
 /// positions behind a wall (a CAVE that is not a box) are left out.
 pub fn sweep_heads(cave: &Cave) -> Vec<Vec3> {
-    let (mut min, mut max) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for w in &cave.walls {
-        let upper_right = w.upper_left + (w.lower_right - w.lower_left);
-        for p in [w.lower_left, w.lower_right, w.upper_left, upper_right] {
-            min = min.min(p);
-            max = max.max(p);
-        }
-    }
+    let (min, max) = Cave::bounding_box(&cave.walls);
     const EDGE: f32 = 0.05;
     let across = |lo: f32, hi: f32| {
         [0.0f32, 0.2, 0.4, 0.6, 0.8, 1.0].map(|t| (lo + EDGE) + t * (hi - lo - 2.0 * EDGE))

@@ -140,8 +140,9 @@ impl Cave {
         sum / walls.len().max(1) as f32
     }
 
-    /// Centre of the walls' bounding box.
-    pub fn bounding_centre(walls: &[Wall]) -> Vec3 {
+    /// The walls' axis-aligned bounding box (min, max corners; inverted infinities for no
+    /// walls).
+    pub fn bounding_box(walls: &[Wall]) -> (Vec3, Vec3) {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for w in walls {
@@ -151,11 +152,16 @@ impl Cave {
                 hi = hi.max(p);
             }
         }
+        (lo, hi)
+    }
+
+    /// Centre of the walls' bounding box.
+    pub fn bounding_centre(walls: &[Wall]) -> Vec3 {
         if walls.is_empty() {
-            Vec3::ZERO
-        } else {
-            0.5 * (lo + hi)
+            return Vec3::ZERO;
         }
+        let (lo, hi) = Self::bounding_box(walls);
+        0.5 * (lo + hi)
     }
 
     /// Why a head at `p` cannot be rendered for, if it cannot: it must be in front of every

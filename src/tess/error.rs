@@ -75,6 +75,31 @@ fn lerp_bary(a: Bary, b: Bary, s: f32) -> (f32, f32) {
     )
 }
 
+/// Which source edge (by the vertex whose weight is zero along it) the sub-edge `a`–`b` lies
+/// on, if any (an interior edge of a subdivided triangle lies on none).
+fn source_edge(a: Bary, b: Bary) -> Option<usize> {
+    let zero = |c: Bary| [c.b0() == 0, c.b1 == 0, c.b2 == 0];
+    (0..3).find(|&i| zero(a)[i] && zero(b)[i])
+}
+
+/// The scene point at fraction `s` from `a` to `b` of the source triangle with corners `p`.
+fn point_between(p: [Vec3; 3], a: Bary, b: Bary, s: f32) -> Vec3 {
+    let (b1, b2) = lerp_bary(a, b, s);
+    let inv = 1.0 / super::BARY_ONE as f32;
+    let (w1, w2) = (b1 * inv, b2 * inv);
+    (1.0 - w1 - w2) * p[0] + w1 * p[1] + w2 * p[2]
+}
+
+/// Where view `tv` shows `world` exactly, if in front of the projective viewpoint and inside
+/// the image.
+fn exact_pixel(tv: &TessView<'_>, world: Vec3) -> Option<Vec2> {
+    let [w, h] = tv.wall.resolution.map(|v| v as f32);
+    let exact = project(tv, world);
+    let q = exact.pixel;
+    (exact.clip.w > tv.near && q.is_finite() && q.x >= 0.0 && q.y >= 0.0 && q.x <= w && q.y <= h)
+        .then_some(q)
+}
+
 /// Per-sample errors of every drawn edge of `out` in view `tv`: for each edge of each output
 /// triangle, the exact image of points along it (each seen from its own eye) against the
 /// straight segment the rasteriser draws between its endpoints (clipped at the near plane).
@@ -86,7 +111,6 @@ pub fn edge_errors(
     out: &TessOutput,
     samples_per_edge: u32,
 ) -> Vec<f32> {
-    let [w, h] = tv.wall.resolution.map(|v| v as f32);
     let mut per_edge: std::collections::HashMap<(u32, usize), f32> =
         std::collections::HashMap::new();
     for tri in &out.triangles {
@@ -94,28 +118,17 @@ pub fn edge_errors(
         let corners = tri.corners.map(|c| project(tv, point_position(p, c)));
         for k in 0..3 {
             let (a, b) = (tri.corners[k], tri.corners[(k + 1) % 3]);
-            // Only sub-edges lying on a source edge (same zero weight at both ends).
-            let zero = |c: Bary| [c.b0() == 0, c.b1 == 0, c.b2 == 0];
-            let Some(z) = (0..3).find(|&i| zero(a)[i] && zero(b)[i]) else {
+            let Some(z) = source_edge(a, b) else {
                 continue;
             };
             let Some((da, db)) = drawn_segment(corners[k], corners[(k + 1) % 3], tv) else {
                 continue;
             };
             for i in 1..samples_per_edge {
-                let s = i as f32 / samples_per_edge as f32;
-                let (b1, b2) = lerp_bary(a, b, s);
-                let inv = 1.0 / super::BARY_ONE as f32;
-                let (w1, w2) = (b1 * inv, b2 * inv);
-                let world = (1.0 - w1 - w2) * p[0] + w1 * p[1] + w2 * p[2];
-                let exact = project(tv, world);
-                if exact.clip.w <= tv.near {
+                let world = point_between(p, a, b, i as f32 / samples_per_edge as f32);
+                let Some(q) = exact_pixel(tv, world) else {
                     continue;
-                }
-                let q = exact.pixel;
-                if q.x < 0.0 || q.y < 0.0 || q.x > w || q.y > h {
-                    continue;
-                }
+                };
                 let e = point_segment_distance(q, da, db);
                 let slot = per_edge.entry((tri.source, z)).or_insert(0.0);
                 *slot = slot.max(e);
@@ -148,13 +161,8 @@ pub fn edge_error_samples(
         let corners = tri.corners.map(|c| project(drawn, point_position(p, c)));
         for k in 0..3 {
             let (a, b) = (tri.corners[k], tri.corners[(k + 1) % 3]);
-            let zero = |c: Bary| [c.b0() == 0, c.b1 == 0, c.b2 == 0];
-            if !(0..3).any(|i| zero(a)[i] && zero(b)[i]) {
-                continue; // an interior edge: not a scene edge
-            }
-            // Each sub-edge once (neighbouring output triangles share it).
-            let key = (tri.source, a.min(b), a.max(b));
-            if !seen.insert(key) {
+            // Scene edges only, each sub-edge once (neighbouring output triangles share it).
+            if source_edge(a, b).is_none() || !seen.insert((tri.source, a.min(b), a.max(b))) {
                 continue;
             }
             // An edge wholly behind the near plane is not drawn at all: whatever of it the
@@ -172,19 +180,10 @@ pub fn edge_error_samples(
                 256
             };
             for i in 0..=n {
-                let s = i as f32 / n as f32;
-                let (b1, b2) = lerp_bary(a, b, s);
-                let inv = 1.0 / super::BARY_ONE as f32;
-                let (w1, w2) = (b1 * inv, b2 * inv);
-                let world = (1.0 - w1 - w2) * p[0] + w1 * p[1] + w2 * p[2];
-                let exact = project(ideal, world);
-                if exact.clip.w <= ideal.near {
+                let Some(q) = exact_pixel(ideal, point_between(p, a, b, i as f32 / n as f32))
+                else {
                     continue;
-                }
-                let q = exact.pixel;
-                if !q.is_finite() || q.x < 0.0 || q.y < 0.0 || q.x > w || q.y > h {
-                    continue;
-                }
+                };
                 errors.push(match segment {
                     Some((da, db)) => point_segment_distance(q, da, db),
                     None => w.hypot(h),
