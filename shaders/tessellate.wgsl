@@ -119,7 +119,17 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
         return false;
     }
     if va != vb {
-        return true;
+        // Crosses behind the viewpoint: refine towards the clip boundary, unless the part in
+        // front is wholly beyond one side of the view (mirrors the CPU twin).
+        // From the visible end, whichever order the edge comes in (both triangles sharing it
+        // must agree bit for bit).
+        let seen = select(jb.clip, ja.clip, va);
+        let hidden = select(ja.clip, jb.clip, va);
+        let t = (near - seen.w) / (hidden.w - seen.w);
+        let cut = seen + t * (hidden - seen);
+        let m = project(point_position(p, midpoint(a, b))).clip;
+        let m_seen = select(seen, m, m.w > near);
+        return !outside_all(array(seen, cut, m_seen, seen, seen, seen), near, CULL_MARGIN);
     }
     // Entirely beyond one side of the view: never split (mirrors the CPU twin).
     let mid = project(point_position(p, midpoint(a, b)));

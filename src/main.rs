@@ -208,7 +208,9 @@ struct BenchArgs {
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
     /// Run the stability sweep instead (head positions over the whole CAVE, every warp
-    /// configuration): writes stability.md and stability.csv.
+    /// configuration, holes and popping of every render method): writes stability.md,
+    /// stability.csv and stability-rendered.csv. With --quick, every ninth head position is
+    /// rendered; --size sets the rendered wall size (default 320x180).
     #[arg(long)]
     stability: bool,
 }
@@ -252,7 +254,8 @@ struct RenderArgs {
     /// Adaptive tessellation before the warp: none, uniform:N, edge:PX, sphere:PX or error:PX.
     #[arg(long, value_parser = parse_tess)]
     tess: Option<TessArg>,
-    /// Deepest subdivision (6 = 64 segments per edge, like hardware tessellators).
+    /// Deepest subdivision, 0–16 (default: the config's, normally 10 = up to 1024 segments
+    /// per edge; hardware tessellators stop at 6 = 64).
     #[arg(long, value_parser = parse_depth)]
     tess_max_depth: Option<u32>,
     /// Sky: an equirectangular image (PNG/JPEG/HDR) or a folder of six faces, or "none".
@@ -537,9 +540,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Bench(args) if args.stability => {
-            for f in omnicave::bench::run_stability(&args.config, &args.out)
-                .context("stability sweep failed")?
-            {
+            let mut bar = ProgressBar::default();
+            let files = omnicave::bench::run_stability(
+                &omnicave::bench::StabilityOptions {
+                    config: args.config,
+                    out: args.out,
+                    quick: args.quick,
+                    size: args.size,
+                },
+                &mut |done, total, what| bar.show(done, total, what),
+            )
+            .context("stability sweep failed")?;
+            for f in files {
                 tracing::info!("wrote {}", f.display());
             }
             Ok(())

@@ -14,8 +14,8 @@ use omnicave::scene::build::grid;
 use omnicave::scene::{Scene, load_gltf};
 use omnicave::tess::error::{ErrorStats, drawn_point, edge_errors};
 use omnicave::tess::{
-    Bary, Criterion, TessOutput, TessSettings, TessTriangle, double_sided_flags, tess_view,
-    tessellate,
+    Bary, Criterion, TessOutput, TessSettings, TessTriangle, double_sided_flags, point_position,
+    tess_view, tessellate,
 };
 
 const CAPACITY: usize = 1 << 20;
@@ -44,7 +44,6 @@ fn cpu_views(
                 &cave.walls[v.wall],
                 Mat4::IDENTITY,
                 Some(OmniSettings::default()),
-                cave.near,
             );
             let out = tessellate(scene, &flags, &tv, tess, CAPACITY);
             (v, out)
@@ -88,8 +87,19 @@ fn box_room() -> Scene {
     // Six distinct exact colours (the marker palette).
     let colours = &MARKER_COLOURS[..6];
     let mut scene = Scene::default();
+    // Corners snapped to lo/hi exactly, so that faces meeting at an edge share its ends bit
+    // for bit (o + u can differ from hi in the last bit): a watertight room.
+    let snap = |x: f32, l: f32, h: f32| if (x - l).abs() < (x - h).abs() { l } else { h };
     for ((o, u, v), c) in faces.iter().zip(colours.iter().copied()) {
-        let mesh = grid(*o, *u, *v, 1, 1, 1.0);
+        let mut mesh = grid(*o, *u, *v, 1, 1, 1.0);
+        for vertex in &mut mesh.vertices {
+            let [x, y, z] = vertex.position;
+            vertex.position = [
+                snap(x, lo.x, hi.x),
+                snap(y, lo.y, hi.y),
+                snap(z, lo.z, hi.z),
+            ];
+        }
         let m = scene.add_material(omnicave::scene::Material {
             double_sided: false,
             ..omnicave::scene::Material::unlit("face", c.map(|x| f32::from(x) / 255.0))
@@ -229,7 +239,6 @@ fn frame_error(cave: &Cave, head: Vec3, scene: &Scene, tess: &TessSettings) -> (
             &cave.walls[view.wall],
             Mat4::IDENTITY,
             Some(OmniSettings::default()),
-            cave.near,
         );
         all.extend(edge_errors(scene, &tv, &out, 8));
         emitted += out.stats.emitted;
@@ -254,17 +263,19 @@ fn the_error_criterion_bounds_the_geometric_error() {
         for head in heads {
             let (plain, n0) = frame_error(&cave, head, &scene, &settings(None));
             let (d6, n6) = frame_error(&cave, head, &scene, &error(6));
-            let (d12, n12) = frame_error(&cave, head, &scene, &error(12));
+            let depth = TessSettings::default().max_depth;
+            let (dd, nd) = frame_error(&cave, head, &scene, &error(depth));
             println!(
                 "{name}, head {head}: none: max {:.1} px, p99 {:.1} px ({n0} triangles); \
-                 error:0.5 depth 6: max {:.2}, p99 {:.2} ({n6}); depth 12: max {:.2}, p99 {:.2} \
-                 ({n12} triangles, {} edges)",
-                plain.max, plain.p99, d6.max, d6.p99, d12.max, d12.p99, d12.samples
+                 error:0.5 depth 6: max {:.2}, p99 {:.2} ({n6}); default depth {depth}: max {:.2}, \
+                 p99 {:.2} \
+                 ({nd} triangles, {} edges)",
+                plain.max, plain.p99, d6.max, d6.p99, dd.max, dd.p99, dd.samples
             );
-            // With enough depth the criterion bounds what the viewer sees: its threshold at the
+            // At the default depth the criterion bounds what the viewer sees: its threshold at the
             // edge midpoints, and at most twice that anywhere along an edge.
-            assert!(d12.p99 <= 0.5, "{name} {head}: p99 {}", d12.p99);
-            assert!(d12.max <= 1.0, "{name} {head}: max {}", d12.max);
+            assert!(dd.p99 <= 0.5, "{name} {head}: p99 {}", dd.p99);
+            assert!(dd.max <= 1.0, "{name} {head}: max {}", dd.max);
             // The plain warp is visibly wrong everywhere; most of all in the living room, whose
             // floor and walls are single large quads (the city's far geometry bends less).
             let visibly_wrong = if name == "city" { 2.0 } else { 10.0 };
@@ -305,7 +316,6 @@ fn floor_seam_jump(cave: &Cave, scene: &Scene, head: Vec3, tess: &TessSettings) 
             &cave.walls[wall],
             Mat4::IDENTITY,
             Some(OmniSettings::default()),
-            cave.near,
         );
         floor.iter().find_map(|&t| {
             let p = [0, 1, 2].map(|k| {
@@ -424,7 +434,10 @@ fn triangle_counts_at_equal_error() {
                 );
                 results.push((name, n));
             }
-            None => println!("{name:<8} does not reach the target within max depth 6"),
+            None => println!(
+                "{name:<8} does not reach the target within max depth {}",
+                TessSettings::default().max_depth
+            ),
         }
     }
     let count = |n: &str| results.iter().find(|(k, _)| *k == n).map(|(_, c)| *c);
@@ -432,8 +445,9 @@ fn triangle_counts_at_equal_error() {
     let uniform = count("uniform").expect("uniform reaches the target");
     // Every criterion must reach the target, and the adaptive ones must beat uniform
     // refinement by a wide margin. How edge/sphere/error rank against each other is printed,
-    // not asserted: at this target each sits at its coarsest setting and most triangles come
-    // from refinement all of them force (edges crossing the projective viewpoint's plane).
+    // not asserted: at this target each sits at its coarsest setting, and much of what they
+    // draw is refinement all of them share (edges crossing the projective viewpoint's plane
+    // where their visible part is in view); they measure within 11 % of each other.
     for other in ["edge", "sphere"] {
         let c = count(other).unwrap_or_else(|| panic!("{other} never reached the target"));
         println!(
@@ -472,4 +486,62 @@ fn an_exhausted_budget_degrades_gracefully() {
         background < front.pixels().len() / 4,
         "{background} background pixels"
     );
+}
+
+/// The subdivision is conforming: in a watertight scene (the box room), every edge of every
+/// output triangle is shared by exactly two output triangles (their ends compared bit for bit),
+/// for every criterion down to the maximum depth: no T-junction anywhere, so no crack can
+/// open whatever the rasteriser does. (Culling is off: a culled face leaves an open border.)
+#[test]
+fn every_output_edge_is_shared_by_exactly_two_triangles() {
+    let cave = cave_at(480, 270);
+    let scene = box_room();
+    for head in [Vec3::new(0.0, 1.7, 0.0), Vec3::new(1.2, 1.0, -1.3)] {
+        for criterion in [
+            Criterion::Uniform(4),
+            Criterion::Edge(12.0),
+            Criterion::Sphere(20.0),
+            Criterion::Error(0.5),
+        ] {
+            let tess = TessSettings {
+                frustum_cull: false,
+                backface_cull: false,
+                ..settings(Some(criterion))
+            };
+            for mode in [RenderMode::OmniOnAxis, RenderMode::OmniOffAxis] {
+                for (view, out) in cpu_views(&cave, head, mode, &scene, &tess) {
+                    let mut edges: std::collections::HashMap<([u32; 3], [u32; 3]), u32> =
+                        std::collections::HashMap::new();
+                    for t in &out.triangles {
+                        let p = [0, 1, 2].map(|k| {
+                            Vec3::from(
+                                scene.vertices[scene.indices[3 * t.source as usize + k] as usize]
+                                    .position,
+                            )
+                        });
+                        let ends = t
+                            .corners
+                            .map(|c| point_position(p, c).to_array().map(f32::to_bits));
+                        for k in 0..3 {
+                            let (a, b) = (ends[k], ends[(k + 1) % 3]);
+                            *edges
+                                .entry(if a < b { (a, b) } else { (b, a) })
+                                .or_default() += 1;
+                        }
+                    }
+                    let open = edges.values().filter(|&&n| n != 2).count();
+                    assert_eq!(
+                        open,
+                        0,
+                        "{criterion} {mode:?} head {head} wall {} {:?}: {open} of {} edges \
+                         not shared by exactly two of {} triangles",
+                        view.wall,
+                        view.eye,
+                        edges.len(),
+                        out.triangles.len()
+                    );
+                }
+            }
+        }
+    }
 }

@@ -8,7 +8,7 @@ use super::Method;
 use crate::cave::{Head, RenderMode, view_setups};
 use crate::config::Config;
 use crate::scene::Scene;
-use crate::tess::error::{ErrorStats, edge_error_samples};
+use crate::tess::error::{ErrorStats, border_crossings, edge_error_samples};
 use crate::tess::{TessSettings, double_sided_flags, tess_view, tessellate};
 
 /// Output budget of the CPU twin per view (the GPU's default is 1 M; the CPU twin needs no
@@ -21,6 +21,9 @@ const SAMPLE_SPACING_PX: f32 = 4.0;
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Accuracy {
     pub error: ErrorStats,
+    /// How far scene edges jump where they cross from one wall to the next (pixels along the
+    /// shared edge, one sample per crossing edge, seam and eye); 0 for an exact image.
+    pub seam: ErrorStats,
     /// Source triangles over all views, before culling.
     pub input: u64,
     /// Culled before drawing (back faces, warp-aware frustum) over all views.
@@ -59,9 +62,11 @@ pub fn accuracy(
     };
     let mut samples = Vec::new();
     let mut result = Accuracy::default();
-    for view in view_setups(cave, &head, method.mode, ipd) {
+    let views = view_setups(cave, &head, method.mode, ipd);
+    let mut outputs = Vec::with_capacity(views.len());
+    for view in &views {
         let wall = &cave.walls[view.wall];
-        let drawn = tess_view(&view, wall, world_from_cave, Some(omni), cave.near);
+        let drawn = tess_view(view, wall, world_from_cave, Some(omni));
         let out = tessellate(scene, &flags, &drawn, &settings, CAPACITY);
         result.input += u64::from(out.stats.input);
         result.culled += u64::from(out.stats.culled_backface + out.stats.culled_frustum);
@@ -70,7 +75,7 @@ pub fn accuracy(
             .iter()
             .filter(|i| i.wall == view.wall && (view.eye.is_none() || i.eye == view.eye))
         {
-            let ideal = tess_view(ideal, wall, world_from_cave, Some(omni), cave.near);
+            let ideal = tess_view(ideal, wall, world_from_cave, Some(omni));
             samples.extend(edge_error_samples(
                 scene,
                 &drawn,
@@ -79,7 +84,49 @@ pub fn accuracy(
                 SAMPLE_SPACING_PX,
             ));
         }
+        outputs.push((drawn, out));
     }
     result.error = ErrorStats::from_samples(samples);
+    // Seams: each scene edge crossing a shared wall edge, where each wall draws it (same eye).
+    let mut jumps = Vec::new();
+    for seam in cave.seams() {
+        let [a, b] = seam.walls;
+        let (wa, wb) = (&cave.walls[a], &cave.walls[b]);
+        let seam_px = (wa.pixel_of_wall_point(seam.to) - wa.pixel_of_wall_point(seam.from))
+            .length()
+            .max((wb.pixel_of_wall_point(seam.to) - wb.pixel_of_wall_point(seam.from)).length());
+        for (va, (ta, oa)) in views.iter().zip(&outputs).filter(|(v, _)| v.wall == a) {
+            let Some((tb, ob)) = views
+                .iter()
+                .zip(&outputs)
+                .find(|(v, _)| v.wall == b && v.eye == va.eye)
+                .map(|(_, o)| o)
+            else {
+                continue;
+            };
+            let on = |wall: &crate::cave::Wall, tv, out| {
+                let ends = [seam.from, seam.to].map(|p| wall.pixel_of_wall_point(p));
+                border_crossings(scene, tv, out, ends[0], ends[1])
+            };
+            let (on_a, on_b) = (on(wa, ta, oa), on(wb, tb, ob));
+            // Each crossing on one wall against the nearest crossing of the same edge on the
+            // other (a warped edge may cross the border more than once).
+            for (key, us) in &on_a {
+                let Some(others) = on_b.get(key) else {
+                    continue;
+                };
+                for ua in us {
+                    let nearest = others
+                        .iter()
+                        .map(|ub| (ua - ub).abs())
+                        .fold(f32::INFINITY, f32::min);
+                    if nearest.is_finite() {
+                        jumps.push(nearest * seam_px);
+                    }
+                }
+            }
+        }
+    }
+    result.seam = ErrorStats::from_samples(jumps);
     result
 }

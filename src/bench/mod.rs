@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 
 use accuracy::Accuracy;
 
@@ -169,6 +169,8 @@ impl Timer {
 #[derive(Debug, Clone)]
 pub struct Row {
     pub scene: String,
+    /// Where the CAVE stands in the scene (see [`viewpoints`]).
+    pub viewpoint: String,
     pub head: String,
     pub method: Method,
     pub timer: Timer,
@@ -246,6 +248,61 @@ pub fn heads(config: &Config, quick: bool) -> Vec<(String, Vec3)> {
         .collect()
 }
 
+/// Where the CAVE stands in the scene: the config's placement (`start`), and the same turned
+/// about the config's head by 90° to the left and by 180° (the scene seen in other
+/// directions, as a user navigating would). `--quick`: `start` and `turned 180°`.
+pub fn viewpoints(config: &Config, quick: bool) -> Vec<(String, Mat4)> {
+    let h = config.head.position;
+    let turned = |degrees: f32| {
+        config.world_from_cave
+            * Mat4::from_translation(h)
+            * Mat4::from_rotation_y(degrees.to_radians())
+            * Mat4::from_translation(-h)
+    };
+    let all = [
+        ("start", config.world_from_cave),
+        ("turned 90° left", turned(90.0)),
+        ("turned 180°", turned(180.0)),
+    ];
+    all.into_iter()
+        .filter(|(name, _)| !quick || *name != "turned 90° left")
+        .map(|(name, m)| (name.to_owned(), m))
+        .collect()
+}
+
+/// One measured situation: scene placement and head.
+#[derive(Debug, Clone)]
+struct Case {
+    viewpoint: String,
+    world_from_cave: Mat4,
+    head_name: String,
+    head: Vec3,
+}
+
+/// Every viewpoint with every head; `--quick`: both heads at `start`, the centred head at
+/// the other viewpoint. The sky alone only from `start` (turning turns the sky only).
+fn cases(config: &Config, quick: bool, with_scene: bool) -> Vec<Case> {
+    let heads = heads(config, quick);
+    let mut out = Vec::new();
+    for (i, (viewpoint, world_from_cave)) in viewpoints(config, quick).into_iter().enumerate() {
+        if i > 0 && !with_scene {
+            break;
+        }
+        for (j, (head_name, head)) in heads.iter().enumerate() {
+            if quick && i > 0 && j > 0 {
+                continue;
+            }
+            out.push(Case {
+                viewpoint: viewpoint.clone(),
+                world_from_cave,
+                head_name: head_name.clone(),
+                head: *head,
+            });
+        }
+    }
+    out
+}
+
 /// Runs the benchmark and writes `results.csv`, `report.md` and the chart into the output
 /// folder. `progress(done, total, what)` is told before each case.
 pub fn run(
@@ -286,7 +343,6 @@ pub fn run(
         .unwrap_or_else(|| bundled_path(&options.config, crate::sky::bundled::PATH));
     let sky = load_sky(&sky_path)?;
 
-    let heads = heads(&config, options.quick);
     let frames = options
         .frames
         .unwrap_or(if options.quick { 3 } else { 12 })
@@ -302,12 +358,17 @@ pub fn run(
     };
     let methods = methods(options.quick);
     let mut rows = Vec::new();
-    let total = scenes.len() * heads.len();
+    let total: usize = scenes
+        .iter()
+        .map(|(_, s)| cases(&config, options.quick, s.is_some()).len())
+        .sum();
     let mut done = 0;
     for (scene_name, scene) in &scenes {
-        for (head_name, head) in &heads {
+        for case in cases(&config, options.quick, scene.is_some()) {
             let what = format!(
-                "{scene_name}, head {head_name}: {} methods × {frames} frames",
+                "{scene_name}, {}, head {}: {} methods × {frames} frames",
+                case.viewpoint,
+                case.head_name,
                 methods.len()
             );
             progress(done, total, &what);
@@ -319,8 +380,7 @@ pub fn run(
                 scene_name,
                 scene.as_ref(),
                 &sky,
-                head_name,
-                *head,
+                &case,
                 &methods,
                 frames,
             )?);
@@ -357,8 +417,7 @@ fn measure(
     scene_name: &str,
     scene: Option<&Scene>,
     sky: &CubeMap,
-    head_name: &str,
-    head: Vec3,
+    case: &Case,
     methods: &[Method],
     frames: usize,
 ) -> Result<Vec<Row>, BenchError> {
@@ -384,7 +443,8 @@ fn measure(
     let mut drawn = vec![0usize; methods.len()];
     let params = |m: &Method| {
         let mut p = frame_params(config);
-        p.head = Head::at(head);
+        p.head = Head::at(case.head);
+        p.world_from_cave = case.world_from_cave;
         p.mode = m.mode;
         p.tess = m.tess;
         p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
@@ -428,7 +488,7 @@ fn measure(
                 .position(|o| o.mode == m.mode && o.tess == m.tess)
                 .and_then(|j| accuracies[j]);
             accuracies[i] = Some(base.unwrap_or_else(|| {
-                accuracy::accuracy(config, scene, head, config.world_from_cave, m)
+                accuracy::accuracy(config, scene, case.head, case.world_from_cave, m)
             }));
         }
     }
@@ -445,7 +505,11 @@ fn measure(
             diffs[i] = Some(match base {
                 Some(d) => d,
                 None => {
-                    renderer.render(&params(m))?;
+                    // Without the sky, as the reference: the comparison is of the geometry,
+                    // and methods differing only by their sky share it.
+                    let mut p = params(m);
+                    p.sky.mode = SkyMode::Off;
+                    renderer.render(&p)?;
                     image_difference_pct(&renderer.read_images()?, &reference)
                 }
             });
@@ -462,7 +526,8 @@ fn measure(
             let wall_median_ms = percentile(&wall, 0.5);
             Row {
                 scene: scene_name.to_owned(),
-                head: head_name.to_owned(),
+                viewpoint: case.viewpoint.clone(),
+                head: case.head_name.clone(),
                 method: m.clone(),
                 timer,
                 times_ms: if timer == Timer::Gpu { times } else { wall },
@@ -486,8 +551,12 @@ fn write_file(path: &Path, text: &str) -> Result<(), BenchError> {
 /// The row of the same case and render mode without a sky (for sky ratios) or the case's
 /// reference method (plain stereo).
 fn find<'a>(rows: &'a [Row], like: &Row, pred: impl Fn(&Method) -> bool) -> Option<&'a Row> {
-    rows.iter()
-        .find(|r| r.scene == like.scene && r.head == like.head && pred(&r.method))
+    rows.iter().find(|r| {
+        r.scene == like.scene
+            && r.viewpoint == like.viewpoint
+            && r.head == like.head
+            && pred(&r.method)
+    })
 }
 
 fn write_outputs(
@@ -516,15 +585,18 @@ fn write_outputs(
     };
 
     let mut csv = String::from(
-        "scene,head,method,mode,tessellation,sky,frames,timer,median_ms,p25_ms,p75_ms,min_ms,\
+        "scene,viewpoint,head,method,mode,tessellation,sky,frames,timer,median_ms,p25_ms,p75_ms,min_ms,\
          max_ms,wall_median_ms,input_triangles,drawn_triangles,ratio_to_stereo,ratio_to_no_sky,\
          error_max_px,error_p99_px,error_samples,cpu_input_triangles,cpu_culled_triangles,\
-         cpu_drawn_triangles,image_diff_pct\n",
+         cpu_drawn_triangles,image_diff_pct,seam_max_px,seam_p99_px,seam_crossings\n",
     );
     for r in rows {
         let ratio = |other: Option<&Row>| {
             other.map_or(String::new(), |o| format!("{:.4}", r.median() / o.median()))
         };
+        let seam = r.accuracy.map_or(",,".to_owned(), |a| {
+            format!("{:.4},{:.4},{}", a.seam.max, a.seam.p99, a.seam.samples)
+        });
         let accuracy = r.accuracy.map_or(",,,,,".to_owned(), |a| {
             format!(
                 "{:.4},{:.4},{},{},{},{}",
@@ -533,8 +605,9 @@ fn write_outputs(
         });
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{accuracy},{}",
+            "{},{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{accuracy},{},{seam}",
             r.scene,
+            r.viewpoint,
             r.head,
             r.method.name,
             r.method.mode.name(),
@@ -593,13 +666,14 @@ fn write_outputs(
     let _ = writeln!(md, "## Frame time of the whole stereo frame\n");
     let _ = writeln!(
         md,
-        "| scene | head | method | median ms | p25–p75 ms | × stereo | drawn triangles |\n|---|---|---|---:|---:|---:|---:|"
+        "| scene | viewpoint | head | method | median ms | p25–p75 ms | × stereo | drawn triangles |\n|---|---|---|---|---:|---:|---:|---:|"
     );
     for r in rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {:.2}–{:.2} | {} | {} |",
+            "| {} | {} | {} | {} | {:.2} | {:.2}–{:.2} | {} | {} |",
             r.scene,
+            r.viewpoint,
             r.head,
             r.method.name,
             r.median(),
@@ -615,7 +689,7 @@ fn write_outputs(
     );
     let _ = writeln!(
         md,
-        "| scene | head | render mode | offaxis | omni-quad | omni-exact |\n|---|---|---|---:|---:|---:|"
+        "| scene | viewpoint | head | render mode | offaxis | omni-quad | omni-exact |\n|---|---|---|---|---:|---:|---:|"
     );
     for r in rows.iter().filter(|r| r.method.sky.is_none()) {
         let cell = |sky: SkyMode| {
@@ -626,8 +700,9 @@ fn write_outputs(
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             r.scene,
+            r.viewpoint,
             r.head,
             r.method.name,
             cell(SkyMode::Offaxis),
@@ -646,11 +721,11 @@ fn write_outputs(
             &points,
             &format!("Speed against accuracy: {}", first.scene),
             &format!(
-                "walls {} · MSAA ×{} · median frame time and worst p99 error over {} head \
-                 position(s)",
+                "walls {} · MSAA ×{} · median frame time and worst p99 error over {} \
+                 viewpoint/head case(s)",
                 walls.join(", "),
                 config.msaa,
-                first.heads
+                first.cases
             ),
         );
         let svg_path = options.out.join("speed-vs-accuracy.svg");
@@ -670,9 +745,30 @@ fn write_outputs(
     Ok(files)
 }
 
-/// Runs the stability sweep (`bench --stability`) on the config's CAVE for every warp
-/// configuration; writes `stability.md` and `stability.csv` into `out`.
-pub fn run_stability(config_path: &Path, out: &Path) -> Result<Vec<PathBuf>, BenchError> {
+/// What `bench --stability` runs.
+#[derive(Debug, Clone)]
+pub struct StabilityOptions {
+    pub config: PathBuf,
+    pub out: PathBuf,
+    /// Every ninth head position for the rendered part (the CPU vertex sweep stays whole).
+    pub quick: bool,
+    /// Wall size of the rendered part's images (default [`STABILITY_SIZE`]).
+    pub size: Option<[u32; 2]>,
+}
+
+/// Wall size of the rendered part of the stability sweep: a quarter of the thesis CAVE's in
+/// each direction, enough to show holes a pixel wide and render the whole grid in minutes.
+pub const STABILITY_SIZE: [u32; 2] = [320, 180];
+
+/// Runs the stability sweep (`bench --stability`) on the config's CAVE: the CPU vertex sweep for
+/// every warp configuration, then every rendered method on the closed sweep scene over the
+/// head grid (holes on the GPU, popping with the CPU twin); writes `stability.md` and
+/// `stability.csv` into `out`. `progress(done, total, what)` is told before each method.
+pub fn run_stability(
+    options: &StabilityOptions,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<Vec<PathBuf>, BenchError> {
+    let (config_path, out) = (&options.config, &options.out);
     let config = Config::load(config_path)?;
     let mut results = Vec::new();
     for (name, settings) in stability::configurations() {
@@ -682,6 +778,7 @@ pub fn run_stability(config_path: &Path, out: &Path) -> Result<Vec<PathBuf>, Ben
             stability::sweep(&config.cave, config.eye_separation, settings),
         ));
     }
+    let rendered = run_rendered_sweep(options, &config, progress)?;
     std::fs::create_dir_all(out).map_err(|source| BenchError::Write {
         path: out.to_owned(),
         source,
@@ -696,6 +793,27 @@ pub fn run_stability(config_path: &Path, out: &Path) -> Result<Vec<PathBuf>, Ben
     }
     let csv_path = out.join("stability.csv");
     write_file(&csv_path, &csv)?;
+    let mut rendered_csv = String::from(
+        "method,edge_points,max_error_px,max_pop_px,points_popping,frames,frames_with_holes,\
+         hole_pixels,worst_frame_holes_pct\n",
+    );
+    for (m, r) in &rendered {
+        let _ = writeln!(
+            rendered_csv,
+            "{},{},{:.4},{:.4},{},{},{},{},{:.4}",
+            m.name.replace(',', ";"),
+            r.motion.samples,
+            r.motion.max_error_px,
+            r.motion.max_pop_px,
+            r.motion.popping,
+            r.frames,
+            r.frames_with_holes,
+            r.hole_pixels,
+            r.worst_frame_pct
+        );
+    }
+    let rendered_csv_path = out.join("stability-rendered.csv");
+    write_file(&rendered_csv_path, &rendered_csv)?;
     let heads = results.first().map_or(0, |(_, f)| f.heads);
     let mut md = format!(
         "# omnicave stability sweep\n\n- CAVE: {} ({} walls), eye separation {} m\n- {heads} head \
@@ -727,25 +845,133 @@ pub fn run_stability(config_path: &Path, out: &Path) -> Result<Vec<PathBuf>, Ben
             }
         );
     }
+    let size = options.size.unwrap_or(STABILITY_SIZE);
+    let rendered_heads = rendered.first().map_or(0, |(_, r)| r.frames);
+    let _ = writeln!(
+        md,
+        "## Rendered: holes and popping\n\nA closed room around the CAVE (one quad per face, \
+         seen from inside: every pixel of every wall must show it) with closed boxes over the \
+         centre (the pole overhead), on the floor under it (the pole underfoot), behind the \
+         viewer and outside every seam; {rendered_heads} head positions of the grid{}. Holes: \
+         pixels showing the background. Error: distance between where a point of a scene edge \
+         is drawn and where the recommended omnistereo ideal puts it ({} points per edge). Pop: \
+         how much that error jumps as the head moves {} mm (the second difference over three \
+         head positions in a row, so a smoothly growing error does not count).\n",
+        if options.quick { " (every ninth)" } else { "" },
+        stability::POP_SAMPLES_PER_EDGE,
+        stability::POP_STEP_M * 1000.0,
+    );
+    md.push_str(&stability::rendered_markdown(&rendered, size));
+    if let Some((m, r)) = rendered.first() {
+        let _ = writeln!(
+            md,
+            "\nRecommended method ({}): {} hole pixels, {} points popping, largest error {:.2} px.",
+            m.name, r.hole_pixels, r.motion.popping, r.motion.max_error_px
+        );
+    }
     let md_path = out.join("stability.md");
     write_file(&md_path, &md)?;
-    Ok(vec![csv_path, md_path])
+    Ok(vec![csv_path, rendered_csv_path, md_path])
+}
+
+/// The rendered part of the sweep: every method of [`stability::sweep_methods`] at the grid's
+/// head positions, holes counted on the GPU's images, popping with the CPU twin.
+fn run_rendered_sweep(
+    options: &StabilityOptions,
+    config: &Config,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<Vec<(stability::SweepMethod, stability::Rendered)>, BenchError> {
+    let scene = stability::sweep_scene(&config.cave);
+    let mut cave = config.cave.clone();
+    let size = options.size.unwrap_or(STABILITY_SIZE);
+    for wall in &mut cave.walls {
+        wall.resolution = size;
+    }
+    let heads: Vec<Vec3> = stability::sweep_heads(&config.cave)
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| !options.quick || i % 9 == 0)
+        .map(|(_, h)| h)
+        .collect();
+    // The neighbouring heads: 2 mm either way along a diagonal (the grid stays 5 cm inside).
+    let step = stability::POP_STEP_M * Vec3::new(1.0, 0.6, 0.8).normalize();
+    let gpu = Gpu::headless()?;
+    let mut renderer = Renderer::new(
+        &gpu,
+        &cave,
+        RenderSettings {
+            msaa: 1,
+            wireframe: false,
+        },
+    )?;
+    renderer.set_scene(&scene);
+    let methods = stability::sweep_methods();
+    let mut out = Vec::new();
+    for (i, method) in methods.iter().enumerate() {
+        progress(i, methods.len(), method.name);
+        tracing::info!("stability sweep, rendered: {}", method.name);
+        let mut r = stability::Rendered::default();
+        for &head in &heads {
+            let mut p = frame_params(config);
+            p.cave = &cave;
+            p.head = Head::at(head);
+            p.mode = method.mode;
+            p.omni = method.omni;
+            p.tess = method.tess;
+            p.world_from_cave = Mat4::IDENTITY;
+            p.background = stability::HOLE_COLOUR;
+            p.sky.mode = SkyMode::Off;
+            renderer.render(&p)?;
+            let images = renderer.read_images()?;
+            let (mut holes, mut total) = (0u64, 0u64);
+            for wall in &images {
+                for img in [&wall.left, &wall.right] {
+                    total += img.pixels().len() as u64;
+                    holes += img
+                        .pixels()
+                        .filter(|px| stability::is_hole([px.0[0], px.0[1], px.0[2]]))
+                        .count() as u64;
+                }
+            }
+            r.frames += 1;
+            r.hole_pixels += holes;
+            if holes > 0 {
+                r.frames_with_holes += 1;
+            }
+            r.worst_frame_pct = r
+                .worst_frame_pct
+                .max(100.0 * holes as f64 / total.max(1) as f64);
+            r.motion = r.motion.merge(stability::motion(
+                &config.cave,
+                &scene,
+                config.eye_separation,
+                method,
+                head,
+                step,
+            ));
+        }
+        out.push((*method, r));
+    }
+    progress(methods.len(), methods.len(), "done");
+    Ok(out)
 }
 
 /// One method on one scene, over all head positions.
 #[derive(Debug, Clone)]
 pub struct MethodSummary {
     pub method: Method,
-    /// Median over heads of the median frame time, ms.
+    /// Median over cases (viewpoint and head) of the median frame time, ms.
     pub time_ms: f64,
-    /// Geometric mean over heads of the ratio to plain stereo.
+    /// Geometric mean over cases of the ratio to plain stereo.
     pub ratio_to_stereo: Option<f64>,
-    /// Worst over heads.
+    /// Worst over cases.
     pub error_p99: f32,
     pub error_max: f32,
-    /// Worst over heads: share of pixels differing visibly from the reference render, %.
+    /// Worst over cases: largest jump of an edge at a wall seam, px.
+    pub seam_max: f32,
+    /// Worst over cases: share of pixels differing visibly from the reference render, %.
     pub image_diff_pct: f64,
-    /// Largest over heads (CPU twin, all views).
+    /// Largest over cases (CPU twin, all views).
     pub drawn_triangles: u64,
 }
 
@@ -753,11 +979,12 @@ pub struct MethodSummary {
 #[derive(Debug, Clone)]
 pub struct SceneSummary {
     pub scene: String,
-    pub heads: usize,
+    /// Measured situations (viewpoint and head).
+    pub cases: usize,
     pub methods: Vec<MethodSummary>,
 }
 
-/// Per scene with geometry, per method without a sky: frame time and accuracy over heads.
+/// Per scene with geometry, per method without a sky: frame time and accuracy over cases.
 pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
     let mut scenes: Vec<String> = Vec::new();
     for r in rows.iter().filter(|r| r.accuracy.is_some()) {
@@ -769,8 +996,11 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
         .into_iter()
         .map(|scene| {
             let of_scene: Vec<&Row> = rows.iter().filter(|r| r.scene == scene).collect();
-            let mut heads: Vec<&str> = of_scene.iter().map(|r| r.head.as_str()).collect();
-            heads.dedup();
+            let mut cases: Vec<(&str, &str)> = of_scene
+                .iter()
+                .map(|r| (r.viewpoint.as_str(), r.head.as_str()))
+                .collect();
+            cases.dedup();
             let mut names: Vec<&Method> = Vec::new();
             for r in &of_scene {
                 if r.method.sky.is_none() && !names.iter().any(|m| m.name == r.method.name) {
@@ -791,6 +1021,7 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                         .filter_map(|r| {
                             let reference = of_scene.iter().find(|o| {
                                 o.head == r.head
+                                    && o.viewpoint == r.viewpoint
                                     && o.method.mode == RenderMode::Stereo
                                     && o.method.sky.is_none()
                                     && o.method.tess.criterion.is_none()
@@ -812,6 +1043,7 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                         ratio_to_stereo: ratio,
                         error_p99: acc(|a| a.error.p99),
                         error_max: acc(|a| a.error.max),
+                        seam_max: acc(|a| a.seam.max),
                         image_diff_pct: mine
                             .iter()
                             .filter_map(|r| r.image_diff_pct)
@@ -826,7 +1058,7 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                 .collect();
             SceneSummary {
                 scene,
-                heads: heads.len(),
+                cases: cases.len(),
                 methods,
             }
         })
@@ -899,29 +1131,31 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
         let front = chart::pareto_front(&points);
         let _ = writeln!(
             md,
-            "\n## Speed against accuracy: {} ({} head positions)\n\nError: distance in pixels \
+            "\n## Speed against accuracy: {} ({} viewpoint and head positions)\n\nError: distance in pixels \
              between where each method draws points along the scene's edges and where the \
              omnistereo ideal puts them (each point seen from its own eye), sampled every 4 px \
              along every drawn edge of every wall and eye (CPU twin); p99 and max are the worst \
-             over the head positions. Pixels off: share of eye-image pixels differing by more \
+             over the viewpoints and head positions. Pixels off: share of eye-image pixels differing by more \
              than {VISIBLE_DIFFERENCE}/255 from the reference render (omni-offaxis + \
-             error:0.05 at depth 10), worst over the heads. Time: median over the head \
-             positions.\n",
-            s.scene, s.heads
+             error:0.05 at depth 10), worst over the heads. Seam: the largest jump, along the \
+             shared edge, of a scene edge crossing from one wall's image to the next (same \
+             eye), worst over them. Time: median over them.\n",
+            s.scene, s.cases
         );
         let _ = writeln!(
             md,
-            "| method | median ms | × stereo | p99 error px | max error px | pixels off % | drawn triangles | Pareto |\n|---|---:|---:|---:|---:|---:|---:|:---:|"
+            "| method | median ms | × stereo | p99 error px | max error px | seam max px | pixels off % | drawn triangles | Pareto |\n|---|---:|---:|---:|---:|---:|---:|---:|:---:|"
         );
         for (i, m) in s.methods.iter().enumerate() {
             let _ = writeln!(
                 md,
-                "| {} | {:.2} | {} | {:.3} | {:.2} | {:.2} | {} | {} |",
+                "| {} | {:.2} | {} | {:.3} | {:.2} | {:.2} | {:.2} | {} | {} |",
                 m.method.name,
                 m.time_ms,
                 m.ratio_to_stereo.map_or("–".into(), |r| format!("{r:.3}")),
                 m.error_p99,
                 m.error_max,
+                m.seam_max,
                 m.image_diff_pct,
                 m.drawn_triangles,
                 if front.contains(&i) { "●" } else { "" }

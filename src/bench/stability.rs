@@ -2,14 +2,24 @@
 //! volume, down to 5 cm from walls and corners, and triangles in every direction (0.1° from the
 //! poles, behind the viewer, across the wall seams, near and far), warped for every wall and
 //! eye with the CPU twin; counted are the failures the thesis describes (chapter 5.1) and the
-//! eye flips pole merging prevents.
+//! eye flips pole merging prevents. A second part renders a closed room with closed boxes at
+//! the poles, behind the viewer and across the seams: holes (background seen inside the closed
+//! room, counted on the GPU's images) and popping (how much the drawn error changes between
+//! head positions 2 mm apart, CPU twin) for each render method.
 
+use std::collections::HashMap;
 use std::fmt::Write as _;
 
 use glam::{Mat4, Vec2, Vec3};
 
 use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant, omni_eye, wall_plane, warp};
-use crate::cave::{Cave, Eye, Wall, off_axis_projection};
+use crate::cave::{Cave, Eye, Head, RenderMode, Wall, off_axis_projection, view_near, view_setups};
+use crate::scene::build::cuboid;
+use crate::scene::{Material, Scene};
+use crate::tess::error::{drawn_edge_points, edge_point_position, exact_pixel};
+use crate::tess::{
+    Criterion, TessSettings, clip_to_pixel, double_sided_flags, tess_view, tessellate,
+};
 
 /// Failure counts of one warp configuration over the sweep.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
@@ -57,13 +67,7 @@ impl Failures {
 
 fn project(m: Mat4, wall: &Wall, near: f32, p: Vec3) -> Option<Vec2> {
     let clip = m * p.extend(1.0);
-    if !clip.is_finite() || clip.w <= near {
-        return None;
-    }
-    Some(Vec2::new(
-        (clip.x / clip.w * 0.5 + 0.5) * wall.resolution[0] as f32,
-        (0.5 - clip.y / clip.w * 0.5) * wall.resolution[1] as f32,
-    ))
+    (clip.is_finite() && clip.w > near).then(|| clip_to_pixel(clip, wall.resolution))
 }
 
 fn diag(points: &[Vec2]) -> f32 {
@@ -147,13 +151,16 @@ pub fn sweep_heads(cave: &Cave) -> Vec<Vec3> {
 pub fn sweep(cave: &Cave, ipd: f32, settings: OmniSettings) -> Failures {
     let mut f = Failures::default();
     let c = cave.projection_centre;
-    let projections: Vec<(Mat4, glam::Vec4)> = cave
+    // Each wall's projection from the centre, with the near plane `view_setups` gives it.
+    let projections: Vec<(Mat4, glam::Vec4, f32)> = cave
         .walls
         .iter()
         .map(|w| {
+            let near = view_near(cave.near, w.signed_distance(c));
             (
-                off_axis_projection(w, c, cave.near, cave.far).clip_from_cave,
+                off_axis_projection(w, c, near, cave.far).clip_from_cave,
                 wall_plane(w),
+                near,
             )
         })
         .collect();
@@ -161,7 +168,7 @@ pub fn sweep(cave: &Cave, ipd: f32, settings: OmniSettings) -> Failures {
     f.heads = heads.len();
     for head in heads {
         for (tri, small) in sweep_triangles(head) {
-            for (wall, (m, plane)) in cave.walls.iter().zip(&projections) {
+            for (wall, (m, plane, near)) in cave.walls.iter().zip(&projections) {
                 for eye in Eye::BOTH {
                     f.triangles += 1;
                     let eyes = tri.map(|v| omni_eye(head, v, ipd, eye, settings.pole_merge));
@@ -178,7 +185,7 @@ pub fn sweep(cave: &Cave, ipd: f32, settings: OmniSettings) -> Failures {
                             f.non_finite += 1;
                             continue;
                         }
-                        drawn[i] = project(*m, wall, cave.near, warped);
+                        drawn[i] = project(*m, wall, *near, warped);
                         exact[i] = wall.pixel_of_ray(eyes[i], tri[i]);
                         match (drawn[i], exact[i]) {
                             (Some(_), None) => f.ghost_vertices += 1,
@@ -264,5 +271,328 @@ pub fn markdown(results: &[(&str, Failures)]) -> String {
         let cells: Vec<String> = f.counts().iter().map(usize::to_string).collect();
         let _ = writeln!(md, "| {name} | {} |", cells.join(" | "));
     }
+    md
+}
+
+/// A render method of the rendered part of the sweep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweepMethod {
+    pub name: &'static str,
+    pub mode: RenderMode,
+    pub omni: OmniSettings,
+    pub tess: TessSettings,
+}
+
+/// The rendered methods: the recommended configuration first, then the ones the thesis says
+/// fail (no tessellation, the intersection-point warp, pole merge off), the on-axis warp, and
+/// off-axis stereo (no warp at all) as the baseline.
+pub fn sweep_methods() -> Vec<SweepMethod> {
+    let error = TessSettings {
+        criterion: Some(Criterion::Error(0.5)),
+        ..TessSettings::default()
+    };
+    let recommended = OmniSettings::default();
+    vec![
+        SweepMethod {
+            name: "omni-offaxis + error:0.5, similar triangles, pole merge (recommended)",
+            mode: RenderMode::OmniOffAxis,
+            omni: recommended,
+            tess: error,
+        },
+        SweepMethod {
+            name: "omni-offaxis, no tessellation",
+            mode: RenderMode::OmniOffAxis,
+            omni: recommended,
+            tess: TessSettings::default(),
+        },
+        SweepMethod {
+            name: "omni-offaxis + error:0.5, intersection point",
+            mode: RenderMode::OmniOffAxis,
+            omni: OmniSettings {
+                warp: WarpVariant::IntersectionPoint,
+                ..recommended
+            },
+            tess: error,
+        },
+        SweepMethod {
+            name: "omni-offaxis + error:0.5, pole merge off",
+            mode: RenderMode::OmniOffAxis,
+            omni: OmniSettings {
+                pole_merge: None,
+                ..recommended
+            },
+            tess: error,
+        },
+        SweepMethod {
+            name: "omni-onaxis + error:0.5",
+            mode: RenderMode::OmniOnAxis,
+            omni: recommended,
+            tess: error,
+        },
+        SweepMethod {
+            name: "off-axis stereo (no warp)",
+            mode: RenderMode::Stereo,
+            omni: recommended,
+            tess: TessSettings::default(),
+        },
+    ]
+}
+
+/// Clear colour of the rendered sweep (sRGB): no surface of [`sweep_scene`] has it, so every
+/// pixel showing it is a hole.
+pub const HOLE_COLOUR: [f32; 3] = [1.0, 0.0, 1.0];
+
+/// Whether an 8-bit sRGB pixel shows [`HOLE_COLOUR`] (unlit surfaces are far from it).
+pub fn is_hole(rgb: [u8; 3]) -> bool {
+    rgb[0] > 230 && rgb[1] < 25 && rgb[2] > 230
+}
+
+/// The rendered sweep's scene, in CAVE space: a closed room around the CAVE (2 m beyond the
+/// walls, 1 m under the floor and 1.5 m over the top), one quad per face, seen from inside, so
+/// that every pixel of every wall must show it; and closed boxes where the methods fail: over
+/// the CAVE's centre (the pole overhead), on the floor under it (the pole underfoot), behind
+/// the viewer, and outside every seam (across it). Unlit and single-sided, so back-face
+/// culling is exercised too.
+pub fn sweep_scene(cave: &Cave) -> Scene {
+    let (min, max) = Cave::bounding_box(&cave.walls);
+    let centre = 0.5 * (min + max);
+    let mut scene = Scene::default();
+    // A box from `cuboid`, its corners snapped to the box's exact bounds: faces meeting at an
+    // edge then share its ends bit for bit (a watertight mesh, or a crack could be the
+    // scene's own).
+    let mut add = |at: Vec3, size: Vec3, inward: bool, rgb: [f32; 3], name: &str| {
+        let (lo, hi) = (at - 0.5 * size, at + 0.5 * size);
+        let mesh = cuboid(size, 1.0);
+        let mut mesh =
+            if inward { mesh.flipped() } else { mesh }.transformed(Mat4::from_translation(at));
+        let snap = |x: f32, l: f32, h: f32| if (x - l).abs() < (x - h).abs() { l } else { h };
+        for v in &mut mesh.vertices {
+            let [x, y, z] = v.position;
+            v.position = [
+                snap(x, lo.x, hi.x),
+                snap(y, lo.y, hi.y),
+                snap(z, lo.z, hi.z),
+            ];
+        }
+        let material = scene.add_material(Material {
+            double_sided: false,
+            ..Material::unlit(name, rgb)
+        });
+        scene.add_mesh(&mesh.vertices, &mesh.indices, material);
+    };
+    let room_size = (max - min) + Vec3::new(4.0, 2.5, 4.0);
+    let room_centre = Vec3::new(centre.x, min.y - 1.0 + 0.5 * room_size.y, centre.z);
+    add(room_centre, room_size, true, [0.55, 0.55, 0.6], "room");
+    let mut boxes = vec![
+        (Vec3::new(centre.x, max.y + 0.5, centre.z), Vec3::splat(0.6)),
+        (
+            Vec3::new(centre.x, min.y + 0.125, centre.z),
+            Vec3::new(0.5, 0.25, 0.5),
+        ),
+        (Vec3::new(centre.x, centre.y, max.z + 1.0), Vec3::splat(1.0)),
+    ];
+    for seam in cave.seams() {
+        let [a, b] = seam.walls;
+        let outward = -(cave.walls[a].normal() + cave.walls[b].normal()).normalize_or_zero();
+        boxes.push((
+            0.5 * (seam.from + seam.to) + 0.8 * outward,
+            Vec3::splat(0.8),
+        ));
+    }
+    let colours = [
+        [0.9, 0.6, 0.2],
+        [0.2, 0.7, 0.3],
+        [0.2, 0.4, 0.9],
+        [0.9, 0.9, 0.2],
+        [0.1, 0.8, 0.8],
+    ];
+    for (i, (at, size)) in boxes.into_iter().enumerate() {
+        add(at, size, false, colours[i % colours.len()], "box");
+    }
+    scene
+}
+
+/// Drawn error and its change between neighbouring head positions (CPU twin).
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub struct Motion {
+    /// Edge points compared (drawn at all three head positions).
+    pub samples: usize,
+    /// Largest distance between where a point is drawn and where the recommended omnistereo
+    /// ideal puts it, px.
+    pub max_error_px: f32,
+    /// The head position where that error was drawn.
+    pub worst_head: Vec3,
+    /// Largest jump of that error between neighbouring head positions (second difference),
+    /// px.
+    pub max_pop_px: f32,
+    /// Points whose error jumped by more than [`POP_THRESHOLD_PX`].
+    pub popping: usize,
+}
+
+impl Motion {
+    /// The worse of two.
+    pub fn merge(self, other: Motion) -> Motion {
+        let worse = if other.max_error_px > self.max_error_px {
+            other
+        } else {
+            self
+        };
+        Motion {
+            samples: self.samples + other.samples,
+            max_error_px: worse.max_error_px,
+            worst_head: worse.worst_head,
+            max_pop_px: self.max_pop_px.max(other.max_pop_px),
+            popping: self.popping + other.popping,
+        }
+    }
+}
+
+/// A point pops when its error jumps by more than this as the head moves 2 mm (the second
+/// difference over three positions, see [`motion`]). Chosen from what smooth motion gives:
+/// off-axis stereo, which has no discontinuity at all, reaches 0.95 px near the walls from the
+/// curvature of its (large) error alone, and the recommended method 0.64 px; a tessellation
+/// level switching or an eye flipping across the pole shows as a jump of about its own size.
+pub const POP_THRESHOLD_PX: f32 = 1.0;
+
+/// Distance between the neighbouring head positions of the popping test (three positions in
+/// a row).
+pub const POP_STEP_M: f32 = 0.002;
+
+/// Samples per scene edge for the popping test.
+pub const POP_SAMPLES_PER_EDGE: u32 = 64;
+
+/// Margin of the image left out of the drawn error (px); see `drawn_errors`.
+const BORDER_PX: f32 = 1.0;
+
+/// Output budget of the CPU twin per view.
+const POP_CAPACITY: usize = 1 << 21;
+
+/// Per view (wall, eye) and edge point: drawn minus ideal, px.
+fn drawn_errors(
+    cave: &Cave,
+    scene: &Scene,
+    flags: &[Option<bool>],
+    ipd: f32,
+    method: &SweepMethod,
+    head: Vec3,
+) -> HashMap<(usize, Option<Eye>, crate::tess::error::EdgePoint), Vec2> {
+    let head = Head::at(head);
+    let ideal_views = view_setups(cave, &head, RenderMode::OmniOffAxis, ipd);
+    let mut errors = HashMap::new();
+    for view in view_setups(cave, &head, method.mode, ipd) {
+        let wall = &cave.walls[view.wall];
+        let tv = tess_view(&view, wall, Mat4::IDENTITY, Some(method.omni));
+        let out = tessellate(scene, flags, &tv, &method.tess, POP_CAPACITY);
+        let Some(ideal) = ideal_views
+            .iter()
+            .find(|i| i.wall == view.wall && i.eye == view.eye)
+        else {
+            continue;
+        };
+        let ideal = tess_view(ideal, wall, Mat4::IDENTITY, Some(OmniSettings::default()));
+        let size = Vec2::new(wall.resolution[0] as f32, wall.resolution[1] as f32);
+        for (key, drawn) in drawn_edge_points(scene, &tv, &out, POP_SAMPLES_PER_EDGE) {
+            let world = edge_point_position(scene, key, POP_SAMPLES_PER_EDGE);
+            // Points the ideal puts within BORDER_PX of the image's edge are left to the seam
+            // error: there the wall hands the point over to its neighbour, and seen at a
+            // grazing angle (an eye 2 cm from the next wall) a point sliding along its own
+            // edge past the border would count as tens of pixels off without anything
+            // visible being wrong.
+            if let Some(exact) = exact_pixel(&ideal, world)
+                && exact.cmpge(Vec2::splat(BORDER_PX)).all()
+                && exact.cmple(size - BORDER_PX).all()
+            {
+                errors.insert((view.wall, view.eye, key), drawn - exact);
+            }
+        }
+    }
+    errors
+}
+
+/// The drawn error of `method` at `head` − `step`, `head` and `head` + `step`, and how much it
+/// jumped: points of every scene edge, every wall and eye, against the recommended omnistereo
+/// ideal (each point seen from its own eye). A jump is the second difference of the error
+/// over the three positions: a smoothly changing error (a wrong parallax that grows as the
+/// head nears a wall) leaves it near zero, a sudden change in one of the two steps (a
+/// tessellation level switching, eyes flipping across the pole) shows in full.
+pub fn motion(
+    cave: &Cave,
+    scene: &Scene,
+    ipd: f32,
+    method: &SweepMethod,
+    head: Vec3,
+    step: Vec3,
+) -> Motion {
+    let flags = double_sided_flags(scene);
+    let [before, at, after] =
+        [head - step, head, head + step].map(|h| drawn_errors(cave, scene, &flags, ipd, method, h));
+    let mut m = Motion {
+        worst_head: head,
+        ..Motion::default()
+    };
+    for (key, e0) in &at {
+        m.max_error_px = m.max_error_px.max(e0.length());
+        let (Some(e_before), Some(e_after)) = (before.get(key), after.get(key)) else {
+            continue;
+        };
+        let jump = (*e_after - 2.0 * *e0 + *e_before).length();
+        if !jump.is_finite() {
+            continue;
+        }
+        m.samples += 1;
+        m.max_pop_px = m.max_pop_px.max(jump);
+        if jump > POP_THRESHOLD_PX {
+            m.popping += 1;
+        }
+    }
+    m
+}
+
+/// Results of one rendered method over the sweep.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub struct Rendered {
+    pub motion: Motion,
+    /// Frames (head positions) rendered, each all walls and eyes.
+    pub frames: usize,
+    /// Pixels over all frames, walls and eyes showing the background inside the closed room.
+    pub hole_pixels: u64,
+    /// Frames with at least one hole pixel.
+    pub frames_with_holes: usize,
+    /// The worst frame's share of hole pixels, %.
+    pub worst_frame_pct: f64,
+}
+
+/// The rendered part's results as a Markdown table.
+pub fn rendered_markdown(results: &[(SweepMethod, Rendered)], size: [u32; 2]) -> String {
+    let mut md = format!(
+        "| method | edge points | max error px | at head (m) | max pop px | points popping > {POP_THRESHOLD_PX} \
+         px | frames | frames with holes | hole pixels | worst frame holes % |\n\
+         |---|---:|---:|---|---:|---:|---:|---:|---:|---:|\n"
+    );
+    for (m, r) in results {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.2} | {:.2}, {:.2}, {:.2} | {:.2} | {} | {} | {} | {} | {:.3} |",
+            m.name,
+            r.motion.samples,
+            r.motion.max_error_px,
+            r.motion.worst_head.x,
+            r.motion.worst_head.y,
+            r.motion.worst_head.z,
+            r.motion.max_pop_px,
+            r.motion.popping,
+            r.frames,
+            r.frames_with_holes,
+            r.hole_pixels,
+            r.worst_frame_pct
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nHoles are counted on the GPU's images at {}×{} per wall without MSAA (a pixel is a \
+         hole when its centre is not covered); errors and pops with the CPU twin at the \
+         config's wall size.",
+        size[0], size[1]
+    );
     md
 }

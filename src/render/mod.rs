@@ -480,7 +480,6 @@ impl Renderer {
                     TessUniforms::new(
                         v,
                         &frame.cave.walls[v.wall],
-                        frame.cave.near,
                         &frame.tess,
                         frame.mode.is_omni(),
                     )

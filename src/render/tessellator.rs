@@ -33,14 +33,9 @@ pub struct TessUniforms {
 }
 
 impl TessUniforms {
-    /// Parameters of one view (the counts are filled in by `TessBuffers::write_uniforms`).
-    pub fn new(
-        view: &ViewSetup,
-        wall: &Wall,
-        near: f32,
-        settings: &TessSettings,
-        omni: bool,
-    ) -> Self {
+    /// Parameters of one view (the counts are filled in by `TessBuffers::write_uniforms`); the
+    /// near plane is the view's, as in its matrix.
+    pub fn new(view: &ViewSetup, wall: &Wall, settings: &TessSettings, omni: bool) -> Self {
         let (code, value) = settings.criterion.map_or((0, 0.0), |c| c.gpu_code());
         let [w, h] = wall.resolution.map(|v| v as f32);
         let (centre, radius) = match view.omni {
@@ -62,7 +57,7 @@ impl TessUniforms {
                 wall.signed_distance(view.eye_position),
             ],
             cull: [
-                near,
+                view.near,
                 flag(settings.backface_cull),
                 flag(settings.frustum_cull),
                 radius,

@@ -158,12 +158,19 @@ pub fn project(tv: &TessView<'_>, world: Vec3) -> Projected {
         _ => p,
     };
     let clip = tv.view.clip_from_cave * warped.extend(1.0);
-    let [w, h] = tv.wall.resolution.map(|v| v as f32);
-    let pixel = Vec2::new(
+    Projected {
+        clip,
+        pixel: clip_to_pixel(clip, tv.wall.resolution),
+    }
+}
+
+/// Pixel coordinates (x right, y down) of a clip-space point on an image of `resolution`.
+pub fn clip_to_pixel(clip: Vec4, resolution: [u32; 2]) -> Vec2 {
+    let [w, h] = resolution.map(|v| v as f32);
+    Vec2::new(
         (clip.x / clip.w * 0.5 + 0.5) * w,
         (0.5 - clip.y / clip.w * 0.5) * h,
-    );
-    Projected { clip, pixel }
+    )
 }
 
 /// The eye position(s) of a view for back-face culling: a point and a radius within which
@@ -379,20 +386,19 @@ pub fn children(c: [Bary; 3], split: [bool; 3]) -> Vec<[Bary; 3]> {
     }
 }
 
-/// One view's context from the usual renderer inputs.
+/// One view's context from the usual renderer inputs (the near plane is the view's).
 pub fn tess_view<'a>(
     view: &'a ViewSetup,
     wall: &'a Wall,
     world_from_cave: Mat4,
     omni: Option<OmniSettings>,
-    near: f32,
 ) -> TessView<'a> {
     TessView {
         view,
         wall,
         cave_from_world: world_from_cave.inverse(),
         omni,
-        near,
+        near: view.near,
     }
 }
 
