@@ -652,7 +652,7 @@ fn write_outputs(
         md,
         "- adapter: {adapter}\n- machine: {}\n- CAVE: {} ({}), MSAA ×{}, both eyes\n- timer: {timer}; \
          median of {frames} frames per method, methods interleaved frame by frame\n- command: \
-         `omnicave bench --config {}{}{}`\n",
+         `omnicave bench --config {}{}{}{}{}`\n",
         machine(),
         options.config.display(),
         walls.join(", "),
@@ -661,7 +661,15 @@ fn write_outputs(
         options
             .size
             .map_or(String::new(), |[w, h]| format!(" --size {w}x{h}")),
+        options
+            .frames
+            .map_or(String::new(), |n| format!(" --frames {n}")),
         if options.quick { " --quick" } else { "" },
+        options
+            .scenes
+            .iter()
+            .map(|s| format!(" --scene {}", s.display()))
+            .collect::<String>(),
     );
     let _ = writeln!(md, "## Frame time of the whole stereo frame\n");
     let _ = writeln!(
