@@ -3,7 +3,8 @@
 //! Layers, with dependencies pointing one way: [`scene`] (glTF → CPU meshes) and [`cave`]
 //! (walls, head, eyes, projections) and [`tess`] (tessellation criteria, CPU twin) and [`sky`]
 //! (cube maps, the sky's eye model) and [`tracking`] (OSC head tracking, calibration, filter,
-//! simulator) and [`gamepad`] (the gamepad mapping) know nothing of the GPU or windows;
+//! simulator) and [`gamepad`] (the gamepad mapping) and [`pano`] (the panorama view's
+//! cartographic projections) know nothing of the GPU or windows;
 //! [`render`] owns GPU resources; [`output`] composes eye images; [`headless`] and [`bench`]
 //! tie them together for the CLI; [`app`] owns windows, the control panel and input devices.
 
@@ -14,6 +15,7 @@ pub mod config;
 pub mod gamepad;
 pub mod headless;
 pub mod output;
+pub mod pano;
 pub mod render;
 pub mod scene;
 pub mod sky;
