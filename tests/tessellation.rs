@@ -87,19 +87,9 @@ fn box_room() -> Scene {
     // Six distinct exact colours (the marker palette).
     let colours = &MARKER_COLOURS[..6];
     let mut scene = Scene::default();
-    // Corners snapped to lo/hi exactly, so that faces meeting at an edge share its ends bit
-    // for bit (o + u can differ from hi in the last bit): a watertight room.
-    let snap = |x: f32, l: f32, h: f32| if (x - l).abs() < (x - h).abs() { l } else { h };
     for ((o, u, v), c) in faces.iter().zip(colours.iter().copied()) {
-        let mut mesh = grid(*o, *u, *v, 1, 1, 1.0);
-        for vertex in &mut mesh.vertices {
-            let [x, y, z] = vertex.position;
-            vertex.position = [
-                snap(x, lo.x, hi.x),
-                snap(y, lo.y, hi.y),
-                snap(z, lo.z, hi.z),
-            ];
-        }
+        // Snapped: faces meeting at an edge share its ends bit for bit (watertight).
+        let mesh = grid(*o, *u, *v, 1, 1, 1.0).snapped_to_box(lo, hi);
         let m = scene.add_material(omnicave::scene::Material {
             double_sided: false,
             ..omnicave::scene::Material::unlit("face", c.map(|x| f32::from(x) / 255.0))

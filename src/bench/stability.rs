@@ -357,23 +357,13 @@ pub fn sweep_scene(cave: &Cave) -> Scene {
     let (min, max) = Cave::bounding_box(&cave.walls);
     let centre = 0.5 * (min + max);
     let mut scene = Scene::default();
-    // A box from `cuboid`, its corners snapped to the box's exact bounds: faces meeting at an
-    // edge then share its ends bit for bit (a watertight mesh, or a crack could be the
-    // scene's own).
+    // A box from `cuboid`, snapped to its exact bounds (watertight: a crack could otherwise
+    // be the scene's own).
     let mut add = |at: Vec3, size: Vec3, inward: bool, rgb: [f32; 3], name: &str| {
-        let (lo, hi) = (at - 0.5 * size, at + 0.5 * size);
         let mesh = cuboid(size, 1.0);
-        let mut mesh =
-            if inward { mesh.flipped() } else { mesh }.transformed(Mat4::from_translation(at));
-        let snap = |x: f32, l: f32, h: f32| if (x - l).abs() < (x - h).abs() { l } else { h };
-        for v in &mut mesh.vertices {
-            let [x, y, z] = v.position;
-            v.position = [
-                snap(x, lo.x, hi.x),
-                snap(y, lo.y, hi.y),
-                snap(z, lo.z, hi.z),
-            ];
-        }
+        let mesh = if inward { mesh.flipped() } else { mesh }
+            .transformed(Mat4::from_translation(at))
+            .snapped_to_box(at - 0.5 * size, at + 0.5 * size);
         let material = scene.add_material(Material {
             double_sided: false,
             ..Material::unlit(name, rgb)

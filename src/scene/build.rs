@@ -36,6 +36,23 @@ impl MeshData {
         self
     }
 
+    /// Returns the mesh with every coordinate moved to the nearer of the box's bounds `lo`,
+    /// `hi` on its axis: for a box built by adding half sizes and offsets, faces meeting at
+    /// an edge then share its ends bit for bit (`o + u` may differ from `hi` in the last bit),
+    /// so the mesh is watertight. Only for meshes whose vertices all lie on the box.
+    pub fn snapped_to_box(mut self, lo: Vec3, hi: Vec3) -> MeshData {
+        let snap = |x: f32, l: f32, h: f32| if (x - l).abs() < (x - h).abs() { l } else { h };
+        for v in &mut self.vertices {
+            let [x, y, z] = v.position;
+            v.position = [
+                snap(x, lo.x, hi.x),
+                snap(y, lo.y, hi.y),
+                snap(z, lo.z, hi.z),
+            ];
+        }
+        self
+    }
+
     /// Reverses every triangle and normal (to see a closed shape from inside).
     pub fn flipped(mut self) -> MeshData {
         for tri in self.indices.chunks_exact_mut(3) {
