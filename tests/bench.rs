@@ -91,15 +91,18 @@ fn quick_bench_writes_complete_and_sane_results() {
         assert!(num(r, "cpu_drawn_triangles") > 0.0, "{what}");
     }
 
-    // The recommended configuration (omnistereo, off-axis warp, error:0.5) meets its target
-    // everywhere; off-axis stereo, with the wrong parallax away from the front wall, does not.
-    let p99_of = |s: &str, h: &str, m: &str| {
+    // One value of the row of (scene, case, method).
+    let value = |s: &str, h: &str, m: &str, column: &str| {
         let r = rows
             .iter()
             .find(|r| r[scene] == s && case_of(r) == h && r[method] == m)
             .unwrap_or_else(|| panic!("no row {s} / {h} / {m}"));
-        num(r, "error_p99_px")
+        num(r, column)
     };
+
+    // The recommended configuration (omnistereo, off-axis warp, error:0.5) meets its target
+    // everywhere; off-axis stereo, with the wrong parallax away from the front wall, does not.
+    let p99_of = |s: &str, h: &str, m: &str| value(s, h, m, "error_p99_px");
     for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
         let reference = p99_of(s, h, "omni-offaxis + tess error:0.5");
         let stereo = p99_of(s, h, "stereo");
@@ -117,13 +120,7 @@ fn quick_bench_writes_complete_and_sane_results() {
     // image, or a sky would count as geometry). In the living room the plain warp breaks the
     // parquet and stereo puts the side walls at the wrong parallax (measured 0.1–3 % and
     // 2–4 %): both are more than four times further off.
-    let off_of = |s: &str, h: &str, m: &str| {
-        let r = rows
-            .iter()
-            .find(|r| r[scene] == s && case_of(r) == h && r[method] == m)
-            .unwrap_or_else(|| panic!("no row {s} / {h} / {m}"));
-        num(r, "image_diff_pct")
-    };
+    let off_of = |s: &str, h: &str, m: &str| value(s, h, m, "image_diff_pct");
     for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
         let reference = off_of(s, h, "omni-offaxis + tess error:0.5");
         let plain = off_of(s, h, "omni-offaxis");
@@ -144,11 +141,10 @@ fn quick_bench_writes_complete_and_sane_results() {
     // each wall, and in the living room its floor lines visibly jump there (measured 2.5 px
     // 0.3 m from the front wall, 0.2 px centred: the worst case must show it).
     let seam_of = |s: &str, h: &str, m: &str| {
-        let r = rows
-            .iter()
-            .find(|r| r[scene] == s && case_of(r) == h && r[method] == m)
-            .unwrap_or_else(|| panic!("no row {s} / {h} / {m}"));
-        (num(r, "seam_max_px"), num(r, "seam_crossings"))
+        (
+            value(s, h, m, "seam_max_px"),
+            value(s, h, m, "seam_crossings"),
+        )
     };
     let (mut plain_worst, mut tess_worst) = (0.0f64, 0.0f64);
     for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {

@@ -68,11 +68,10 @@ impl Projection {
     }
 }
 
-/// Longitude (0 ahead, positive right) and latitude (positive up) of a view-space direction
-/// (any length but zero).
-pub fn lon_lat(d: Vec3) -> (f32, f32) {
-    let len = d.length();
-    (d.x.atan2(-d.z), (d.y / len).clamp(-1.0, 1.0).asin())
+/// Longitude (0 ahead, positive right) and latitude (positive up) of a unit view-space
+/// direction (the equirectangular sky's convention too).
+pub fn lon_lat(unit: Vec3) -> (f32, f32) {
+    (unit.x.atan2(-unit.z), unit.y.clamp(-1.0, 1.0).asin())
 }
 
 /// The unit view-space direction of a longitude and latitude.
@@ -100,12 +99,10 @@ fn hammer(lon: f32, lat: f32) -> Vec2 {
 /// Map coordinates of a direction, before fitting the field of view; `None` where the
 /// projection has no image of it (behind a perspective camera).
 fn map(projection: Projection, d: Vec3) -> Option<Vec2> {
+    let d = d.normalize();
     let (lon, lat) = lon_lat(d);
     match projection {
-        Projection::Perspective => {
-            let d = d.normalize();
-            (-d.z > 1e-6).then(|| Vec2::new(d.x, d.y) / -d.z)
-        }
+        Projection::Perspective => (-d.z > 1e-6).then(|| Vec2::new(d.x, d.y) / -d.z),
         Projection::Equirectangular => Some(Vec2::new(lon, lat)),
         Projection::Hammer => Some(hammer(lon, lat)),
         Projection::AlbersConic => {
@@ -115,7 +112,6 @@ fn map(projection: Projection, d: Vec3) -> Option<Vec2> {
             Some(Vec2::new(rho * theta.sin(), rho0 - rho * theta.cos()))
         }
         Projection::AzimuthalEquidistant => {
-            let d = d.normalize();
             let angle = (-d.z).clamp(-1.0, 1.0).acos();
             let sideways = Vec2::new(d.x, d.y);
             let len = sideways.length();

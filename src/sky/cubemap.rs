@@ -174,17 +174,16 @@ pub fn face_direction(face: u32, s: f32, t: f32) -> Vec3 {
 
 /// World direction of an equirectangular image point (u, v) ∈ [0, 1]² (u right, v down).
 pub fn equirect_direction(u: f32, v: f32) -> Vec3 {
-    let lon = (u - 0.5) * std::f32::consts::TAU;
-    let lat = (0.5 - v) * std::f32::consts::PI;
-    Vec3::new(lat.cos() * lon.sin(), lat.sin(), -lat.cos() * lon.cos())
+    crate::pano::direction(
+        (u - 0.5) * std::f32::consts::TAU,
+        (0.5 - v) * std::f32::consts::PI,
+    )
 }
 
 /// Equirectangular image point (u, v) of a world direction: the inverse of
 /// [`equirect_direction`].
 pub fn equirect_coordinates(dir: Vec3) -> (f32, f32) {
-    let d = dir.normalize_or(Vec3::NEG_Z);
-    let lon = d.x.atan2(-d.z);
-    let lat = d.y.clamp(-1.0, 1.0).asin();
+    let (lon, lat) = crate::pano::lon_lat(dir.normalize_or(Vec3::NEG_Z));
     (
         0.5 + lon / std::f32::consts::TAU,
         0.5 - lat / std::f32::consts::PI,
