@@ -32,6 +32,14 @@ struct ViewUniforms {
     wall_plane: vec4<f32>,
     // Omnistereo: xyz head position; w: signed half IPD (−IPD/2 left eye, +IPD/2 right eye).
     omni_head: vec4<f32>,
+    // Panorama views only (zero for walls): x projection code + 1, y near and z far clipping
+    // sphere radius, w stereo (0 mono, 1 volume, 2 omni).
+    pano: vec4<f32>,
+    // Panorama: the field of view's centre and half size in map coordinates.
+    pano_window: vec4<f32>,
+    // Panorama: x, y image pixels; z signed half inter-ocular distance and w viewing distance
+    // of the volume stereo (its zero-parallax depth is wall_plane.x).
+    pano_size: vec4<f32>,
 }
 
 // Omnistereo, mirrored on the CPU by src/cave/omni.rs (keep the two in step).
@@ -214,4 +222,100 @@ fn interp2(plan: InterpPlan, v: array<vec2<f32>, 3>) -> vec2<f32> {
         return v[plan.i] + plan.t * (v[plan.j] - v[plan.i]);
     }
     return plan.w.x * v[0] + plan.w.y * v[1] + plan.w.z * v[2];
+}
+
+// Panorama projections, mirrored on the CPU by src/pano/projection.rs (keep the two in step).
+// View space: x right, y up, −z ahead. Codes: 0 perspective, 1 equirectangular, 2 Hammer,
+// 3 Albers equal-area conic, 4 azimuthal equidistant (`Projection::code`).
+
+const PI: f32 = 3.14159265358979;
+const HALF_PI: f32 = 1.57079632679490;
+const SQRT2: f32 = 1.41421356237310;
+
+// Albers' constants for standard parallels 0° and 45° (`albers_constants`): n, C, ρ0.
+const ALBERS_N: f32 = 0.35355339059327;
+const ALBERS_C: f32 = 1.0;
+const ALBERS_RHO0: f32 = 2.82842712474619;
+
+// Longitude (0 ahead, positive right) and latitude of a unit direction.
+fn pano_lon_lat(d: vec3<f32>) -> vec2<f32> {
+    return vec2<f32>(atan2(d.x, -d.z), asin(clamp(d.y, -1.0, 1.0)));
+}
+
+// An angle wrapped into [−π, π].
+fn wrap_angle(a: f32) -> f32 {
+    return a - 2.0 * PI * round(a / (2.0 * PI));
+}
+
+fn pano_direction(lon: f32, lat: f32) -> vec3<f32> {
+    return vec3<f32>(cos(lat) * sin(lon), sin(lat), -cos(lat) * cos(lon));
+}
+
+fn pano_hammer(lon: f32, lat: f32) -> vec2<f32> {
+    let den = sqrt(1.0 + cos(lat) * cos(0.5 * lon));
+    return vec2<f32>(2.0 * SQRT2 * cos(lat) * sin(0.5 * lon) / den, SQRT2 * sin(lat) / den);
+}
+
+// Map coordinates of a longitude and latitude (equirectangular and Hammer accept longitudes
+// beyond ±π: the geometric route unwraps them across the rear seam).
+fn pano_map(code: u32, lon: f32, lat: f32) -> vec2<f32> {
+    if code == 1u {
+        return vec2<f32>(lon, lat);
+    }
+    if code == 2u {
+        return pano_hammer(lon, lat);
+    }
+    let d = pano_direction(lon, lat);
+    if code == 0u {
+        return d.xy / max(-d.z, 1e-6);
+    }
+    if code == 3u {
+        let rho = sqrt(max(ALBERS_C - 2.0 * ALBERS_N * sin(lat), 0.0)) / ALBERS_N;
+        let theta = ALBERS_N * lon;
+        return vec2<f32>(rho * sin(theta), ALBERS_RHO0 - rho * cos(theta));
+    }
+    let angle = acos(clamp(-d.z, -1.0, 1.0));
+    let len = length(d.xy);
+    if len > 1e-12 {
+        return d.xy * (angle / len);
+    }
+    return vec2<f32>(0.0);
+}
+
+// The unit direction at map coordinates; w = 0 where the projection shows nothing.
+fn pano_unmap(code: u32, m: vec2<f32>) -> vec4<f32> {
+    if code == 0u {
+        return vec4<f32>(normalize(vec3<f32>(m, -1.0)), 1.0);
+    }
+    if code == 1u {
+        let inside = abs(m.x) <= PI && abs(m.y) <= HALF_PI;
+        return vec4<f32>(pano_direction(m.x, m.y), select(0.0, 1.0, inside));
+    }
+    if code == 2u {
+        if m.x * m.x / 8.0 + m.y * m.y / 2.0 > 1.0 {
+            return vec4<f32>(0.0);
+        }
+        let z = sqrt(max(1.0 - m.x * m.x / 16.0 - m.y * m.y / 4.0, 0.0));
+        let lon = 2.0 * atan2(z * m.x, 2.0 * (2.0 * z * z - 1.0));
+        let lat = asin(clamp(z * m.y, -1.0, 1.0));
+        return vec4<f32>(pano_direction(lon, lat), 1.0);
+    }
+    if code == 3u {
+        let dy = ALBERS_RHO0 - m.y;
+        let rho = length(vec2<f32>(m.x, dy));
+        let lon = atan2(m.x, dy) / ALBERS_N;
+        let s = (ALBERS_C - rho * rho * ALBERS_N * ALBERS_N) / (2.0 * ALBERS_N);
+        let inside = abs(lon) <= PI && abs(s) <= 1.0;
+        return vec4<f32>(pano_direction(lon, asin(clamp(s, -1.0, 1.0))), select(0.0, 1.0, inside));
+    }
+    let angle = length(m);
+    if angle > PI {
+        return vec4<f32>(0.0);
+    }
+    var sideways = vec2<f32>(0.0);
+    if angle > 0.0 {
+        sideways = m / angle;
+    }
+    let s = sin(angle);
+    return vec4<f32>(s * sideways.x, s * sideways.y, -cos(angle), 1.0);
 }

@@ -69,13 +69,17 @@ fn tess_vec3(vertex: u32, offset: u32) -> vec3<f32> {
     return vec3<f32>(tess_vertices[base], tess_vertices[base + 1u], tess_vertices[base + 2u]);
 }
 
-// One corner of a tessellated triangle, interpolated canonically from its source triangle
-// so that neighbours produce bit-identical points (watertight).
-@vertex
-fn vs_tess(@builtin(vertex_index) vertex_index: u32) -> VertexOutput {
-    let e = tess_entries[vertex_index / 3u];
+// One corner of a tessellated triangle (world space), interpolated canonically from its
+// source triangle so that neighbours produce bit-identical points (watertight).
+struct Corner {
+    position: vec3<f32>,
+    normal: vec3<f32>,
+    uv: vec2<f32>,
+}
+
+fn tess_corner(e: TessEntry, k: u32) -> Corner {
     let corners = array<vec2<u32>, 3>(e.c0, e.c1, e.c2);
-    let b = corners[vertex_index % 3u];
+    let b = corners[k];
     let i0 = tess_indices[3u * e.source];
     let i1 = tess_indices[3u * e.source + 1u];
     let i2 = tess_indices[3u * e.source + 2u];
@@ -87,28 +91,464 @@ fn vs_tess(@builtin(vertex_index) vertex_index: u32) -> VertexOutput {
         vec2<f32>(tess_vertices[8u * i2 + 6u], tess_vertices[8u * i2 + 7u]),
     );
     let plan = interp_plan(p, b);
-    return transform_vertex(interp3(plan, p), interp3(plan, n), interp2(plan, uv));
+    var c: Corner;
+    c.position = interp3(plan, p);
+    c.normal = interp3(plan, n);
+    c.uv = interp2(plan, uv);
+    return c;
+}
+
+@vertex
+fn vs_tess(@builtin(vertex_index) vertex_index: u32) -> VertexOutput {
+    let c = tess_corner(tess_entries[vertex_index / 3u], vertex_index % 3u);
+    return transform_vertex(c.position, c.normal, c.uv);
+}
+
+// ---- Panorama, geometric route (VR'14), paired with src/render/panorama.rs ----
+//
+// Every vertex is projected with the map itself (pano_map) into the unit cube; depth is the
+// distance from the eye between the two clipping spheres. A triangle across the map's
+// discontinuities (the rear meridian, a pole) cannot be drawn that way: the pre-clip finds
+// those (they are few and small after tessellation) and draws each over the band of latitudes
+// it can cover, where every fragment casts its own ray at the triangle and keeps only the
+// pixels whose direction meets it. That is the exact pre-clipped shape for any projection of
+// the family, pieces at the left and right edges and around the pole included.
+
+// Single-sided triangles facing away from the head are dropped (the pipeline's rasteriser
+// cannot cull: a pre-clipped triangle's band has no meaningful winding).
+override PANO_CULL_BACK: bool = true;
+
+struct PanoOutput {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) cave_position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv: vec2<f32>,
+    @location(3) eye: vec3<f32>,
+    // 1 for a pre-clipped triangle: its corners follow for the per-fragment ray.
+    @location(4) @interpolate(flat) preclipped: u32,
+    @location(5) @interpolate(flat) p0: vec3<f32>,
+    @location(6) @interpolate(flat) p1: vec3<f32>,
+    @location(7) @interpolate(flat) p2: vec3<f32>,
+    @location(8) @interpolate(flat) n0: vec3<f32>,
+    @location(9) @interpolate(flat) n1: vec3<f32>,
+    @location(10) @interpolate(flat) n2: vec3<f32>,
+    @location(11) @interpolate(flat) uv01: vec4<f32>,
+    @location(12) @interpolate(flat) uv2: vec2<f32>,
+}
+
+// The eye a CAVE-space point is seen from: the head, or in omnistereo its own eye.
+fn pano_eye(p: vec3<f32>) -> vec3<f32> {
+    if view.pano.w > 1.5 {
+        return omni_eye(p, view, frame.omni);
+    }
+    return view.eye_position.xyz;
+}
+
+// View-space direction of a CAVE-space vector (the view only turns about the vertical).
+fn pano_view_dir(v: vec3<f32>) -> vec3<f32> {
+    return (view.clip_from_cave * vec4<f32>(v, 0.0)).xyz;
+}
+
+// Normalised depth of a distance between the clipping spheres.
+fn pano_depth(distance: f32) -> f32 {
+    return (distance - view.pano.y) / (view.pano.z - view.pano.y);
+}
+
+// VR'14's volume stereo: the horizontal parallax of a point at normalised depth `depth`.
+fn volume_parallax(depth: f32) -> f32 {
+    if view.pano.w < 0.5 || view.pano.w > 1.5 {
+        return 0.0;
+    }
+    let z = 2.0 * depth - 1.0;
+    let d = view.pano_size.w;
+    return view.pano_size.z * (1.0 - (view.wall_plane.x + d) / (z + d));
+}
+
+// Largest distance (pixels) between an edge's image and its chord (sampled) for a
+// triangle to be drawn as its grown chord triangle; beyond it (too little tessellation, the
+// neighbourhood of a pole) the midpoint no longer tells how far the curve strays, and the
+// triangle is drawn over the band of latitudes it can cover.
+const MAX_STRAY_PX: f32 = 2.0;
+
+fn cross2(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    return a.x * b.y - a.y * b.x;
+}
+
+// Unit normal of edge a→b pointing out of a triangle of signed area `area`.
+fn outward(a: vec2<f32>, b: vec2<f32>, area: f32) -> vec2<f32> {
+    let d = normalize(b - a);
+    let n = vec2<f32>(d.y, -d.x);
+    return select(-n, n, area > 0.0);
+}
+
+// Pixel position (x right, y up, from the image centre) of a longitude and latitude.
+fn pano_pixel_xy(lon: f32, lat: f32) -> vec2<f32> {
+    let code = u32(view.pano.x) - 1u;
+    let ndc = (pano_map(code, lon, lat) - view.pano_window.xy) / view.pano_window.zw;
+    return 0.5 * ndc * view.pano_size.xy;
+}
+
+// Image position (clip space, w = 1) of a longitude, latitude and distance.
+fn pano_clip(lon: f32, lat: f32, distance: f32) -> vec4<f32> {
+    let code = u32(view.pano.x) - 1u;
+    var ndc = (pano_map(code, lon, lat) - view.pano_window.xy) / view.pano_window.zw;
+    let depth = pano_depth(distance);
+    ndc.x += volume_parallax(depth);
+    return vec4<f32>(ndc, depth, 1.0);
+}
+
+// Whether the vertical ray from the origin (+y if `up`) meets triangle a, b, c.
+fn meets_vertical(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, up: bool) -> bool {
+    // The ray meets the triangle where its projection onto the horizontal plane contains the
+    // origin and the plane lies on the ray's side.
+    let s0 = a.x * b.z - a.z * b.x;
+    let s1 = b.x * c.z - b.z * c.x;
+    let s2 = c.x * a.z - c.z * a.x;
+    let inside = (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) || (s0 <= 0.0 && s1 <= 0.0 && s2 <= 0.0);
+    if !inside {
+        return false;
+    }
+    let sum = s0 + s1 + s2;
+    if abs(sum) < 1e-20 {
+        // Edge-on to the vertical: the ray runs along it if any corner is on its side.
+        return select((min(a.y, min(b.y, c.y)) < 0.0), (max(a.y, max(b.y, c.y)) > 0.0), up);
+    }
+    // Height of the plane over the origin: barycentric mix of the corners' heights.
+    let y = (s1 * a.y + s2 * b.y + s0 * c.y) / sum;
+    return select((y < 0.0), (y > 0.0), up);
+}
+
+// Sine of the highest latitude on the arc between unit directions a and b (the arc of a
+// straight edge bulges towards the pole); `lowest` for the other way.
+fn arc_sin_lat(a: vec3<f32>, b: vec3<f32>, lowest: bool) -> f32 {
+    let half_cos = sqrt(max(0.5 * (1.0 + dot(a, b)), 1e-6));
+    if lowest {
+        let m = min(a.y, b.y);
+        return select(m, m / half_cos, (m < 0.0));
+    }
+    let m = max(a.y, b.y);
+    return select(m, m / half_cos, (m > 0.0));
+}
+
+// The band of image rows (NDC y, low and high) that latitudes lo..hi can reach at any
+// longitude.
+fn pano_band(lo: f32, hi: f32) -> vec2<f32> {
+    let code = u32(view.pano.x) - 1u;
+    var y = vec2<f32>(lo, hi);
+    if code == 2u {
+        // Hammer: |y| grows from the central meridian to the rear one.
+        let a = pano_hammer(0.0, lo).y;
+        let b = pano_hammer(PI, lo).y;
+        let c = pano_hammer(0.0, hi).y;
+        let d = pano_hammer(PI, hi).y;
+        y = vec2<f32>(min(a, b), max(c, d));
+    }
+    return (y - view.pano_window.y) / view.pano_window.w;
+}
+
+@vertex
+fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
+    let entry = tess_entries[vertex_index / 3u];
+    let k = vertex_index % 3u;
+    let corners = array<Corner, 3>(
+        tess_corner(entry, 0u), tess_corner(entry, 1u), tess_corner(entry, 2u),
+    );
+    var p: array<vec3<f32>, 3>;
+    var n: array<vec3<f32>, 3>;
+    var eyes: array<vec3<f32>, 3>;
+    var dirs: array<vec3<f32>, 3>;
+    var dist: array<f32, 3>;
+    var ll: array<vec2<f32>, 3>;
+    let head = view.eye_position.xyz;
+    for (var i = 0u; i < 3u; i++) {
+        p[i] = (frame.cave_from_world * vec4<f32>(corners[i].position, 1.0)).xyz;
+        n[i] = (frame.normal_from_world * vec4<f32>(corners[i].normal, 0.0)).xyz;
+        eyes[i] = pano_eye(p[i]);
+        let v = pano_view_dir(p[i] - eyes[i]);
+        dist[i] = length(v);
+        dirs[i] = v / max(dist[i], 1e-20);
+        ll[i] = pano_lon_lat(dirs[i]);
+    }
+    var out: PanoOutput;
+    out.preclipped = 0u;
+    out.p0 = p[0];
+    out.p1 = p[1];
+    out.p2 = p[2];
+    out.n0 = n[0];
+    out.n1 = n[1];
+    out.n2 = n[2];
+    out.uv01 = vec4<f32>(corners[0].uv, corners[1].uv);
+    out.uv2 = corners[2].uv;
+    out.cave_position = p[k];
+    out.normal = n[k];
+    out.uv = corners[k].uv;
+    out.eye = eyes[k];
+
+    let geometric = cross(p[1] - p[0], p[2] - p[0]);
+    let g_len = length(geometric);
+    if PANO_CULL_BACK && g_len > 0.0
+        && dot(geometric, head - p[0]) / g_len < -(abs(view.omni_head.w) + 1e-4) {
+        // Facing away: a point outside the image (clipped).
+        out.clip = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        return out;
+    }
+
+    // Longitudes unwrapped along the edges from corner 0.
+    let d01 = wrap_angle(ll[1].x - ll[0].x);
+    let d12 = wrap_angle(ll[2].x - ll[1].x);
+    let d20 = wrap_angle(ll[0].x - ll[2].x);
+    let lon = array<f32, 3>(ll[0].x, ll[0].x + d01, ll[0].x + d01 + d12);
+    // Head-relative view-space corners for the pole test.
+    let a = pano_view_dir(p[0] - head);
+    let b = pano_view_dir(p[1] - head);
+    let c = pano_view_dir(p[2] - head);
+    let north = meets_vertical(a, b, c, true);
+    let south = meets_vertical(a, b, c, false);
+    var near_pole = false;
+    for (var i = 0u; i < 3u; i++) {
+        near_pole = near_pole || length(dirs[i].xz) < 1e-4;
+    }
+    let rear = max(lon[0], max(lon[1], lon[2])) > PI || min(lon[0], min(lon[1], lon[2])) < -PI;
+    let wide = max(abs(d01), max(abs(d12), abs(d20))) > 0.75 * PI;
+    // How far each edge's image strays from its chord (at its midpoint).
+    var stray = 0.0;
+    if !(north || south || near_pole || rear || wide) {
+        let lat = array<f32, 3>(ll[0].y, ll[1].y, ll[2].y);
+        for (var i = 0u; i < 3u; i++) {
+            let j = (i + 1u) % 3u;
+            let a = pano_pixel_xy(lon[i], lat[i]);
+            let b = pano_pixel_xy(lon[j], lat[j]);
+            // At a quarter, half and three quarters of the edge: near a pole the curve is
+            // far from symmetric about its midpoint.
+            for (var q = 1u; q < 4u; q++) {
+                let t = f32(q) * 0.25;
+                let m = mix(p[i], p[j], t);
+                let v = pano_view_dir(m - pano_eye(m));
+                let lm = pano_lon_lat(v / max(length(v), 1e-20));
+                let curve = pano_pixel_xy(lon[i] + wrap_angle(lm.x - lon[i]), lm.y);
+                stray = max(stray, length(curve - mix(a, b, t)));
+            }
+        }
+    }
+    if !(north || south || near_pole || rear || wide || stray > MAX_STRAY_PX) {
+        // Drawn by its vertices, the chord triangle grown by how far the edges stray and a
+        // pixel's reach: it holds every pixel centre of the curved footprint, and the
+        // fragments keep exactly those whose rays meet the triangle.
+        var clip = array<vec4<f32>, 3>(
+            pano_clip(lon[0], ll[0].y, dist[0]),
+            pano_clip(lon[1], ll[1].y, dist[1]),
+            pano_clip(lon[2], ll[2].y, dist[2]),
+        );
+        out.clip = clip[k];
+        let half_size = 0.5 * view.pano_size.xy;
+        let s = array<vec2<f32>, 3>(
+            clip[0].xy * half_size, clip[1].xy * half_size, clip[2].xy * half_size,
+        );
+        let area = cross2(s[1] - s[0], s[2] - s[0]);
+        if abs(area) > 1e-6 {
+            // Half as much again as the largest sampled stray: the curve between samples.
+            let grow = 1.5 * stray + 0.75;
+            let prev = s[(k + 2u) % 3u];
+            let next = s[(k + 1u) % 3u];
+            // Outward normals of the two edges at corner k (image y up, area's sign gives
+            // the winding).
+            let na = outward(prev, s[k], area);
+            let nb = outward(s[k], next, area);
+            // Uncapped but for exact slivers: near a pole, tessellated triangles are long
+            // slivers whose sharp corners need long miters to stay covered.
+            let miter = (na + nb) / max(1.0 + dot(na, nb), 1e-4);
+            out.clip = vec4<f32>((s[k] + grow * miter) / half_size, clip[k].z, 1.0);
+        }
+        return out;
+    }
+
+    // Pre-clipped: the band of latitudes the triangle can cover, full width.
+    var lo = min(arc_sin_lat(dirs[0], dirs[1], true),
+        min(arc_sin_lat(dirs[1], dirs[2], true), arc_sin_lat(dirs[2], dirs[0], true)));
+    var hi = max(arc_sin_lat(dirs[0], dirs[1], false),
+        max(arc_sin_lat(dirs[1], dirs[2], false), arc_sin_lat(dirs[2], dirs[0], false)));
+    var lat_lo = asin(clamp(lo, -1.0, 1.0));
+    var lat_hi = asin(clamp(hi, -1.0, 1.0));
+    if north {
+        lat_hi = HALF_PI;
+    }
+    if south {
+        lat_lo = -HALF_PI;
+    }
+    // Omnistereo rays start up to half the IPD from the head: widen by the angle that subtends
+    // from the nearest corner, and by two pixels.
+    let nearest = max(min(dist[0], min(dist[1], dist[2])), 1e-4);
+    let pad = asin(min(abs(view.omni_head.w) / nearest, 1.0)) + 2.0 * PI / view.pano_size.y;
+    let band = pano_band(max(lat_lo - pad, -HALF_PI), min(lat_hi + pad, HALF_PI));
+    // A triangle that holds the rectangle [-1, 1] × band (and the volume stereo's shifts).
+    let height = band.y - band.x;
+    let shape = array<vec2<f32>, 3>(
+        vec2<f32>(-4.0, band.x),
+        vec2<f32>(4.0, band.x),
+        vec2<f32>(0.0, band.x + 2.0 * height),
+    );
+    out.preclipped = 1u;
+    out.clip = vec4<f32>(shape[k], 0.5, 1.0);
+    return out;
+}
+
+struct PanoFragment {
+    @location(0) color: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+}
+
+// Where the ray origin + t·dir meets the plane of triangle a, b, c: (t, u, v) with the
+// barycentrics of b and c (Möller–Trumbore without the inside test); t = −1 if parallel.
+fn ray_plane(origin: vec3<f32>, dir: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>)
+    -> vec3<f32> {
+    let e1 = b - a;
+    let e2 = c - a;
+    let q = cross(dir, e2);
+    let det = dot(e1, q);
+    if abs(det) < 1e-20 {
+        return vec3<f32>(-1.0, 0.0, 0.0);
+    }
+    let inv = 1.0 / det;
+    let s = origin - a;
+    let r = cross(s, e1);
+    return vec3<f32>(dot(e2, r) * inv, dot(s, q) * inv, dot(dir, r) * inv);
+}
+
+// A pre-clipped fragment's own ray.
+struct PanoRay {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    // Whether the projection shows a direction at this pixel.
+    shown: bool,
+}
+
+// The ray through framebuffer position `pixel` (centres at +0.5), for a point at normalised
+// depth `depth` (the volume stereo's parallax depends on it): through the inverse map, from
+// the head, or in omnistereo from the eye for its direction.
+fn pano_ray(pixel: vec2<f32>, depth: f32) -> PanoRay {
+    let size = view.pano_size.xy;
+    let ndc = vec2<f32>(pixel.x / size.x * 2.0 - 1.0, 1.0 - pixel.y / size.y * 2.0);
+    let m = view.pano_window.xy + vec2<f32>(ndc.x - volume_parallax(depth), ndc.y)
+        * view.pano_window.zw;
+    let unmapped = pano_unmap(u32(view.pano.x) - 1u, m);
+    let rotation = mat3x3<f32>(
+        view.clip_from_cave[0].xyz, view.clip_from_cave[1].xyz, view.clip_from_cave[2].xyz,
+    );
+    var ray: PanoRay;
+    ray.dir = transpose(rotation) * unmapped.xyz;
+    ray.origin = view.eye_position.xyz;
+    if view.pano.w > 1.5 {
+        ray.origin = omni_eye(ray.origin + 1000.0 * ray.dir, view, frame.omni);
+    }
+    ray.shown = unmapped.w > 0.5;
+    return ray;
+}
+
+// Texture coordinates where a ray meets the triangle's plane.
+fn plane_uv(hit: vec3<f32>, in: PanoOutput) -> vec2<f32> {
+    return (1.0 - hit.y - hit.z) * in.uv01.xy + hit.y * in.uv01.zw + hit.z * in.uv2;
 }
 
 @fragment
-fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
-    // Materials without a texture are bound to a 1×1 white one, so this is always valid.
-    let base = material.base_color * textureSample(base_texture, base_sampler, in.uv);
-    if material.params.z >= 0.0 && base.a < material.params.z {
+fn fs_pano(in: PanoOutput, @builtin(front_facing) front_facing: bool) -> PanoFragment {
+    // Every fragment casts its own ray at its triangle's plane: exact depth (no fighting
+    // between a picture and the wall 1 cm behind it, which interpolating the distance
+    // linearly across a curved triangle would cause) and exact texture coordinates. The
+    // rasterised shape decides coverage only: the chords for ordinary triangles, the whole
+    // band for pre-clipped ones (where the ray must also meet the triangle itself).
+    // The volume stereo's parallax depends on the depth found: a few rounds from the
+    // rasterised depth converge far below a pixel (the parallax is smooth in depth).
+    var depth = in.clip.z;
+    if in.preclipped != 0u {
+        depth = pano_depth(length((in.p0 + in.p1 + in.p2) / 3.0 - view.eye_position.xyz));
+    }
+    var hit = vec3<f32>(-1.0, 0.0, 0.0);
+    var ray: PanoRay;
+    for (var round = 0u; round < 3u; round++) {
+        ray = pano_ray(in.clip.xy, depth);
+        hit = ray_plane(ray.origin, ray.dir, in.p0, in.p1, in.p2);
+        depth = pano_depth(hit.x);
+        if view.pano.w < 0.5 || view.pano.w > 1.5 {
+            break;
+        }
+    }
+    let inside = hit.y >= 0.0 && hit.z >= 0.0 && hit.y + hit.z <= 1.0;
+    let met = ray.shown && hit.x > 0.0;
+    var position = in.cave_position;
+    var normal = in.normal;
+    var uv = in.uv;
+    var ddx = dpdx(in.uv);
+    var ddy = dpdy(in.uv);
+    var eye = in.eye;
+    var facing = front_facing;
+    if met {
+        let w = vec3<f32>(1.0 - hit.y - hit.z, hit.y, hit.z);
+        position = w.x * in.p0 + w.y * in.p1 + w.z * in.p2;
+        normal = w.x * in.n0 + w.y * in.n1 + w.z * in.n2;
+        uv = plane_uv(hit, in);
+        // Texture gradients from the rays through the next pixels (a pre-clipped band's
+        // rasterised varyings say nothing about the surface).
+        let rx = pano_ray(in.clip.xy + vec2<f32>(1.0, 0.0), depth);
+        let ry = pano_ray(in.clip.xy + vec2<f32>(0.0, 1.0), depth);
+        ddx = plane_uv(ray_plane(rx.origin, rx.dir, in.p0, in.p1, in.p2), in) - uv;
+        ddy = plane_uv(ray_plane(ry.origin, ry.dir, in.p0, in.p1, in.p2), in) - uv;
+        eye = ray.origin;
+        facing = dot(cross(in.p1 - in.p0, in.p2 - in.p0), ray.origin - in.p0) >= 0.0;
+    }
+    // Only where the pixel's ray meets the triangle, between the clipping spheres (an
+    // edge-on triangle covers nothing).
+    let keep = met && inside && depth >= 0.0 && depth <= 1.0;
+    let color = surface_color(position, normal, uv, ddx, ddy, eye, facing);
+    if !keep || color.a < 0.0 {
         discard;
+    }
+    var out: PanoFragment;
+    out.color = color;
+    out.depth = depth;
+    return out;
+}
+
+// The lit colour of a surface point (CAVE space); alpha < 0 where the material's alpha
+// cutoff removes it.
+fn surface_color(
+    position: vec3<f32>,
+    normal: vec3<f32>,
+    uv: vec2<f32>,
+    uv_ddx: vec2<f32>,
+    uv_ddy: vec2<f32>,
+    eye: vec3<f32>,
+    front_facing: bool,
+) -> vec4<f32> {
+    // Materials without a texture are bound to a 1×1 white one, so this is always valid.
+    // Explicit gradients: the panorama's pre-clipped fragments compute their own.
+    let texel = textureSampleGrad(base_texture, base_sampler, uv, uv_ddx, uv_ddy);
+    let base = material.base_color * texel;
+    if material.params.z >= 0.0 && base.a < material.params.z {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
     }
     if material.emissive.w > 0.5 {
         // KHR_materials_unlit: exactly the base colour.
         return vec4<f32>(base.rgb, 1.0);
     }
-    var n = normalize(in.normal);
+    var n = normalize(normal);
     if !front_facing {
         n = -n;
     }
     let lit = blinn_phong(
-        frame, base.rgb, in.cave_position, n, in.eye, material.params.x, material.params.y,
+        frame, base.rgb, position, n, eye, material.params.x, material.params.y,
     );
     return vec4<f32>(lit + material.emissive.rgb, 1.0);
+}
+
+@fragment
+fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
+    let color = surface_color(
+        in.cave_position, in.normal, in.uv, dpdx(in.uv), dpdy(in.uv), in.eye, front_facing,
+    );
+    if color.a < 0.0 {
+        discard;
+    }
+    return color;
 }
 
 @fragment

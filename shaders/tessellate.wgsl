@@ -101,12 +101,74 @@ fn midpoint(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
     return (a + b) / 2u;
 }
 
+// Panorama view (view.pano.x > 0): longitude, latitude and distance of a world point from
+// its eye (the head, or its omnistereo eye), in the panorama's view space.
+fn pano_point(world: vec3<f32>) -> vec3<f32> {
+    let p = (frame.cave_from_world * vec4<f32>(world, 1.0)).xyz;
+    var eye = view.eye_position.xyz;
+    if view.pano.w > 1.5 {
+        eye = omni_eye(p, view, frame.omni);
+    }
+    let v = (view.clip_from_cave * vec4<f32>(p - eye, 0.0)).xyz;
+    let len = length(v);
+    return vec3<f32>(pano_lon_lat(v / max(len, 1e-20)), len);
+}
+
+// Pixels of a longitude and latitude (y up; only differences are used).
+fn pano_pixel(lon: f32, lat: f32) -> vec2<f32> {
+    let ndc = (pano_map(u32(view.pano.x) - 1u, lon, lat) - view.pano_window.xy)
+        / view.pano_window.zw;
+    return 0.5 * ndc * view.pano_size.xy;
+}
+
+// The split criteria measured in the panorama's pixels. Longitudes are unwrapped along the
+// edge, so an edge across the rear meridian is measured as the continuous curve it is, and
+// one passing near a pole shows its large curvature. Endpoints in a canonical order (as
+// `interp_plan`), so that both triangles sharing an edge decide alike, bit for bit.
+fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> bool {
+    let code = u32(tess.criterion.x);
+    let value = tess.criterion.y;
+    var a = a_in;
+    var b = b_in;
+    if sorts_before(point_position(p, b), point_position(p, a)) {
+        a = b_in;
+        b = a_in;
+    }
+    let pa = point_position(p, a);
+    let pb = point_position(p, b);
+    let la = pano_point(pa);
+    let lb = pano_point(pb);
+    let near = view.pano.y;
+    if la.z < near && lb.z < near {
+        return false;
+    }
+    let lon_b = la.x + wrap_angle(lb.x - la.x);
+    let ja = pano_pixel(la.x, la.y);
+    let jb = pano_pixel(lon_b, lb.y);
+    if code == 2u {
+        return length(jb - ja) > value;
+    }
+    if code == 3u {
+        let ca = (frame.cave_from_world * vec4<f32>(pa, 1.0)).xyz;
+        let cb = (frame.cave_from_world * vec4<f32>(pb, 1.0)).xyz;
+        let centre = pano_point(0.5 * (pa + pb));
+        // Angular diameter of the edge's bounding sphere, in pixels per radian.
+        return length(cb - ca) / max(centre.z, 1e-6) * tess.wall.z > value;
+    }
+    let lm = pano_point(point_position(p, midpoint(a, b)));
+    let jm = pano_pixel(la.x + wrap_angle(lm.x - la.x), lm.y);
+    return length(jm - 0.5 * (ja + jb)) > value;
+}
+
 // Mirrors tess::criteria::split_edge.
 fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
     let code = u32(tess.criterion.x);
     let value = tess.criterion.y;
     if code == 1u {
         return f32(depth) < value;
+    }
+    if view.pano.x > 0.5 {
+        return pano_split_edge(p, a, b);
     }
     let pa = point_position(p, a);
     let pb = point_position(p, b);

@@ -16,6 +16,7 @@ use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode, Wall, left_of};
 use crate::gamepad::{GamepadMode, GamepadSettings, button_map};
 use crate::output::formats::StereoFormat;
+use crate::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode, SkySettings};
 use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, parse_criterion};
 use crate::tracking::{
@@ -68,6 +69,8 @@ pub struct ConfigFile {
     pub tracking: TrackingSection,
     #[serde(default)]
     pub gamepad: GamepadSection,
+    #[serde(default)]
+    pub panorama: PanoramaSection,
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
@@ -645,6 +648,162 @@ pub struct WallSection {
     pub output: Option<String>,
 }
 
+/// The panorama view (wide field of view up to 360°): the operator's overview of everything
+/// around the CAVE user, or a desktop view on its own.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PanoramaSection {
+    /// Show the panorama in the application (below the walls in the preview; beside the
+    /// panel in CAVE mode's operator window).
+    #[serde(default)]
+    pub show: bool,
+    /// perspective, equirectangular, hammer, albers or azimuthal-equidistant.
+    #[serde(default = "default_pano_projection")]
+    pub projection: String,
+    #[serde(default = "default_pano_h_fov")]
+    pub h_fov_degrees: f32,
+    #[serde(default = "default_pano_v_fov")]
+    pub v_fov_degrees: f32,
+    /// "geometric" (per-vertex projection with pre-clip; equirectangular and Hammer) or
+    /// "image" (cube map and inverse projection; every projection).
+    #[serde(default = "default_pano_route")]
+    pub route: String,
+    /// "mono", "volume" (VR'14: the projected volume seen by two eyes) or "omni"
+    /// (omnidirectional stereo per vertex). Geometric route only.
+    #[serde(default = "default_pano_stereo")]
+    pub stereo: String,
+    /// Volume stereo: inter-ocular distance, viewing distance and zero-parallax depth, in
+    /// normalised device units (VR'14's values).
+    #[serde(default = "default_pano_volume")]
+    pub volume_ioid_d_offset: [f32; 3],
+    /// Turn from the navigation direction, degrees, positive to the right.
+    #[serde(default)]
+    pub yaw_degrees: f32,
+    /// Image pixels (width, height).
+    #[serde(default = "default_pano_size")]
+    pub size: [u32; 2],
+    /// Cube face pixels of the image route.
+    #[serde(default = "default_pano_cube_size")]
+    pub cube_size: u32,
+}
+
+impl Default for PanoramaSection {
+    fn default() -> Self {
+        Self {
+            show: false,
+            projection: default_pano_projection(),
+            h_fov_degrees: default_pano_h_fov(),
+            v_fov_degrees: default_pano_v_fov(),
+            route: default_pano_route(),
+            stereo: default_pano_stereo(),
+            volume_ioid_d_offset: default_pano_volume(),
+            yaw_degrees: 0.0,
+            size: default_pano_size(),
+            cube_size: default_pano_cube_size(),
+        }
+    }
+}
+
+fn default_pano_projection() -> String {
+    "equirectangular".into()
+}
+fn default_pano_h_fov() -> f32 {
+    360.0
+}
+fn default_pano_v_fov() -> f32 {
+    180.0
+}
+fn default_pano_route() -> String {
+    "geometric".into()
+}
+fn default_pano_stereo() -> String {
+    "mono".into()
+}
+fn default_pano_volume() -> [f32; 3] {
+    [0.5, 5.0, -0.8]
+}
+fn default_pano_size() -> [u32; 2] {
+    [1024, 512]
+}
+fn default_pano_cube_size() -> u32 {
+    512
+}
+
+impl PanoramaSection {
+    fn validate(&self, ck: &Checker<'_>) -> Result<PanoSettings, ConfigError> {
+        let names = |all: &[&str]| all.join(", ");
+        let projection = Projection::from_name(self.projection.trim()).ok_or_else(|| {
+            let all: Vec<_> = Projection::ALL.iter().map(|p| p.name()).collect();
+            ck.fail(
+                "panorama.projection",
+                &self.projection,
+                &format!("must be one of {}", names(&all)),
+            )
+        })?;
+        let route = PanoRoute::from_name(self.route.trim())
+            .ok_or_else(|| ck.fail("panorama.route", &self.route, "must be geometric or image"))?;
+        let stereo = match self.stereo.trim() {
+            "volume" => {
+                let [ioid, d, offset] = self.volume_ioid_d_offset;
+                let valid = (0.0..=2.0).contains(&ioid)
+                    && d.is_finite()
+                    && d > 1.0
+                    && (-1.0..=1.0).contains(&offset);
+                if !valid {
+                    return Err(ck.fail(
+                        "panorama.volume_ioid_d_offset",
+                        self.volume_ioid_d_offset,
+                        "needs 0 ≤ ioid ≤ 2, d > 1 (outside the unit cube) and −1 ≤ offset ≤ 1",
+                    ));
+                }
+                PanoStereo::Volume { ioid, d, offset }
+            }
+            other => PanoStereo::from_name(other).ok_or_else(|| {
+                ck.fail(
+                    "panorama.stereo",
+                    &self.stereo,
+                    "must be mono, volume or omni",
+                )
+            })?,
+        };
+        let (max_h, max_v) = projection.max_fov();
+        let h = ck.range(
+            "panorama.h_fov_degrees",
+            self.h_fov_degrees,
+            1.0,
+            max_h.to_degrees().round(),
+        )?;
+        let v = ck.range(
+            "panorama.v_fov_degrees",
+            self.v_fov_degrees,
+            1.0,
+            max_v.to_degrees().round(),
+        )?;
+        let yaw = ck.range("panorama.yaw_degrees", self.yaw_degrees, -360.0, 360.0)?;
+        let [w, h_px] = self.size;
+        if !(1..=16384).contains(&w) || !(1..=16384).contains(&h_px) {
+            return Err(ck.fail("panorama.size", self.size, "must be 1 to 16384 pixels each"));
+        }
+        if !(4..=8192).contains(&self.cube_size) {
+            return Err(ck.fail(
+                "panorama.cube_size",
+                self.cube_size,
+                "must be 4 to 8192 pixels",
+            ));
+        }
+        Ok(PanoSettings {
+            projection,
+            h_fov: h.to_radians(),
+            v_fov: v.to_radians(),
+            route,
+            stereo,
+            yaw: yaw.to_radians(),
+            size: self.size,
+            cube_size: self.cube_size,
+        })
+    }
+}
+
 /// A monitor named in the config: by position in the system's list or by name.
 #[derive(Debug, Clone, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(untagged)]
@@ -828,6 +987,8 @@ pub struct Config {
     /// OSC head tracking.
     pub tracking: TrackingConfig,
     pub gamepad: GamepadSettings,
+    /// The panorama view.
+    pub panorama: PanoSettings,
     /// The file as written (to save changed settings back without losing the rest).
     pub file: ConfigFile,
 }
@@ -1122,6 +1283,7 @@ impl ConfigFile {
             app: self.validate_app(&ck)?,
             tracking: self.validate_tracking(&ck)?,
             gamepad: self.validate_gamepad(&ck)?,
+            panorama: self.panorama.validate(&ck)?,
             file: self.clone(),
         })
     }

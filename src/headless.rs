@@ -52,6 +52,15 @@ pub struct Overrides {
     /// `Some(None)` removes the sky; `Some(Some(path))` replaces the config's sky file.
     pub sky: Option<Option<PathBuf>>,
     pub sky_mode: Option<crate::sky::SkyMode>,
+    /// Render the panorama view instead of the walls.
+    pub panorama: bool,
+    pub pano_projection: Option<crate::pano::Projection>,
+    pub pano_route: Option<crate::pano::PanoRoute>,
+    pub pano_stereo: Option<crate::pano::PanoStereo>,
+    /// Horizontal and vertical field of view, degrees.
+    pub pano_fov_degrees: Option<[f32; 2]>,
+    pub pano_yaw_degrees: Option<f32>,
+    pub pano_size: Option<[u32; 2]>,
 }
 
 impl Overrides {
@@ -95,6 +104,26 @@ impl Overrides {
         }
         if let Some(sky) = &self.sky {
             config.sky_path = sky.clone();
+        }
+        let pano = &mut config.panorama;
+        if let Some(p) = self.pano_projection {
+            pano.projection = p;
+        }
+        if let Some(r) = self.pano_route {
+            pano.route = r;
+        }
+        if let Some(st) = self.pano_stereo {
+            pano.stereo = st;
+        }
+        if let Some([h, v]) = self.pano_fov_degrees {
+            pano.h_fov = h.to_radians();
+            pano.v_fov = v.to_radians();
+        }
+        if let Some(yaw) = self.pano_yaw_degrees {
+            pano.yaw = yaw.to_radians();
+        }
+        if let Some(size) = self.pano_size {
+            pano.size = size;
         }
         if let Some(mode) = self.sky_mode {
             config.sky.mode = mode;
@@ -237,6 +266,9 @@ pub fn render_to_dir(
     );
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
+    if overrides.panorama {
+        return render_panorama_to_dir(&gpu, &config, &scene, out_dir, formats);
+    }
     let mut renderer = render_frame(&gpu, &config, &scene, sky.as_ref())?;
     let images = renderer.read_images()?;
     let mut written = write_images(&images, out_dir)?;
@@ -257,6 +289,91 @@ pub fn render_to_dir(
         }
     }
     Ok(written)
+}
+
+/// Renders the panorama view of a config and scene (its `[panorama]` settings) and returns the
+/// renderer holding it.
+pub fn render_panorama(gpu: &Gpu, config: &Config, scene: &Scene) -> Result<Renderer, RenderError> {
+    let mut renderer = Renderer::new(
+        gpu,
+        &config.cave,
+        RenderSettings {
+            msaa: config.msaa,
+            wireframe: false,
+        },
+    )?;
+    renderer.set_scene(scene);
+    let pano = &config.panorama;
+    renderer.render_panorama(&frame_params(config), pano)?;
+    let fitted = pano.fitted();
+    tracing::info!(
+        "panorama: {} {:.0}°×{:.0}°, {} route, {}, {}×{} px",
+        fitted.projection.name(),
+        fitted.fov().x.to_degrees(),
+        fitted.fov().y.to_degrees(),
+        pano.effective_route().name(),
+        if pano.effective_route() == crate::pano::PanoRoute::Geometric {
+            pano.stereo.name()
+        } else {
+            "mono"
+        },
+        pano.size[0],
+        pano.size[1]
+    );
+    for stats in renderer.read_panorama_tess_stats()? {
+        tracing::info!(
+            "panorama tessellation: {} input, {} back-face culled, {} emitted{}",
+            stats.input,
+            stats.culled_backface,
+            stats.emitted,
+            if stats.overflowed {
+                " (budget exceeded: less refined than asked)"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(renderer)
+}
+
+/// Writes `panorama.png` (mono) or `panorama-left.png`, `panorama-right.png` and
+/// `panorama-anaglyph.png` (stereo), and `panorama-<format>.png` for each of `formats`.
+fn render_panorama_to_dir(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    out_dir: &Path,
+    formats: &[StereoFormat],
+) -> Result<Written, HeadlessError> {
+    let mut renderer = render_panorama(gpu, config, scene)?;
+    let [left, right] = renderer.read_panorama()?;
+    output::ensure_dir(out_dir)?;
+    let mut files = Vec::new();
+    let mut write = |name: String, img: &image::RgbaImage| -> Result<(), OutputError> {
+        let path = out_dir.join(name);
+        output::write_png(&path, img)?;
+        files.push(path);
+        Ok(())
+    };
+    if renderer.panorama_is_stereo() {
+        write("panorama-left.png".into(), &left)?;
+        write("panorama-right.png".into(), &right)?;
+        write(
+            "panorama-anaglyph.png".into(),
+            &output::anaglyph(&left, &right)?,
+        )?;
+    } else {
+        write("panorama.png".into(), &left)?;
+    }
+    for &format in formats {
+        let img = renderer.compose_panorama(PresentParams {
+            format,
+            frame: 0,
+            swap_eyes: false,
+        })?;
+        write(format!("panorama-{}.png", format.name()), &img)?;
+    }
+    Ok(Written { files })
 }
 
 /// Writes eye images and the unfolded anaglyph.

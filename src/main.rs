@@ -269,9 +269,88 @@ struct RenderArgs {
     /// anaglyph-optimized, left-only, right-only, mono.
     #[arg(long = "format", value_parser = parse_format)]
     formats: Vec<StereoFormat>,
+    /// What to render: "walls" (every wall, both eyes) or "panorama" (the wide field of
+    /// view, as the config's [panorama] section and the flags below say).
+    #[arg(long, default_value = "walls", value_parser = parse_view)]
+    view: ViewArg,
+    /// Panorama projection: perspective, equirectangular, hammer, albers,
+    /// azimuthal-equidistant.
+    #[arg(long, value_parser = parse_projection)]
+    projection: Option<omnicave::pano::Projection>,
+    /// Panorama route: geometric (equirectangular and Hammer) or image.
+    #[arg(long, value_parser = parse_pano_route)]
+    pano_route: Option<omnicave::pano::PanoRoute>,
+    /// Panorama stereo (geometric route): mono, volume or omni.
+    #[arg(long, value_parser = parse_pano_stereo)]
+    pano_stereo: Option<omnicave::pano::PanoStereo>,
+    /// Panorama field of view in degrees: H,V (e.g. 360,180).
+    #[arg(long, value_parser = parse_fov)]
+    fov: Option<[f32; 2]>,
+    /// Panorama turn from the navigation direction, degrees, positive to the right.
+    #[arg(long, value_parser = parse_yaw, allow_hyphen_values = true)]
+    pano_yaw: Option<f32>,
+    /// Panorama image size, WxH.
+    #[arg(long, value_parser = parse_size)]
+    pano_size: Option<[u32; 2]>,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
+}
+
+/// `--view`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ViewArg {
+    Walls,
+    Panorama,
+}
+
+fn parse_view(s: &str) -> Result<ViewArg, String> {
+    match s {
+        "walls" => Ok(ViewArg::Walls),
+        "panorama" => Ok(ViewArg::Panorama),
+        _ => Err(format!("unknown view '{s}'; expected walls or panorama")),
+    }
+}
+
+fn parse_projection(s: &str) -> Result<omnicave::pano::Projection, String> {
+    use omnicave::pano::Projection;
+    Projection::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = Projection::ALL.iter().map(|p| p.name()).collect();
+        format!(
+            "unknown projection '{s}'; expected one of: {}",
+            names.join(", ")
+        )
+    })
+}
+
+fn parse_pano_route(s: &str) -> Result<omnicave::pano::PanoRoute, String> {
+    omnicave::pano::PanoRoute::from_name(s)
+        .ok_or_else(|| format!("unknown panorama route '{s}'; expected geometric or image"))
+}
+
+fn parse_pano_stereo(s: &str) -> Result<omnicave::pano::PanoStereo, String> {
+    omnicave::pano::PanoStereo::from_name(s)
+        .ok_or_else(|| format!("unknown panorama stereo '{s}'; expected mono, volume or omni"))
+}
+
+fn parse_fov(s: &str) -> Result<[f32; 2], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [h, v] = parts.as_slice() else {
+        return Err(format!("expected H,V in degrees (e.g. 360,180), got '{s}'"));
+    };
+    let parse = |t: &str, what: &str, max: f32| -> Result<f32, String> {
+        let x: f32 = t
+            .parse()
+            .map_err(|_| format!("{what} field of view '{t}' is not a number"))?;
+        if x.is_finite() && (1.0..=max).contains(&x) {
+            Ok(x)
+        } else {
+            Err(format!(
+                "{what} field of view {x}° must be 1 to {max} degrees"
+            ))
+        }
+    };
+    Ok([parse(h, "horizontal", 360.0)?, parse(v, "vertical", 360.0)?])
 }
 
 fn parse_format(s: &str) -> Result<StereoFormat, String> {
@@ -594,6 +673,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 tess_max_depth: args.tess_max_depth,
                 sky: args.skybox.map(|s| s.0),
                 sky_mode: args.skybox_mode,
+                panorama: args.view == ViewArg::Panorama,
+                pano_projection: args.projection,
+                pano_route: args.pano_route,
+                pano_stereo: args.pano_stereo,
+                pano_fov_degrees: args.fov,
+                pano_yaw_degrees: args.pano_yaw,
+                pano_size: args.pano_size,
             };
             let written =
                 headless::render_to_dir(&args.config, &overrides, &args.out, &args.formats)

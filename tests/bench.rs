@@ -203,6 +203,53 @@ fn quick_bench_writes_complete_and_sane_results() {
         .filter(|p| p.0.iter().any(|&c| c < 200))
         .count();
     assert!(ink > 5_000, "{ink} inked pixels");
+
+    // The panorama methods: every one on both scenes, timed, and against the ray caster.
+    let pano = std::fs::read_to_string(out.join("panorama.csv")).expect("panorama.csv");
+    let mut lines = pano.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let expected: Vec<String> = omnicave::bench::panorama::pano_methods(true)
+        .iter()
+        .map(|m| m.name.clone())
+        .collect();
+    for scene in ["living-room", "city"] {
+        let got: Vec<&str> = rows
+            .iter()
+            .filter(|r| r[col("scene")] == scene)
+            .map(|r| r[col("method")])
+            .collect();
+        assert_eq!(got, expected, "{scene}");
+    }
+    for r in &rows {
+        let what = format!("{} / {}", r[col("scene")], r[col("method")]);
+        let median: f64 = r[col("median_ms")].parse().expect("median");
+        let off: f64 = r[col("pixels_off_pct")].parse().expect("off");
+        let away: f64 = r[col("off_away_from_edges_pct")].parse().expect("away");
+        println!("panorama {what}: {median:.2} ms, {off:.3} % off, {away:.4} % away from edges");
+        assert!(median > 0.0 && median.is_finite(), "{what}: {median}");
+        assert!((0.0..=100.0).contains(&off) && away <= off, "{what}");
+        // Every route shows the scene the ray caster sees: differences lie at colour edges
+        // (0.05 % elsewhere: a few pixels where a ray passes between two triangles, or a
+        // sub-pixel object the image route's cube faces do not sample).
+        assert!(away <= 0.05, "{what}: {away} % away from edges");
+        if r[col("route")] == "geometric" {
+            // The geometric route's coverage is exact: under 0.2 % of pixels anywhere.
+            assert!(off <= 0.2, "{what}: {off} % off");
+        }
+    }
+    for needle in [
+        "## Panorama (360° × 180°",
+        "| living-room | geometric equirectangular",
+    ] {
+        assert!(report.contains(needle), "report.md lacks '{needle}'");
+    }
+    for scene in ["living-room", "city"] {
+        let img = image::open(out.join(format!("panorama-{scene}-equirectangular.png")))
+            .expect("360° image");
+        assert_eq!((img.width(), img.height()), (256, 128));
+    }
 }
 
 #[test]

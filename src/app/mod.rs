@@ -326,6 +326,13 @@ impl App {
                 return;
             }
         };
+        if self.state.panorama_on {
+            let frame = self.state.frame_params();
+            if let Err(e) = gfx.renderer.render_panorama(&frame, &self.state.panorama) {
+                tracing::error!("panorama: {e}; closing the panorama view");
+                self.state.panorama_on = false;
+            }
+        }
         // Every wall draws the whole scene once per view of it.
         let walls = self.state.cave().walls.len().max(1);
         self.info.triangles_per_wall = stats.triangles_submitted / walls;

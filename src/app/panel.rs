@@ -10,6 +10,7 @@ use crate::cave::RenderMode;
 use crate::cave::omni::WarpVariant;
 use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
+use crate::pano::{PanoRoute, PanoStereo, Projection};
 use crate::sky::SkyMode;
 use crate::tracking::TrackingStatus;
 
@@ -76,6 +77,8 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelReq
         tracking_section(ui, state, &info.tracking);
         ui.separator();
         output_section(ui, state, info);
+        ui.separator();
+        panorama_section(ui, state, info);
         ui.separator();
         ui.horizontal(|ui| {
             if ui.button("Save settings").clicked() {
@@ -365,6 +368,74 @@ fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         format_combo(ui, "Preview output", &mut state.preview_output);
     }
     ui.checkbox(&mut state.swap_eyes, "Swap eyes");
+}
+
+/// The panorama view: what it shows and how it is drawn.
+fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    ui.checkbox(
+        &mut state.panorama_on,
+        if info.cave_mode {
+            "Panorama view (operator window)"
+        } else {
+            "Panorama view"
+        },
+    );
+    let pano = &mut state.panorama;
+    ui.add_enabled_ui(state.panorama_on, |ui| {
+        combo(
+            ui,
+            "Projection",
+            &mut pano.projection,
+            &Projection::ALL,
+            Projection::name,
+        );
+        let (max_h, max_v) = pano.projection.max_fov();
+        let mut h = pano.h_fov.to_degrees().min(max_h.to_degrees());
+        let mut v = pano.v_fov.to_degrees().min(max_v.to_degrees());
+        ui.add(
+            Slider::new(&mut h, 90f32.min(max_h.to_degrees())..=max_h.to_degrees())
+                .text("horizontal FoV °"),
+        );
+        ui.add(Slider::new(&mut v, 10.0..=max_v.to_degrees()).text("vertical FoV °"));
+        pano.h_fov = h.to_radians();
+        pano.v_fov = v.to_radians();
+        let mut yaw = pano.yaw.to_degrees();
+        ui.add(Slider::new(&mut yaw, -180.0..=180.0).text("turn °"));
+        pano.yaw = yaw.to_radians();
+        let geometric = pano.projection.geometric() && info.tessellation_supported;
+        ui.horizontal(|ui| {
+            ui.label("Route");
+            ui.add_enabled_ui(geometric, |ui| {
+                ui.radio_value(&mut pano.route, PanoRoute::Geometric, "geometric");
+            });
+            ui.radio_value(&mut pano.route, PanoRoute::Image, "image (cube map)");
+        });
+        if !geometric && pano.route == PanoRoute::Geometric {
+            ui.label("this projection is drawn by the image route");
+        }
+        ui.add_enabled_ui(pano.effective_route() == PanoRoute::Geometric, |ui| {
+            let stereos = [
+                PanoStereo::Mono,
+                PanoStereo::VOLUME_DEFAULT,
+                PanoStereo::Omni,
+            ];
+            let mut chosen = stereos
+                .iter()
+                .position(|s| s.name() == pano.stereo.name())
+                .unwrap_or(0);
+            ComboBox::from_label("Panorama stereo")
+                .selected_text(stereos[chosen].name())
+                .show_ui(ui, |ui| {
+                    for (i, s) in stereos.iter().enumerate() {
+                        ui.selectable_value(&mut chosen, i, s.name());
+                    }
+                });
+            // Keep the volume stereo's own parameters when it stays selected.
+            if stereos[chosen].name() != pano.stereo.name() {
+                pano.stereo = stereos[chosen];
+            }
+        });
+    });
 }
 
 /// The F1 key map as a floating window.

@@ -10,6 +10,7 @@ use crate::cave::{Cave, Head, RenderMode};
 use crate::config::{Config, ConfigFile};
 use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
+use crate::pano::{PanoSettings, PanoStereo};
 use crate::render::{FrameParams, RenderSettings};
 use crate::sky::{SkyMode, SkySettings};
 use crate::tess::{Criterion, MAX_DEPTH_LIMIT, TessSettings};
@@ -150,6 +151,9 @@ pub struct AppState {
     pub tracked_orientation: Option<Quat>,
     /// What the gamepad's sticks drive.
     pub gamepad_mode: GamepadMode,
+    /// The panorama view: shown or not, and its settings.
+    pub panorama_on: bool,
+    pub panorama: PanoSettings,
     pub quit_requested: bool,
     pub save_requested: bool,
     /// Where "save" writes.
@@ -211,6 +215,8 @@ impl AppState {
             tracking_filter: config.tracking.settings.filter.unwrap_or_default(),
             tracked_orientation: None,
             gamepad_mode: config.gamepad.mode,
+            panorama_on: config.file.panorama.show,
+            panorama: config.panorama,
             quit_requested: false,
             save_requested: false,
             save_path,
@@ -525,6 +531,17 @@ impl AppState {
         file.tracking.filter.beta = self.tracking_filter.beta;
         file.tracking.filter.derivative_cutoff_hz = self.tracking_filter.derivative_cutoff_hz;
         file.gamepad.mode = self.gamepad_mode.name().into();
+        let pano = &self.panorama;
+        file.panorama.show = self.panorama_on;
+        file.panorama.projection = pano.projection.name().into();
+        file.panorama.h_fov_degrees = pano.h_fov.to_degrees();
+        file.panorama.v_fov_degrees = pano.v_fov.to_degrees();
+        file.panorama.route = pano.route.name().into();
+        file.panorama.stereo = pano.stereo.name().into();
+        if let PanoStereo::Volume { ioid, d, offset } = pano.stereo {
+            file.panorama.volume_ioid_d_offset = [ioid, d, offset];
+        }
+        file.panorama.yaw_degrees = pano.yaw.to_degrees();
         for ((section, wall), output) in file
             .walls
             .iter_mut()

@@ -137,6 +137,8 @@ pub struct OutputWindow {
     bindings: Vec<PresentBinding>,
     /// (targets generation, mono) the bindings were made for.
     bound: Option<(u64, bool)>,
+    /// The panorama's eye images, and the (panorama generation, stereo) they were bound for.
+    pano_binding: Option<(PresentBinding, (u64, bool))>,
     /// Frames presented (frame-sequential alternates eyes on this).
     presented: u64,
     background: wgpu::Color,
@@ -209,6 +211,7 @@ impl OutputWindow {
             configured,
             bindings: Vec::new(),
             bound: None,
+            pano_binding: None,
             presented: 0,
             background,
         })
@@ -270,6 +273,23 @@ impl OutputWindow {
         self.bound = Some(key);
     }
 
+    /// Rebinds the panorama's eye textures when the renderer has replaced them.
+    fn ensure_pano_binding(&mut self, gpu: &Gpu, renderer: &Renderer, present: &PresentPass) {
+        let key = (
+            renderer.panorama_generation(),
+            renderer.panorama_is_stereo(),
+        );
+        if self.pano_binding.as_ref().is_some_and(|(_, k)| *k == key) {
+            return;
+        }
+        if let (Some(left), Some(right)) = (
+            renderer.panorama_texture(Eye::Left),
+            renderer.panorama_texture(Eye::Right),
+        ) {
+            self.pano_binding = Some((present.bind(&gpu.device, left, right), key));
+        }
+    }
+
     /// Composes and presents this window's frame; returns whether the surface had to be
     /// recovered (the frame is then skipped, not an error).
     pub fn draw(
@@ -285,6 +305,10 @@ impl OutputWindow {
         }
         let walls = &state.cave().walls;
         self.ensure_bindings(gpu, renderer, present, walls.len());
+        let show_pano = state.panorama_on && matches!(self.role, Role::Preview | Role::Operator);
+        if show_pano {
+            self.ensure_pano_binding(gpu, renderer, present);
+        }
         let (frame, suboptimal) = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) => (t, false),
             wgpu::CurrentSurfaceTexture::Suboptimal(t) => (t, true),
@@ -332,7 +356,12 @@ impl OutputWindow {
             frame: self.presented,
             swap_eyes: state.swap_eyes,
         };
-        let mut tiles = Vec::with_capacity(self.bindings.len());
+        let pano_binding = self
+            .pano_binding
+            .as_ref()
+            .map(|(b, _)| b)
+            .filter(|_| show_pano);
+        let mut tiles = Vec::with_capacity(self.bindings.len() + 1);
         match self.role {
             Role::Wall(i) => {
                 if let (Some(binding), Some(&format)) =
@@ -346,10 +375,21 @@ impl OutputWindow {
                 }
             }
             Role::Preview => {
-                let area = egui
+                let mut area = egui
                     .as_ref()
                     .and_then(|(_, f)| f.central)
                     .unwrap_or([0.0, 0.0, w as f32, h as f32]);
+                if let Some(binding) = pano_binding {
+                    // The walls above, the panorama below: each in half the area.
+                    let [x, y, aw, ah] = area;
+                    let below = [x, y + 0.5 * ah, aw, 0.5 * ah];
+                    tiles.push(Tile {
+                        binding,
+                        params: params(state.preview_output),
+                        rect: clamp_rect(fit(below, state.panorama.size), [w, h]),
+                    });
+                    area = [x, y, aw, 0.5 * ah];
+                }
                 let sizes: Vec<[f32; 2]> = walls.iter().map(|w| w.size_m().to_array()).collect();
                 for (binding, rect) in self.bindings.iter().zip(unfolded_layout(&sizes, area)) {
                     tiles.push(Tile {
@@ -359,7 +399,19 @@ impl OutputWindow {
                     });
                 }
             }
-            Role::Operator => {}
+            Role::Operator => {
+                if let Some(binding) = pano_binding {
+                    let area = egui
+                        .as_ref()
+                        .and_then(|(_, f)| f.central)
+                        .unwrap_or([0.0, 0.0, w as f32, h as f32]);
+                    tiles.push(Tile {
+                        binding,
+                        params: params(state.preview_output),
+                        rect: clamp_rect(fit(area, state.panorama.size), [w, h]),
+                    });
+                }
+            }
         }
         let mut encoder = gpu
             .device
@@ -389,6 +441,18 @@ impl OutputWindow {
         }
         Ok(suboptimal)
     }
+}
+
+/// The largest rectangle of an image's proportions (`size` pixels) centred in `area`.
+fn fit(area: [f32; 4], size: [u32; 2]) -> [f32; 4] {
+    let [x, y, w, h] = area;
+    let aspect = size[0].max(1) as f32 / size[1].max(1) as f32;
+    let (fw, fh) = if w / h.max(1.0) > aspect {
+        (h * aspect, h)
+    } else {
+        (w, w / aspect)
+    };
+    [x + 0.5 * (w - fw), y + 0.5 * (h - fh), fw, fh]
 }
 
 /// Walls side by side as one continuous strip (each in proportion to its size in metres),
@@ -501,6 +565,14 @@ impl EguiHost {
                             .resizable(true)
                             .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
                     }
+                    central = Some(ui.available_rect_before_wrap());
+                }
+                Role::Operator if state.panorama_on => {
+                    // The panel docked, the operator's overview of the panorama beside it.
+                    egui::Panel::left("controls")
+                        .default_size(340.0)
+                        .resizable(true)
+                        .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
                     central = Some(ui.available_rect_before_wrap());
                 }
                 Role::Operator => {

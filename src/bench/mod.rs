@@ -4,6 +4,7 @@
 
 pub mod accuracy;
 pub mod chart;
+pub mod panorama;
 pub mod stability;
 
 use std::fmt::Write as _;
@@ -208,6 +209,8 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
 #[derive(Debug, Clone)]
 pub struct BenchReport {
     pub rows: Vec<Row>,
+    /// The panorama methods (see [`panorama`]).
+    pub pano_rows: Vec<panorama::PanoRow>,
     pub adapter: String,
     pub files: Vec<PathBuf>,
 }
@@ -388,9 +391,45 @@ pub fn run(
             write_outputs(options, &config, &adapter, frames, &rows)?;
         }
     }
+    progress(
+        total,
+        total,
+        "panorama methods (geometric and image routes, against the CPU ray caster)",
+    );
+    let with_geometry: Vec<(String, Scene)> = scenes
+        .iter()
+        .filter_map(|(name, s)| s.clone().map(|s| (name.clone(), s)))
+        .collect();
+    let (pano_rows, pano_files) = panorama::run_panorama(
+        &gpu,
+        &config,
+        &with_geometry,
+        &options.out,
+        options.quick,
+        frames,
+    )?;
     progress(total, total, "done");
-    let files = write_outputs(options, &config, &adapter, frames, &rows)?;
+    let mut files = write_outputs(options, &config, &adapter, frames, &rows)?;
+    // The panorama section at the end of the report.
+    let md_path = options.out.join("report.md");
+    let mut md = std::fs::read_to_string(&md_path).map_err(|source| BenchError::Write {
+        path: md_path.clone(),
+        source,
+    })?;
+    let images: Vec<PathBuf> = pano_files
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .cloned()
+        .collect();
+    md.push_str(&panorama::pano_markdown(
+        &pano_rows,
+        panorama::pano_size(options.quick),
+        &images,
+    ));
+    write_file(&md_path, &md)?;
+    files.extend(pano_files);
     Ok(BenchReport {
+        pano_rows,
         rows,
         adapter,
         files,

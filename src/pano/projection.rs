@@ -51,6 +51,24 @@ impl Projection {
         }
     }
 
+    /// The projection's number in WGSL (`pano_map` in shaders/common.wgsl; keep in step).
+    pub fn code(self) -> u32 {
+        match self {
+            Self::Perspective => 0,
+            Self::Equirectangular => 1,
+            Self::Hammer => 2,
+            Self::AlbersConic => 3,
+            Self::AzimuthalEquidistant => 4,
+        }
+    }
+
+    /// Whether the geometric route (per-vertex projection with pre-clip) can draw it: the
+    /// cylindrical and pseudo-cylindrical ones, whose only discontinuities are the rear
+    /// meridian and the poles.
+    pub fn geometric(self) -> bool {
+        matches!(self, Self::Equirectangular | Self::Hammer)
+    }
+
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|p| p.name() == name)
     }
@@ -172,6 +190,8 @@ pub struct PanoProjection {
     /// Centre and half size of the field of view in map coordinates.
     centre: Vec2,
     half: Vec2,
+    /// The field of view (radians, horizontal and vertical) after clamping.
+    fov: Vec2,
 }
 
 impl PanoProjection {
@@ -223,7 +243,13 @@ impl PanoProjection {
             projection,
             centre,
             half,
+            fov: Vec2::new(h, v),
         }
+    }
+
+    /// The field of view shown (radians, horizontal and vertical), after clamping.
+    pub fn fov(&self) -> Vec2 {
+        self.fov
     }
 
     /// Image coordinates (NDC, y up) of a view-space direction; `None` where the projection
@@ -237,6 +263,12 @@ impl PanoProjection {
     /// equidistant).
     pub fn unproject(&self, ndc: Vec2) -> Option<Vec3> {
         unmap(self.projection, self.centre + ndc * self.half)
+    }
+
+    /// Centre and half size of the field of view in map coordinates, as the shaders take them
+    /// (`[centre.x, centre.y, half.x, half.y]`).
+    pub fn map_window(&self) -> [f32; 4] {
+        [self.centre.x, self.centre.y, self.half.x, self.half.y]
     }
 
     /// Width over height of the image that shows the field of view undistorted at its

@@ -1,6 +1,7 @@
 //! The multi-wall stereo renderer: owns the GPU resources and draws every wall for every eye.
 
 pub mod gpu;
+pub mod panorama;
 pub mod present;
 pub mod scene_pass;
 pub mod shaders;
@@ -25,6 +26,7 @@ use uniforms::{FrameUniforms, ViewUniforms};
 use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
 use crate::config::Lighting;
+use crate::pano::{PanoRoute, PanoSettings};
 use crate::scene::Scene;
 use crate::sky::{CubeMap, SkySettings};
 use crate::tess::{TessSettings, TessStats};
@@ -44,6 +46,13 @@ pub enum RenderError {
     Msaa(u32),
     #[error(transparent)]
     Tessellation(#[from] tessellator::TessError),
+    #[error(
+        "the panorama's geometric route needs the tessellator, which this adapter cannot run \
+         (use the image route)"
+    )]
+    PanoramaNeedsTessellator,
+    #[error("a panorama of {0}×{1} pixels is empty or exceeds this device's texture limit")]
+    PanoramaSize(u32, u32),
     #[error("sky faces of {size}×{size} exceed this device's texture limit of {max}")]
     SkyTooLarge { size: u32, max: u32 },
 }
@@ -130,6 +139,12 @@ pub struct Renderer {
     present: present::PresentPass,
     /// Bumped whenever an eye target is rebuilt (bindings of eye textures must follow).
     targets_generation: u64,
+    /// The panorama view's targets and image route.
+    pano: panorama::PanoPass,
+    /// Eye images in the last panorama (1 mono, 2 stereo).
+    pano_views: usize,
+    /// Whether the last panorama went through the tessellator (geometric route).
+    pano_tessellated: bool,
 }
 
 /// Two timestamps around a frame's GPU work, resolved into a buffer the CPU can map.
@@ -205,6 +220,9 @@ impl Renderer {
             timer: None,
             present: present::PresentPass::new(&gpu.device),
             targets_generation: 0,
+            pano: panorama::PanoPass::new(&gpu.device),
+            pano_views: 0,
+            pano_tessellated: false,
         };
         renderer.sync_walls(cave);
         Ok(renderer)
@@ -292,6 +310,7 @@ impl Renderer {
         self.scene_pass.pipelines_built
             + self.sky_pass.pipelines_built
             + self.present.pipelines_built()
+            + panorama::PANO_PIPELINES
             + if self.tessellator.is_some() {
                 Tessellator::PIPELINES
             } else {
@@ -601,7 +620,218 @@ impl Renderer {
         };
         self.last_views = views;
         self.last_tessellated = tessellate;
+        // The tessellator's statistics now describe the walls.
+        self.pano_tessellated = false;
         Ok(stats)
+    }
+
+    /// Renders the panorama view of `frame` (its scene, head, lighting, tessellation and
+    /// omnistereo settings) into the panorama's own eye targets and submits the work (no CPU
+    /// read-back). Independent of the walls: call it after `render` in the same frame.
+    pub fn render_panorama(
+        &mut self,
+        frame: &FrameParams<'_>,
+        pano: &PanoSettings,
+    ) -> Result<(), RenderError> {
+        let [w, h] = pano.size;
+        let max = self.device.limits().max_texture_dimension_2d;
+        if w == 0 || h == 0 || w > max || h > max {
+            return Err(RenderError::PanoramaSize(w, h));
+        }
+        let route = pano.effective_route();
+        if route == PanoRoute::Geometric && self.tessellator.is_none() {
+            return Err(RenderError::PanoramaNeedsTessellator);
+        }
+        self.pano
+            .ensure_targets(&self.device, pano.size, self.settings.msaa);
+        self.scene_pass.ensure_view_capacity(&self.device, 6);
+        let head = frame.head.position;
+        let (near, far) = (frame.cave.near, frame.cave.far);
+        let clear = srgb_to_linear_color(frame.background);
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("Renderer::panorama"),
+            });
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, 0);
+        }
+        match route {
+            PanoRoute::Image => {
+                let face_size = pano.cube_size.clamp(4, max);
+                self.pano
+                    .ensure_cube(&self.device, face_size, self.settings.msaa);
+                let frame_uniforms =
+                    FrameUniforms::new(frame.world_from_cave, &frame.lighting, None);
+                let faces = (0..6).map(|f| ViewUniforms {
+                    clip_from_cave: panorama::face_clip_from_cave(f, head, face_size, near, far)
+                        .to_cols_array_2d(),
+                    eye_position: head.extend(1.0).to_array(),
+                    wall_plane: [0.0; 4],
+                    omni_head: [0.0; 4],
+                    pano: [0.0; 4],
+                    pano_window: [0.0; 4],
+                    pano_size: [0.0; 4],
+                });
+                self.scene_pass
+                    .write_uniforms(&self.queue, &frame_uniforms, faces);
+                let fitted = pano.fitted();
+                let background = clear;
+                self.pano.write_resolve(
+                    &self.queue,
+                    &panorama::ResolveUniforms {
+                        cave_from_view: pano.view_from_cave(head).inverse().to_cols_array_2d(),
+                        window: fitted.map_window(),
+                        params: [
+                            fitted.projection.code() as f32,
+                            panorama::face_half_extent(face_size),
+                            0.0,
+                            0.0,
+                        ],
+                        background: [
+                            background.r as f32,
+                            background.g as f32,
+                            background.b as f32,
+                            1.0,
+                        ],
+                    },
+                );
+                let (scene_pass, scene) = (&self.scene_pass, &self.scene);
+                self.pano.encode_faces(&mut encoder, clear, |pass, face| {
+                    if let Some(scene) = scene {
+                        scene_pass.draw(pass, scene, face, false);
+                    }
+                });
+                self.pano.encode_resolve(&mut encoder);
+                self.pano_views = 1;
+                self.pano_tessellated = false;
+            }
+            PanoRoute::Geometric => {
+                let eyes: &[Option<Eye>] = if pano.stereo.is_stereo() {
+                    &[Some(Eye::Left), Some(Eye::Right)]
+                } else {
+                    &[None]
+                };
+                let omni = matches!(pano.stereo, crate::pano::PanoStereo::Omni);
+                let frame_uniforms = FrameUniforms::new(
+                    frame.world_from_cave,
+                    &frame.lighting,
+                    omni.then_some(frame.omni),
+                );
+                let views = eyes.iter().map(|&eye| {
+                    panorama::pano_view_uniforms(pano, head, eye, frame.eye_separation, near, far)
+                });
+                self.scene_pass
+                    .write_uniforms(&self.queue, &frame_uniforms, views);
+                if self.scene.is_some() {
+                    self.ensure_tess_buffers()?;
+                }
+                let pixels_per_radian = w as f32 / pano.fitted().fov().x;
+                let radius = if omni {
+                    0.5 * frame.eye_separation
+                } else {
+                    0.0
+                };
+                if let Some((buffers, _)) = self.tess_buffers.as_mut() {
+                    buffers.write_uniforms(
+                        &self.queue,
+                        eyes.iter().map(|_| {
+                            TessUniforms::panorama(
+                                &frame.tess,
+                                pano.size,
+                                pixels_per_radian,
+                                head,
+                                radius,
+                            )
+                        }),
+                    );
+                }
+                let rounds = tessellator::rounds(&frame.tess);
+                for index in 0..eyes.len() {
+                    let (Some(scene), Some((buffers, _)), Some(tessellator)) =
+                        (&self.scene, &self.tess_buffers, &self.tessellator)
+                    else {
+                        // No scene: the target is only cleared.
+                        drop(self.pano.begin_eye_pass(&mut encoder, index, clear));
+                        continue;
+                    };
+                    buffers.encode(tessellator, &mut encoder, index, rounds);
+                    if let Some(mut pass) = self.pano.begin_eye_pass(&mut encoder, index, clear) {
+                        self.scene_pass
+                            .draw_panorama(&mut pass, scene, buffers, index);
+                    }
+                }
+                self.pano_views = eyes.len();
+                self.pano_tessellated = self.scene.is_some();
+            }
+        }
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, 1);
+            encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
+        }
+        self.queue.submit([encoder.finish()]);
+        // The wall frame's statistics no longer describe the tessellator's buffers.
+        self.last_tessellated = false;
+        Ok(())
+    }
+
+    /// The colour texture of the last panorama for `eye` (mono: one image for both).
+    pub fn panorama_texture(&self, eye: Eye) -> Option<&wgpu::Texture> {
+        let slot = if self.pano_views > 1 { eye as usize } else { 0 };
+        self.pano.targets().map(|t| &t.eyes[slot].color)
+    }
+
+    /// Changes whenever the panorama's textures are replaced (a new size or MSAA).
+    pub fn panorama_generation(&self) -> u64 {
+        self.pano.generation
+    }
+
+    /// Whether the last panorama had two different eye images.
+    pub fn panorama_is_stereo(&self) -> bool {
+        self.pano_views > 1
+    }
+
+    /// Reads the last panorama's left and right images back (identical in mono).
+    pub fn read_panorama(&self) -> Result<[RgbaImage; 2], RenderError> {
+        let (Some(left), Some(right)) = (
+            self.panorama_texture(Eye::Left),
+            self.panorama_texture(Eye::Right),
+        ) else {
+            return Err(RenderError::Readback("no panorama rendered yet".into()));
+        };
+        let mut images = targets::read_textures(&self.device, &self.queue, &[left, right])?;
+        let (Some(right), Some(left)) = (images.pop(), images.pop()) else {
+            return Err(RenderError::Readback("missing panorama image".into()));
+        };
+        Ok([left, right])
+    }
+
+    /// Composes the last panorama's eyes into a stereo output format and reads it back.
+    pub fn compose_panorama(
+        &mut self,
+        params: present::PresentParams,
+    ) -> Result<RgbaImage, RenderError> {
+        let (Some(left), Some(right)) = (
+            self.panorama_texture(Eye::Left).cloned(),
+            self.panorama_texture(Eye::Right).cloned(),
+        ) else {
+            return Err(RenderError::Readback("no panorama rendered yet".into()));
+        };
+        self.present
+            .compose_to_image(&self.device, &self.queue, &left, &right, params)
+    }
+
+    /// Tessellation statistics of the last panorama's eyes (geometric route; blocking read).
+    pub fn read_panorama_tess_stats(&self) -> Result<Vec<TessStats>, RenderError> {
+        match (&self.tess_buffers, &self.scene) {
+            (Some((buffers, _)), Some(scene)) if self.pano_tessellated => buffers.read_stats(
+                &self.device,
+                &self.queue,
+                self.pano_views,
+                scene.triangle_count as u32,
+            ),
+            _ => Ok(Vec::new()),
+        }
     }
 
     /// Tessellation statistics of the last frame, one per view in `last_views()` order

@@ -30,6 +30,17 @@ struct PipelineKey {
     wireframe: bool,
     /// Vertices pulled from the tessellator's output (`vs_tess`) instead of a vertex buffer.
     tessellated: bool,
+    /// The panorama's geometric route (`vs_pano`/`fs_pano`; tessellated output, no
+    /// wireframe).
+    panorama: bool,
+}
+
+/// Where a draw's vertices come from and how they are projected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Variant {
+    Plain,
+    Tessellated,
+    Panorama,
 }
 
 /// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
@@ -214,8 +225,8 @@ impl ScenePass {
             .contains(wgpu::Features::POLYGON_MODE_LINE);
         for double_sided in [false, true] {
             for wireframe in [false, true] {
-                for tessellated in [false, true] {
-                    if (wireframe && !wireframe_supported)
+                for (tessellated, panorama) in [(false, false), (true, false), (true, true)] {
+                    if (wireframe && (panorama || !wireframe_supported))
                         || (tessellated && self.tess_pipeline_layout.is_none())
                     {
                         continue;
@@ -224,6 +235,7 @@ impl ScenePass {
                         double_sided,
                         wireframe,
                         tessellated,
+                        panorama,
                     };
                     let pipeline = self.build_pipeline(device, key);
                     self.pipelines.insert(key, pipeline);
@@ -235,15 +247,21 @@ impl ScenePass {
 
     fn build_pipeline(&self, device: &wgpu::Device, key: PipelineKey) -> wgpu::RenderPipeline {
         let label = format!(
-            "ScenePass::pipeline{}{}{}",
+            "ScenePass::pipeline{}{}{}{}",
             if key.double_sided {
                 " double-sided"
             } else {
                 ""
             },
             if key.wireframe { " wireframe" } else { "" },
-            if key.tessellated { " tessellated" } else { "" }
+            if key.tessellated { " tessellated" } else { "" },
+            if key.panorama { " panorama" } else { "" }
         );
+        let cull_back = [("PANO_CULL_BACK", if key.double_sided { 0.0 } else { 1.0 })];
+        let compilation_options = wgpu::PipelineCompilationOptions {
+            constants: &cull_back,
+            ..Default::default()
+        };
         let vertex_buffers = [Some(wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<GpuVertex>() as u64,
             step_mode: wgpu::VertexStepMode::Vertex,
@@ -257,12 +275,12 @@ impl ScenePass {
             }),
             vertex: wgpu::VertexState {
                 module: &self.shader,
-                entry_point: Some(if key.tessellated {
-                    "vs_tess"
-                } else {
-                    "vs_main"
+                entry_point: Some(match (key.tessellated, key.panorama) {
+                    (_, true) => "vs_pano",
+                    (true, false) => "vs_tess",
+                    (false, false) => "vs_main",
                 }),
-                compilation_options: Default::default(),
+                compilation_options: compilation_options.clone(),
                 buffers: if key.tessellated {
                     &[]
                 } else {
@@ -272,7 +290,9 @@ impl ScenePass {
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
                 front_face: wgpu::FrontFace::Ccw,
-                cull_mode: (!key.double_sided).then_some(wgpu::Face::Back),
+                // The panorama culls in its vertex shader (a pre-clipped triangle's band has
+                // no meaningful winding).
+                cull_mode: (!key.double_sided && !key.panorama).then_some(wgpu::Face::Back),
                 polygon_mode: if key.wireframe {
                     wgpu::PolygonMode::Line
                 } else {
@@ -307,12 +327,12 @@ impl ScenePass {
             },
             fragment: Some(wgpu::FragmentState {
                 module: &self.shader,
-                entry_point: Some(if key.wireframe {
-                    "fs_wireframe"
-                } else {
-                    "fs_main"
+                entry_point: Some(match (key.wireframe, key.panorama) {
+                    (true, _) => "fs_wireframe",
+                    (false, true) => "fs_pano",
+                    (false, false) => "fs_main",
                 }),
-                compilation_options: Default::default(),
+                compilation_options,
                 targets: &[Some(wgpu::ColorTargetState {
                     format: COLOR_FORMAT,
                     blend: None,
@@ -389,7 +409,7 @@ impl ScenePass {
             scene,
             view_index,
             wireframe,
-            false,
+            Variant::Plain,
             |pass, _, draw| {
                 pass.draw_indexed(
                     draw.first_index..draw.first_index + draw.index_count,
@@ -411,7 +431,27 @@ impl ScenePass {
         wireframe: bool,
     ) {
         pass.set_bind_group(2, &tess.draw_group, &[]);
-        self.draw_materials(pass, scene, view_index, wireframe, true, |pass, d, _| {
+        let variant = Variant::Tessellated;
+        self.draw_materials(pass, scene, view_index, wireframe, variant, |pass, d, _| {
+            pass.draw_indirect(
+                &tess.args,
+                super::tessellator::TessBuffers::draw_args_offset(d),
+            );
+        });
+    }
+
+    /// Records the panorama's geometric route for view slot `view_index`: the tessellator's
+    /// output for that view, projected and pre-clipped by `vs_pano`/`fs_pano`.
+    pub fn draw_panorama(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        scene: &SceneGpu,
+        tess: &super::tessellator::TessBuffers,
+        view_index: usize,
+    ) {
+        pass.set_bind_group(2, &tess.draw_group, &[]);
+        let variant = Variant::Panorama;
+        self.draw_materials(pass, scene, view_index, false, variant, |pass, d, _| {
             pass.draw_indirect(
                 &tess.args,
                 super::tessellator::TessBuffers::draw_args_offset(d),
@@ -427,7 +467,7 @@ impl ScenePass {
         scene: &SceneGpu,
         view_index: usize,
         wireframe: bool,
-        tessellated: bool,
+        variant: Variant,
         issue: impl Fn(&mut wgpu::RenderPass<'_>, usize, &GpuDraw),
     ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
@@ -439,7 +479,8 @@ impl ScenePass {
                 let key = PipelineKey {
                     double_sided: draw.double_sided,
                     wireframe: wire,
-                    tessellated,
+                    tessellated: variant != Variant::Plain,
+                    panorama: variant == Variant::Panorama,
                 };
                 if bound != Some(key) {
                     let Some(pipeline) = self.pipelines.get(&key) else {

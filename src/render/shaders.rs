@@ -15,12 +15,16 @@ pub const SKY: &str = include_str!("../../shaders/sky.wgsl");
 /// Stereo output formats (paired with `src/render/present.rs`).
 pub const PRESENT: &str = include_str!("../../shaders/present.wgsl");
 
+/// The panorama's image route (paired with `src/render/panorama.rs`).
+pub const PANORAMA: &str = include_str!("../../shaders/panorama.wgsl");
+
 /// Every feature shader by file stem, for validation.
 pub const FEATURES: &[(&str, &str)] = &[
     ("scene", SCENE),
     ("tessellate", TESSELLATE),
     ("sky", SKY),
     ("present", PRESENT),
+    ("panorama", PANORAMA),
 ];
 
 /// Full source of a feature shader: common declarations followed by the feature's own code.

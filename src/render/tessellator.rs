@@ -68,6 +68,29 @@ impl TessUniforms {
     }
 }
 
+impl TessUniforms {
+    /// Parameters of one panorama eye: criteria measured in the panorama's pixels (the
+    /// projection and its window come from the view uniforms), no frustum culling (the view
+    /// surrounds the head), back faces culled against the ball the omnistereo eyes lie on.
+    pub fn panorama(
+        settings: &TessSettings,
+        size: [u32; 2],
+        pixels_per_radian: f32,
+        head: glam::Vec3,
+        eye_radius: f32,
+    ) -> Self {
+        let (code, value) = settings.criterion.map_or((0, 0.0), |c| c.gpu_code());
+        let flag = |b: bool| if b { 1.0 } else { 0.0 };
+        Self {
+            criterion: [code as f32, value, rounds(settings) as f32, 0.0],
+            wall: [size[0] as f32, size[1] as f32, pixels_per_radian, 1.0],
+            cull: [0.0, flag(settings.backface_cull), 0.0, eye_radius],
+            eye_ball: head.extend(0.0).to_array(),
+            counts: [0; 4],
+        }
+    }
+}
+
 /// Number of split rounds a setting asks for.
 pub fn rounds(settings: &TessSettings) -> u32 {
     if settings.criterion.is_some() {

@@ -76,6 +76,14 @@ pub struct ViewUniforms {
     pub eye_position: [f32; 4],
     pub wall_plane: [f32; 4],
     pub omni_head: [f32; 4],
+    /// Panorama views only (zero for walls): x projection code + 1, y near and z far
+    /// clipping sphere radius (metres), w stereo (0 mono, 1 volume, 2 omni).
+    pub pano: [f32; 4],
+    /// Panorama: the field of view's centre and half size in map coordinates.
+    pub pano_window: [f32; 4],
+    /// Panorama: x, y image pixels; z signed half inter-ocular distance, w viewing distance
+    /// and (in `wall_plane.x`) zero-parallax depth of the volume stereo.
+    pub pano_size: [f32; 4],
 }
 
 impl From<&ViewSetup> for ViewUniforms {
@@ -92,6 +100,9 @@ impl From<&ViewSetup> for ViewUniforms {
             eye_position: view.eye_position.extend(1.0).to_array(),
             wall_plane,
             omni_head,
+            pano: [0.0; 4],
+            pano_window: [0.0; 4],
+            pano_size: [0.0; 4],
         }
     }
 }

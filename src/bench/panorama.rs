@@ -1,0 +1,290 @@
+//! The panorama methods in the benchmark: the geometric route (with and without tessellation,
+//! equirectangular and Hammer) against the image route (cube maps of two sizes), timed on the
+//! GPU and compared with the CPU ray caster; 360° images of every scene for the report.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::{BenchError, percentile};
+use crate::config::Config;
+use crate::headless::frame_params;
+use crate::output;
+use crate::pano::raycast::{Comparison, RayCaster, compare, flat_colours};
+use crate::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
+use crate::render::{Gpu, RenderSettings, Renderer};
+use crate::scene::Scene;
+use crate::tess::{Criterion, TessSettings};
+
+/// One panorama method.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PanoMethod {
+    pub name: String,
+    pub projection: Projection,
+    pub route: PanoRoute,
+    /// Geometric route: the tessellation criterion (`None`: drawn untessellated).
+    pub criterion: Option<Criterion>,
+    /// Image route: cube face pixels.
+    pub cube_size: u32,
+}
+
+/// The methods of a run (`quick`: one of each kind).
+pub fn pano_methods(quick: bool) -> Vec<PanoMethod> {
+    let geometric = |projection: Projection, criterion: Option<Criterion>| PanoMethod {
+        name: format!(
+            "geometric {} {}",
+            projection.name(),
+            criterion.map_or("untessellated".into(), |c| c.to_string())
+        ),
+        projection,
+        route: PanoRoute::Geometric,
+        criterion,
+        cube_size: 0,
+    };
+    let image = |projection: Projection, cube_size: u32| PanoMethod {
+        name: format!("image {} cube {cube_size}", projection.name()),
+        projection,
+        route: PanoRoute::Image,
+        criterion: None,
+        cube_size,
+    };
+    let mut v = vec![
+        geometric(Projection::Equirectangular, Some(Criterion::Error(0.5))),
+        geometric(Projection::Equirectangular, None),
+        image(Projection::Equirectangular, 512),
+    ];
+    if !quick {
+        v.extend([
+            geometric(Projection::Equirectangular, Some(Criterion::Error(2.0))),
+            geometric(Projection::Hammer, Some(Criterion::Error(0.5))),
+            image(Projection::Equirectangular, 1024),
+            image(Projection::Hammer, 512),
+        ]);
+    }
+    v
+}
+
+/// One measured panorama method on one scene.
+#[derive(Debug, Clone)]
+pub struct PanoRow {
+    pub scene: String,
+    pub method: PanoMethod,
+    /// Sorted GPU (or wall-clock) frame times, ms.
+    pub times_ms: Vec<f64>,
+    pub gpu_timed: bool,
+    /// Triangles the tessellator emitted (geometric route).
+    pub emitted: Option<u32>,
+    /// Against the CPU ray caster, on the scene in flat colours.
+    pub comparison: Comparison,
+}
+
+impl PanoRow {
+    pub fn median(&self) -> f64 {
+        percentile(&self.times_ms, 0.5)
+    }
+}
+
+/// Panorama size of a run.
+pub fn pano_size(quick: bool) -> [u32; 2] {
+    if quick { [256, 128] } else { [1024, 512] }
+}
+
+fn settings(method: &PanoMethod, size: [u32; 2]) -> PanoSettings {
+    PanoSettings {
+        projection: method.projection,
+        h_fov: std::f32::consts::TAU,
+        v_fov: std::f32::consts::PI,
+        route: method.route,
+        stereo: PanoStereo::Mono,
+        yaw: 0.0,
+        size,
+        cube_size: method.cube_size.max(4),
+    }
+}
+
+/// Measures every panorama method on every scene from the config's head, writes
+/// `panorama.csv` and 360° equirectangular and Hammer images of each scene into `out`, and
+/// returns the rows and the files written.
+pub fn run_panorama(
+    gpu: &Gpu,
+    config: &Config,
+    scenes: &[(String, Scene)],
+    out: &Path,
+    quick: bool,
+    frames: usize,
+) -> Result<(Vec<PanoRow>, Vec<PathBuf>), BenchError> {
+    let size = pano_size(quick);
+    let methods = pano_methods(quick);
+    let mut rows = Vec::new();
+    let mut files = Vec::new();
+    let head = config.head.position;
+    for (scene_name, scene) in scenes {
+        // The reference: the ray caster on the scene in flat colours.
+        let (flat, colours) = flat_colours(scene);
+        let caster = RayCaster::new(&flat, config.world_from_cave.inverse());
+        for method in &methods {
+            let pano = settings(method, size);
+            let tess = TessSettings {
+                criterion: method.criterion,
+                ..config.tess
+            };
+            let mut renderer = Renderer::new(
+                gpu,
+                &config.cave,
+                RenderSettings {
+                    msaa: 1,
+                    wireframe: false,
+                },
+            )?;
+            let gpu_timed = renderer.enable_gpu_timing(gpu);
+            renderer.set_scene(scene);
+            let mut frame = frame_params(config);
+            frame.tess = tess;
+            let mut times = Vec::with_capacity(frames);
+            // One frame to build buffers, then the timed ones.
+            renderer.render_panorama(&frame, &pano)?;
+            renderer.wait_idle()?;
+            for _ in 0..frames {
+                let start = std::time::Instant::now();
+                renderer.render_panorama(&frame, &pano)?;
+                renderer.wait_idle()?;
+                let wall = start.elapsed().as_secs_f64() * 1e3;
+                times.push(match renderer.read_gpu_time_ms()? {
+                    Some(ms) if gpu_timed => ms,
+                    _ => wall,
+                });
+            }
+            times.sort_by(f64::total_cmp);
+            let emitted = renderer
+                .read_panorama_tess_stats()?
+                .first()
+                .map(|s| s.emitted);
+            if method.projection == Projection::Equirectangular
+                || method.projection == Projection::Hammer
+            {
+                // The textured, lit images for the report (recommended route only).
+                if method.route == PanoRoute::Geometric
+                    && method.criterion == Some(Criterion::Error(0.5))
+                {
+                    let [image, _] = renderer.read_panorama()?;
+                    let path = out.join(format!(
+                        "panorama-{scene_name}-{}.png",
+                        method.projection.name()
+                    ));
+                    output::write_png(&path, &image).map_err(|e| BenchError::Write {
+                        path: path.clone(),
+                        source: std::io::Error::other(e.to_string()),
+                    })?;
+                    files.push(path);
+                }
+            }
+            // Accuracy: the same method on the flat-coloured scene against the ray caster.
+            renderer.set_scene(&flat);
+            renderer.render_panorama(&frame, &pano)?;
+            let [image, _] = renderer.read_panorama()?;
+            let hits = caster.panorama(&pano, head, config.cave.near);
+            let reference: Vec<Option<[u8; 3]>> = hits
+                .iter()
+                .map(|h| h.map(|h| colours[h.triangle]))
+                .collect();
+            let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();
+            let bg = config
+                .background
+                .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+            let comparison = compare(&pixels, &reference, size[0] as usize, bg);
+            tracing::info!(
+                "panorama {scene_name}, {}: {:.2} ms, {:.3} % of pixels off the ray caster",
+                method.name,
+                percentile(&times, 0.5),
+                comparison.differ_pct()
+            );
+            rows.push(PanoRow {
+                scene: scene_name.clone(),
+                method: method.clone(),
+                times_ms: times,
+                gpu_timed,
+                emitted,
+                comparison,
+            });
+        }
+    }
+    let csv_path = out.join("panorama.csv");
+    let mut csv = String::from(
+        "scene,method,projection,route,criterion,cube_size,median_ms,p25_ms,p75_ms,timer,\
+         emitted_triangles,pixels_off_pct,off_away_from_edges_pct\n",
+    );
+    for r in &rows {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4}",
+            r.scene,
+            r.method.name,
+            r.method.projection.name(),
+            r.method.route.name(),
+            r.method.criterion.map_or("none".into(), |c| c.to_string()),
+            r.method.cube_size,
+            r.median(),
+            percentile(&r.times_ms, 0.25),
+            percentile(&r.times_ms, 0.75),
+            if r.gpu_timed { "gpu" } else { "wall" },
+            r.emitted.map_or(String::new(), |e| e.to_string()),
+            r.comparison.differ_pct(),
+            r.comparison.away_pct(),
+        );
+    }
+    std::fs::write(&csv_path, csv).map_err(|source| BenchError::Write {
+        path: csv_path.clone(),
+        source,
+    })?;
+    files.insert(0, csv_path);
+    Ok((rows, files))
+}
+
+/// The report's panorama section: the table and the 360° images.
+pub fn pano_markdown(rows: &[PanoRow], size: [u32; 2], images: &[PathBuf]) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "\n## Panorama (360° × 180°, {}×{} px, mono, from the config's head)\n",
+        size[0], size[1]
+    );
+    let _ = writeln!(
+        md,
+        "Accuracy: the same method on the scene in flat colours against the CPU ray caster \
+         (`src/pano/raycast.rs`); \"off\" counts pixels of another colour, \"away from \
+         edges\" those not next to a colour edge of the reference. Time relative to the \
+         image route with 512 px faces on the same scene.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| scene | method | median ms | × image 512 | triangles | off % | away from edges % |\n\
+         |---|---|---:|---:|---:|---:|---:|"
+    );
+    for r in rows {
+        let baseline = rows.iter().find(|b| {
+            b.scene == r.scene
+                && b.method.route == PanoRoute::Image
+                && b.method.cube_size == 512
+                && b.method.projection == Projection::Equirectangular
+        });
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.2} | {} | {} | {:.3} | {:.4} |",
+            r.scene,
+            r.method.name,
+            r.median(),
+            baseline.map_or("–".into(), |b| format!("{:.2}", r.median() / b.median())),
+            r.emitted.map_or("–".into(), |e| e.to_string()),
+            r.comparison.differ_pct(),
+            r.comparison.away_pct(),
+        );
+    }
+    if !images.is_empty() {
+        let _ = writeln!(md);
+        for path in images {
+            if let Some(name) = path.file_name().map(|n| n.to_string_lossy()) {
+                let _ = writeln!(md, "![{name}]({name})\n");
+            }
+        }
+    }
+    md
+}

@@ -1,0 +1,442 @@
+//! The panorama view's GPU side: its eye targets, the image route (scene into six cube faces,
+//! then shaders/panorama.wgsl looks every pixel up through the inverse map) and the uniforms
+//! of the geometric route (drawn by the scene pass's `vs_pano`/`fs_pano`).
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+
+use super::shaders;
+use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, WallTargets};
+use super::uniforms::ViewUniforms;
+use crate::cave::Eye;
+use crate::pano::{PanoSettings, PanoStereo};
+
+/// Cube face order and axes: (forward, up); the face's right is forward × up. Keep in step
+/// with `FACE_FORWARD`/`FACE_UP` in shaders/panorama.wgsl.
+pub const CUBE_FACES: [(Vec3, Vec3); 6] = [
+    (Vec3::X, Vec3::Y),
+    (Vec3::NEG_X, Vec3::Y),
+    (Vec3::Y, Vec3::Z),
+    (Vec3::NEG_Y, Vec3::NEG_Z),
+    (Vec3::Z, Vec3::Y),
+    (Vec3::NEG_Z, Vec3::Y),
+];
+
+/// Texels of guard band around each cube face: faces are rendered a little wider than 90° so
+/// that filtering next to a face edge reads rendered texels, not clamped ones.
+const FACE_GUARD_TEXELS: f32 = 2.0;
+
+/// Tangent of half a face's field of view for faces of `size` texels.
+pub fn face_half_extent(size: u32) -> f32 {
+    let size = size.max(4) as f32;
+    size / (size - 2.0 * FACE_GUARD_TEXELS)
+}
+
+/// Clip space from CAVE space of cube face `face` seen from `head`.
+pub fn face_clip_from_cave(face: usize, head: Vec3, size: u32, near: f32, far: f32) -> Mat4 {
+    let (forward, up) = CUBE_FACES[face % 6];
+    let right = forward.cross(up);
+    let e = face_half_extent(size) * near;
+    let projection = glam::camera::rh::proj::directx::frustum(-e, e, -e, e, near, far);
+    // Rows: the face's right, up and backward axes (the camera looks along −z).
+    let rotation = Mat4::from_cols(
+        glam::Vec4::new(right.x, up.x, -forward.x, 0.0),
+        glam::Vec4::new(right.y, up.y, -forward.y, 0.0),
+        glam::Vec4::new(right.z, up.z, -forward.z, 0.0),
+        glam::Vec4::W,
+    );
+    projection * rotation * Mat4::from_translation(-head)
+}
+
+/// Uniforms of the image route's look-up. Keep in sync with `ResolveUniforms` in
+/// shaders/panorama.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ResolveUniforms {
+    pub cave_from_view: [[f32; 4]; 4],
+    pub window: [f32; 4],
+    pub params: [f32; 4],
+    pub background: [f32; 4],
+}
+
+/// One eye of the geometric route: what `vs_pano`, `fs_pano` and the tessellator's panorama
+/// criterion read (see `ViewUniforms` for the fields' panorama meaning).
+pub fn pano_view_uniforms(
+    settings: &PanoSettings,
+    head: Vec3,
+    eye: Option<Eye>,
+    ipd: f32,
+    near: f32,
+    far: f32,
+) -> ViewUniforms {
+    let sign = eye.map_or(0.0, Eye::sign);
+    let (stereo_code, omni_half, volume) = match settings.stereo {
+        PanoStereo::Mono => (0.0, 0.0, [0.0; 3]),
+        PanoStereo::Volume { ioid, d, offset } => (1.0, 0.0, [sign * 0.5 * ioid, d, offset]),
+        PanoStereo::Omni => (2.0, sign * 0.5 * ipd, [0.0; 3]),
+    };
+    let fitted = settings.fitted();
+    ViewUniforms {
+        clip_from_cave: settings.view_from_cave(head).to_cols_array_2d(),
+        eye_position: head.extend(1.0).to_array(),
+        wall_plane: [volume[2], 0.0, 0.0, 0.0],
+        omni_head: head.extend(omni_half).to_array(),
+        pano: [
+            (fitted.projection.code() + 1) as f32,
+            near,
+            far,
+            stereo_code,
+        ],
+        pano_window: fitted.map_window(),
+        pano_size: [
+            settings.size[0] as f32,
+            settings.size[1] as f32,
+            volume[0],
+            volume[1],
+        ],
+    }
+}
+
+/// The six faces the image route renders the scene into, and their depth.
+#[derive(Debug)]
+struct CubeTargets {
+    size: u32,
+    msaa: u32,
+    faces: Vec<wgpu::TextureView>,
+    array_view: wgpu::TextureView,
+    msaa_view: Option<wgpu::TextureView>,
+    depth_view: wgpu::TextureView,
+}
+
+impl CubeTargets {
+    fn new(device: &wgpu::Device, size: u32, msaa: u32) -> Self {
+        let texture = |label: &str, layers, format, samples, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size,
+                    height: size,
+                    depth_or_array_layers: layers,
+                },
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let color = texture(
+            "PanoPass::cube_faces",
+            6,
+            COLOR_FORMAT,
+            1,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let faces = (0..6)
+            .map(|f| {
+                color.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some("PanoPass::cube_face"),
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: f,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                })
+            })
+            .collect();
+        let array_view = color.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("PanoPass::cube_array"),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        let msaa_view = (msaa > 1).then(|| {
+            texture(
+                "PanoPass::cube_msaa",
+                1,
+                COLOR_FORMAT,
+                msaa,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+            )
+            .create_view(&Default::default())
+        });
+        let depth_view = texture(
+            "PanoPass::cube_depth",
+            1,
+            DEPTH_FORMAT,
+            msaa,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        Self {
+            size,
+            msaa,
+            faces,
+            array_view,
+            msaa_view,
+            depth_view,
+        }
+    }
+}
+
+/// The panorama's resources: eye targets, cube faces and the look-up pipeline (built once).
+#[derive(Debug)]
+pub struct PanoPass {
+    resolve_layout: wgpu::BindGroupLayout,
+    resolve_pipeline: wgpu::RenderPipeline,
+    sampler: wgpu::Sampler,
+    resolve_uniforms: wgpu::Buffer,
+    cube: Option<CubeTargets>,
+    resolve_group: Option<wgpu::BindGroup>,
+    /// The eye targets and their sample count.
+    targets: Option<(WallTargets, u32)>,
+    /// Bumped whenever the eye targets are replaced.
+    pub generation: u64,
+}
+
+/// Render pipelines [`PanoPass::new`] builds.
+pub const PANO_PIPELINES: u64 = 1;
+
+impl PanoPass {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let resolve_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("PanoPass::resolve_layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("PanoPass::resolve_pipeline_layout"),
+            bind_group_layouts: &[Some(&resolve_layout)],
+            immediate_size: 0,
+        });
+        let module = shaders::module(device, "PanoPass::shader", shaders::PANORAMA);
+        let resolve_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("PanoPass::resolve_pipeline"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_fullscreen"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_resolve"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("PanoPass::face_sampler"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        let resolve_uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("PanoPass::resolve_uniforms"),
+            size: std::mem::size_of::<ResolveUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self {
+            resolve_layout,
+            resolve_pipeline,
+            sampler,
+            resolve_uniforms,
+            cube: None,
+            resolve_group: None,
+            targets: None,
+            generation: 0,
+        }
+    }
+
+    /// Makes the eye targets match the image size and sample count (rebuilt only on change).
+    pub fn ensure_targets(&mut self, device: &wgpu::Device, size: [u32; 2], msaa: u32) {
+        let current = self
+            .targets
+            .as_ref()
+            .is_some_and(|(t, m)| t.size == size && *m == msaa);
+        if !current {
+            self.targets = Some((WallTargets::new(device, "panorama", size, msaa), msaa));
+            self.generation += 1;
+        }
+    }
+
+    /// Makes the cube faces match the face size and sample count (rebuilt only on change).
+    pub fn ensure_cube(&mut self, device: &wgpu::Device, size: u32, msaa: u32) {
+        if self
+            .cube
+            .as_ref()
+            .is_some_and(|c| c.size == size && c.msaa == msaa)
+        {
+            return;
+        }
+        let cube = CubeTargets::new(device, size, msaa);
+        self.resolve_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("PanoPass::resolve_group"),
+            layout: &self.resolve_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.resolve_uniforms.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&cube.array_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        }));
+        self.cube = Some(cube);
+    }
+
+    pub fn targets(&self) -> Option<&WallTargets> {
+        self.targets.as_ref().map(|(t, _)| t)
+    }
+
+    pub fn write_resolve(&self, queue: &wgpu::Queue, uniforms: &ResolveUniforms) {
+        queue.write_buffer(&self.resolve_uniforms, 0, bytemuck::bytes_of(uniforms));
+    }
+
+    /// Records the six face passes: `draw_face(pass, face)` draws the scene into each.
+    pub fn encode_faces(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        clear: wgpu::Color,
+        mut draw_face: impl FnMut(&mut wgpu::RenderPass<'_>, usize),
+    ) {
+        let Some(cube) = &self.cube else {
+            return;
+        };
+        for (face, face_view) in cube.faces.iter().enumerate() {
+            let (attachment, resolve) = match &cube.msaa_view {
+                Some(msaa) => (msaa, Some(face_view)),
+                None => (face_view, None),
+            };
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("PanoPass::face_pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: attachment,
+                    depth_slice: None,
+                    resolve_target: resolve,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(clear),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &cube.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            draw_face(&mut pass, face);
+        }
+    }
+
+    /// Records the look-up of every pixel of the (left) eye target in the cube faces.
+    pub fn encode_resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        let (Some(targets), Some(group)) = (self.targets(), &self.resolve_group) else {
+            return;
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("PanoPass::resolve_pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &targets.eyes[0].color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.resolve_pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+
+    /// Opens a render pass on eye `eye`'s target (MSAA and depth as the scene pass needs).
+    pub fn begin_eye_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        eye: usize,
+        clear: wgpu::Color,
+    ) -> Option<wgpu::RenderPass<'e>> {
+        let target = &self.targets()?.eyes[eye.min(1)];
+        let (attachment, resolve) = match &target.msaa_view {
+            Some(msaa) => (msaa, Some(&target.color_view)),
+            None => (&target.color_view, None),
+        };
+        Some(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("PanoPass::eye_pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: attachment,
+                depth_slice: None,
+                resolve_target: resolve,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        }))
+    }
+}
