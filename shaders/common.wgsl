@@ -33,7 +33,8 @@ struct ViewUniforms {
     // Omnistereo: xyz head position; w: signed half IPD (−IPD/2 left eye, +IPD/2 right eye).
     omni_head: vec4<f32>,
     // Panorama views only (zero for walls): x projection code + 1, y near and z far clipping
-    // sphere radius, w stereo (0 mono, 1 volume, 2 omni).
+    // sphere radius, w stereo (0 mono, 1 volume, 2 omni). In a panorama view wall_plane holds
+    // x: the volume stereo's zero-parallax depth, y: the target's MSAA sample count.
     pano: vec4<f32>,
     // Panorama: the field of view's centre and half size in map coordinates.
     pano_window: vec4<f32>,
@@ -232,7 +233,8 @@ const PI: f32 = 3.14159265358979;
 const HALF_PI: f32 = 1.57079632679490;
 const SQRT2: f32 = 1.41421356237310;
 
-// Albers' constants for standard parallels 0° and 45° (`albers_constants`): n, C, ρ0.
+// Albers' constants for standard parallels 0° and 45° (`albers_constants`): n, C, ρ0. Keep in
+// sync with `ALBERS_PARALLELS_DEG` in src/pano/projection.rs.
 const ALBERS_N: f32 = 0.35355339059327;
 const ALBERS_C: f32 = 1.0;
 const ALBERS_RHO0: f32 = 2.82842712474619;
@@ -280,6 +282,13 @@ fn pano_map(code: u32, lon: f32, lat: f32) -> vec2<f32> {
         return d.xy * (angle / len);
     }
     return vec2<f32>(0.0);
+}
+
+// Pixel position (x right, y up, from the image centre) of a longitude and latitude in a
+// panorama view.
+fn pano_pixel(pv: ViewUniforms, lon: f32, lat: f32) -> vec2<f32> {
+    let ndc = (pano_map(u32(pv.pano.x) - 1u, lon, lat) - pv.pano_window.xy) / pv.pano_window.zw;
+    return 0.5 * ndc * pv.pano_size.xy;
 }
 
 // The unit direction at map coordinates; w = 0 where the projection shows nothing.

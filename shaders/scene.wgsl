@@ -181,20 +181,15 @@ fn outward(a: vec2<f32>, b: vec2<f32>, area: f32) -> vec2<f32> {
     return select(-n, n, area > 0.0);
 }
 
-// Pixel position (x right, y up, from the image centre) of a longitude and latitude.
-fn pano_pixel_xy(lon: f32, lat: f32) -> vec2<f32> {
-    let code = u32(view.pano.x) - 1u;
-    let ndc = (pano_map(code, lon, lat) - view.pano_window.xy) / view.pano_window.zw;
-    return 0.5 * ndc * view.pano_size.xy;
-}
-
 // Image position (clip space, w = 1) of a longitude, latitude and distance.
 fn pano_clip(lon: f32, lat: f32, distance: f32) -> vec4<f32> {
     let code = u32(view.pano.x) - 1u;
     var ndc = (pano_map(code, lon, lat) - view.pano_window.xy) / view.pano_window.zw;
     let depth = pano_depth(distance);
     ndc.x += volume_parallax(depth);
-    return vec4<f32>(ndc, depth, 1.0);
+    // The rasteriser must not clip along chords at the clipping spheres: every fragment
+    // writes its exact depth and is discarded outside them.
+    return vec4<f32>(ndc, clamp(depth, 0.0, 1.0), 1.0);
 }
 
 // Whether the vertical ray from the origin (+y if `up`) meets triangle a, b, c.
@@ -316,8 +311,8 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
         let lat = array<f32, 3>(ll[0].y, ll[1].y, ll[2].y);
         for (var i = 0u; i < 3u; i++) {
             let j = (i + 1u) % 3u;
-            let a = pano_pixel_xy(lon[i], lat[i]);
-            let b = pano_pixel_xy(lon[j], lat[j]);
+            let a = pano_pixel(view, lon[i], lat[i]);
+            let b = pano_pixel(view, lon[j], lat[j]);
             // At a quarter, half and three quarters of the edge: near a pole the curve is
             // far from symmetric about its midpoint.
             for (var q = 1u; q < 4u; q++) {
@@ -325,7 +320,7 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
                 let m = mix(p[i], p[j], t);
                 let v = pano_view_dir(m - pano_eye(m));
                 let lm = pano_lon_lat(v / max(length(v), 1e-20));
-                let curve = pano_pixel_xy(lon[i] + wrap_angle(lm.x - lon[i]), lm.y);
+                let curve = pano_pixel(view, lon[i] + wrap_angle(lm.x - lon[i]), lm.y);
                 stray = max(stray, length(curve - mix(a, b, t)));
             }
         }
@@ -395,6 +390,7 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
 struct PanoFragment {
     @location(0) color: vec4<f32>,
     @builtin(frag_depth) depth: f32,
+    @builtin(sample_mask) mask: u32,
 }
 
 // Where the ray origin + t·dir meets the plane of triangle a, b, c: (t, u, v) with the
@@ -450,7 +446,7 @@ fn plane_uv(hit: vec3<f32>, in: PanoOutput) -> vec2<f32> {
 }
 
 @fragment
-fn fs_pano(in: PanoOutput, @builtin(front_facing) front_facing: bool) -> PanoFragment {
+fn fs_pano(in: PanoOutput) -> PanoFragment {
     // Every fragment casts its own ray at its triangle's plane: exact depth (no fighting
     // between a picture and the wall 1 cm behind it, which interpolating the distance
     // linearly across a curved triangle would cause) and exact texture coordinates. The
@@ -474,30 +470,34 @@ fn fs_pano(in: PanoOutput, @builtin(front_facing) front_facing: bool) -> PanoFra
     }
     let inside = hit.y >= 0.0 && hit.z >= 0.0 && hit.y + hit.z <= 1.0;
     let met = ray.shown && hit.x > 0.0;
-    var position = in.cave_position;
-    var normal = in.normal;
-    var uv = in.uv;
-    var ddx = dpdx(in.uv);
-    var ddy = dpdy(in.uv);
-    var eye = in.eye;
-    var facing = front_facing;
-    if met {
-        let w = vec3<f32>(1.0 - hit.y - hit.z, hit.y, hit.z);
-        position = w.x * in.p0 + w.y * in.p1 + w.z * in.p2;
-        normal = w.x * in.n0 + w.y * in.n1 + w.z * in.n2;
-        uv = plane_uv(hit, in);
-        // Texture gradients from the rays through the next pixels (a pre-clipped band's
-        // rasterised varyings say nothing about the surface).
-        let rx = pano_ray(in.clip.xy + vec2<f32>(1.0, 0.0), depth);
-        let ry = pano_ray(in.clip.xy + vec2<f32>(0.0, 1.0), depth);
-        ddx = plane_uv(ray_plane(rx.origin, rx.dir, in.p0, in.p1, in.p2), in) - uv;
-        ddy = plane_uv(ray_plane(ry.origin, ry.dir, in.p0, in.p1, in.p2), in) - uv;
-        eye = ray.origin;
-        facing = dot(cross(in.p1 - in.p0, in.p2 - in.p0), ray.origin - in.p0) >= 0.0;
+    // Everything from the exact hit, in uniform control flow (so that the texture's
+    // gradients come from the neighbouring pixels' exact coordinates; a pixel whose ray
+    // misses is discarded below, but still lends its neighbours a gradient).
+    let w = vec3<f32>(1.0 - hit.y - hit.z, hit.y, hit.z);
+    let position = w.x * in.p0 + w.y * in.p1 + w.z * in.p2;
+    let normal = w.x * in.n0 + w.y * in.n1 + w.z * in.n2;
+    let uv = plane_uv(hit, in);
+    let ddx = dpdx(uv);
+    let ddy = dpdy(uv);
+    let eye = ray.origin;
+    let facing = dot(cross(in.p1 - in.p0, in.p2 - in.p0), ray.origin - in.p0) >= 0.0;
+    // Coverage: where the rays meet the triangle, between the clipping spheres (an edge-on
+    // triangle covers nothing). With MSAA, each sample's own ray decides its bit, so edges
+    // are antialiased as the walls' are; shading stays once per pixel.
+    var mask = select(0u, 1u, met && inside);
+    let samples = u32(view.wall_plane.y);
+    if samples == 4u && met {
+        mask = 0u;
+        let corner = floor(in.clip.xy);
+        for (var k = 0u; k < 4u; k++) {
+            let r = pano_ray(corner + SAMPLE_POSITIONS_4[k], depth);
+            let h = ray_plane(r.origin, r.dir, in.p0, in.p1, in.p2);
+            if r.shown && h.x > 0.0 && h.y >= 0.0 && h.z >= 0.0 && h.y + h.z <= 1.0 {
+                mask |= 1u << k;
+            }
+        }
     }
-    // Only where the pixel's ray meets the triangle, between the clipping spheres (an
-    // edge-on triangle covers nothing).
-    let keep = met && inside && depth >= 0.0 && depth <= 1.0;
+    let keep = mask != 0u && depth >= 0.0 && depth <= 1.0;
     let color = surface_color(position, normal, uv, ddx, ddy, eye, facing);
     if !keep || color.a < 0.0 {
         discard;
@@ -505,8 +505,17 @@ fn fs_pano(in: PanoOutput, @builtin(front_facing) front_facing: bool) -> PanoFra
     var out: PanoFragment;
     out.color = color;
     out.depth = depth;
+    out.mask = select(mask, 0xffffffffu, samples < 2u);
     return out;
 }
+
+// Vulkan's (and D3D's) standard positions of 4 samples within a pixel.
+const SAMPLE_POSITIONS_4 = array<vec2<f32>, 4>(
+    vec2<f32>(0.375, 0.125),
+    vec2<f32>(0.875, 0.375),
+    vec2<f32>(0.125, 0.625),
+    vec2<f32>(0.625, 0.875),
+);
 
 // The lit colour of a surface point (CAVE space); alpha < 0 where the material's alpha
 // cutoff removes it.

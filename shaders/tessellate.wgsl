@@ -114,13 +114,6 @@ fn pano_point(world: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(pano_lon_lat(v / max(len, 1e-20)), len);
 }
 
-// Pixels of a longitude and latitude (y up; only differences are used).
-fn pano_pixel(lon: f32, lat: f32) -> vec2<f32> {
-    let ndc = (pano_map(u32(view.pano.x) - 1u, lon, lat) - view.pano_window.xy)
-        / view.pano_window.zw;
-    return 0.5 * ndc * view.pano_size.xy;
-}
-
 // The split criteria measured in the panorama's pixels. Longitudes are unwrapped along the
 // edge, so an edge across the rear meridian is measured as the continuous curve it is, and
 // one passing near a pole shows its large curvature. Endpoints in a canonical order (as
@@ -143,8 +136,8 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
         return false;
     }
     let lon_b = la.x + wrap_angle(lb.x - la.x);
-    let ja = pano_pixel(la.x, la.y);
-    let jb = pano_pixel(lon_b, lb.y);
+    let ja = pano_pixel(view, la.x, la.y);
+    let jb = pano_pixel(view, lon_b, lb.y);
     if code == 2u {
         return length(jb - ja) > value;
     }
@@ -156,7 +149,7 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
         return length(cb - ca) / max(centre.z, 1e-6) * tess.wall.z > value;
     }
     let lm = pano_point(point_position(p, midpoint(a, b)));
-    let jm = pano_pixel(la.x + wrap_angle(lm.x - la.x), lm.y);
+    let jm = pano_pixel(view, la.x + wrap_angle(lm.x - la.x), lm.y);
     return length(jm - 0.5 * (ja + jb)) > value;
 }
 

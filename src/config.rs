@@ -742,22 +742,20 @@ impl PanoramaSection {
         })?;
         let route = PanoRoute::from_name(self.route.trim())
             .ok_or_else(|| ck.fail("panorama.route", &self.route, "must be geometric or image"))?;
+        let [ioid, d, offset] = self.volume_ioid_d_offset;
+        let volume_valid = (0.0..=2.0).contains(&ioid)
+            && d.is_finite()
+            && d > 1.0
+            && (-1.0..=1.0).contains(&offset);
+        if !volume_valid {
+            return Err(ck.fail(
+                "panorama.volume_ioid_d_offset",
+                self.volume_ioid_d_offset,
+                "needs 0 ≤ ioid ≤ 2, d > 1 (outside the unit cube) and −1 ≤ offset ≤ 1",
+            ));
+        }
         let stereo = match self.stereo.trim() {
-            "volume" => {
-                let [ioid, d, offset] = self.volume_ioid_d_offset;
-                let valid = (0.0..=2.0).contains(&ioid)
-                    && d.is_finite()
-                    && d > 1.0
-                    && (-1.0..=1.0).contains(&offset);
-                if !valid {
-                    return Err(ck.fail(
-                        "panorama.volume_ioid_d_offset",
-                        self.volume_ioid_d_offset,
-                        "needs 0 ≤ ioid ≤ 2, d > 1 (outside the unit cube) and −1 ≤ offset ≤ 1",
-                    ));
-                }
-                PanoStereo::Volume { ioid, d, offset }
-            }
+            "volume" => PanoStereo::Volume { ioid, d, offset },
             other => PanoStereo::from_name(other).ok_or_else(|| {
                 ck.fail(
                     "panorama.stereo",
@@ -781,8 +779,8 @@ impl PanoramaSection {
         )?;
         let yaw = ck.range("panorama.yaw_degrees", self.yaw_degrees, -360.0, 360.0)?;
         let [w, h_px] = self.size;
-        if !(1..=16384).contains(&w) || !(1..=16384).contains(&h_px) {
-            return Err(ck.fail("panorama.size", self.size, "must be 1 to 16384 pixels each"));
+        if !(1..=8192).contains(&w) || !(1..=8192).contains(&h_px) {
+            return Err(ck.fail("panorama.size", self.size, "must be 1 to 8192 pixels each"));
         }
         if !(4..=8192).contains(&self.cube_size) {
             return Err(ck.fail(
@@ -790,6 +788,21 @@ impl PanoramaSection {
                 self.cube_size,
                 "must be 4 to 8192 pixels",
             ));
+        }
+        if route == PanoRoute::Geometric && !projection.geometric() {
+            tracing::warn!(
+                "{}: panorama.route = \"geometric\" draws equirectangular and hammer only; \
+                 {} is drawn by the image route",
+                ck.path.display(),
+                projection.name()
+            );
+        }
+        if stereo.is_stereo() && (route == PanoRoute::Image || !projection.geometric()) {
+            tracing::warn!(
+                "{}: panorama.stereo = \"{}\" needs the geometric route; the image route is mono",
+                ck.path.display(),
+                stereo.name()
+            );
         }
         Ok(PanoSettings {
             projection,

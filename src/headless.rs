@@ -113,7 +113,14 @@ impl Overrides {
             pano.route = r;
         }
         if let Some(st) = self.pano_stereo {
-            pano.stereo = st;
+            pano.stereo = match st {
+                // `--pano-stereo volume` keeps the config's volume parameters.
+                crate::pano::PanoStereo::Volume { .. } => {
+                    let [ioid, d, offset] = config.file.panorama.volume_ioid_d_offset;
+                    crate::pano::PanoStereo::Volume { ioid, d, offset }
+                }
+                other => other,
+            };
         }
         if let Some([h, v]) = self.pano_fov_degrees {
             pano.h_fov = h.to_radians();

@@ -213,6 +213,10 @@ struct BenchArgs {
     /// rendered; --size sets the rendered wall size (default 320x180).
     #[arg(long)]
     stability: bool,
+    /// Only the panorama methods (geometric and image routes against the CPU ray caster):
+    /// panorama.csv, report.md and the 360° images.
+    #[arg(long, conflicts_with = "stability")]
+    panorama_only: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -646,6 +650,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     quick: args.quick,
                     frames: args.frames.map(|f| f as usize),
                     size: args.size,
+                    panorama_only: args.panorama_only,
                 },
                 &mut |done, total, what| bar.show(done, total, what),
             )

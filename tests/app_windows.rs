@@ -732,3 +732,78 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     println!("largest packet-to-frame latency: {worst:.2} frame");
     assert!(worst <= 1.0, "latency {worst} frames");
 }
+
+#[test]
+fn the_operator_window_shows_the_panorama_beside_the_panel() {
+    let out = out_dir();
+    let path = write_config(&out, "panorama-test.toml");
+    // The panorama on (the test config keeps the desktop one's sections up to [app]), at a
+    // size the operator window shows about 2:1 enlarged.
+    let text = std::fs::read_to_string(&path).expect("config")
+        + "\n[panorama]\nshow = true\nsize = [400, 200]\n";
+    std::fs::write(&path, text).expect("write config");
+    let config = Config::load(&path).expect("config");
+    assert!(config.file.panorama.show);
+    let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
+    let renderer =
+        headless::render_panorama(common::gpu(), &config, &scene).expect("headless panorama");
+    let [reference, _] = renderer.read_panorama().expect("read back");
+
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let mut app = AppProcess::start(&x.display, &["--config", path.to_str().expect("utf8")]);
+    app.wait_frames(3);
+    let shot = x.screenshot(&out.join("panorama-screen.png"));
+    let log = app.quit();
+    assert!(log.contains("window(s) open in CAVE mode"), "{log}");
+    assert!(!log.contains("closing the panorama view"), "{log}");
+
+    let window = preview_window(&shot);
+    window
+        .save(out.join("panorama-operator.png"))
+        .expect("save");
+    assert_panel_drawn(
+        &crop(&window, 0, 0, 200, OPERATOR_SIZE[1]),
+        "operator panel",
+    );
+    // The panorama: what is not background right of the docked panel.
+    let (width, height) = window.dimensions();
+    let bg = config.background.map(|c| (c * 255.0).round() as u8);
+    let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
+    let panel_edge = (0..width)
+        .rev()
+        .find(|&x| {
+            let p = window.get_pixel(x, height - 2).0;
+            p[0] == p[1] && p[1] == p[2] && (20..=40).contains(&p[0])
+        })
+        .expect("panel");
+    let mid_y = height / 2;
+    let row: Vec<u32> = (panel_edge + 2..width)
+        .filter(|&x| is_scene(window.get_pixel(x, mid_y)))
+        .collect();
+    assert!(!row.is_empty(), "no panorama beside the panel");
+    let (x0, x1) = (row[0], row[row.len() - 1]);
+    let column: Vec<u32> = (0..height)
+        .filter(|&y| is_scene(window.get_pixel((x0 + x1) / 2, y)))
+        .collect();
+    let (y0, y1) = (column[0], column[column.len() - 1]);
+    let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
+    let aspect = w as f32 / h as f32;
+    println!("operator panorama {w}×{h} at ({x0}, {y0}), aspect {aspect:.3} (2:1)");
+    // 2:1 as configured, within a pixel of rounding on each side.
+    assert!(
+        (aspect - 2.0).abs() < 2.0 * 2.0 / h as f32 + 0.02,
+        "aspect {aspect}"
+    );
+    let share = unmatched_share(&crop(&window, x0, y0, w, h), &reference);
+    println!(
+        "operator panorama vs the headless panorama: {:.2}% pixels unmatched",
+        share * 100.0
+    );
+    // The same image (mono, so its anaglyph is itself), scaled by the present pass.
+    assert!(
+        share < 0.01,
+        "{:.2}% of the panorama does not match",
+        share * 100.0
+    );
+}

@@ -108,6 +108,33 @@ fn config_errors_name_file_field_and_value() {
             vec!["render.mode", "omnistereo", "mono"],
         ),
         (
+            "bad-projection.toml",
+            base.replace(
+                "projection = \"equirectangular\"",
+                "projection = \"mercator\"",
+            ),
+            vec!["panorama.projection", "mercator", "hammer"],
+        ),
+        (
+            "bad-pano-fov.toml",
+            base.replace("v_fov_degrees = 180.0", "v_fov_degrees = 200.0"),
+            vec!["panorama.v_fov_degrees", "200", "between 1 and 180"],
+        ),
+        (
+            "bad-pano-stereo.toml",
+            base.replace("stereo = \"mono\"", "stereo = \"sbs\""),
+            vec!["panorama.stereo", "sbs", "volume"],
+        ),
+        (
+            "bad-volume.toml",
+            base.replace("stereo = \"mono\"", "stereo = \"volume\"")
+                .replace(
+                    "volume_ioid_d_offset = [0.5, 5.0, -0.8]",
+                    "volume_ioid_d_offset = [0.5, 0.5, -0.8]",
+                ),
+            vec!["panorama.volume_ioid_d_offset", "d > 1"],
+        ),
+        (
             "bad-app-mode.toml",
             base.replace("mode = \"cave\"", "mode = \"wall\""),
             vec!["app.mode", "wall", "preview"],
@@ -369,6 +396,44 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
         (
             vec!["render", "--mode", "bogus", "--out", out],
             "unknown mode 'bogus'",
+        ),
+        (
+            vec!["render", "--view", "dome", "--out", out],
+            "unknown view 'dome'",
+        ),
+        (
+            vec![
+                "render",
+                "--view",
+                "panorama",
+                "--projection",
+                "mercator",
+                "--out",
+                out,
+            ],
+            "unknown projection 'mercator'",
+        ),
+        (
+            vec![
+                "render", "--view", "panorama", "--fov", "400,90", "--out", out,
+            ],
+            "horizontal field of view 400° must be 1 to 360 degrees",
+        ),
+        (
+            vec!["render", "--view", "panorama", "--fov", "360", "--out", out],
+            "expected H,V in degrees",
+        ),
+        (
+            vec![
+                "render",
+                "--view",
+                "panorama",
+                "--pano-route",
+                "ray",
+                "--out",
+                out,
+            ],
+            "unknown panorama route 'ray'",
         ),
         // The application refuses a bad config or scene before opening any window.
         (

@@ -303,13 +303,12 @@ impl App {
 
         // The panel first, so what it changes shows in this frame.
         let mut egui_frame = None;
+        let mut read_counts = false;
         if let Some(host) = gfx.egui.as_mut() {
             let win = &gfx.windows[host.window_index];
             let (frame, requests) = host.run(&gfx.gpu, win, &mut self.state, &self.info);
             egui_frame = Some(frame);
-            if requests.read_tess_counts {
-                self.info.tess_emitted = read_tess_counts(&gfx.renderer, &self.state);
-            }
+            read_counts = requests.read_tess_counts;
         }
 
         let settings = self.state.render_settings();
@@ -326,6 +325,10 @@ impl App {
                 return;
             }
         };
+        // The walls' tessellation counts, before the panorama reuses the tessellator.
+        if read_counts {
+            self.info.tess_emitted = read_tess_counts(&gfx.renderer, &self.state);
+        }
         if self.state.panorama_on {
             let frame = self.state.frame_params();
             if let Err(e) = gfx.renderer.render_panorama(&frame, &self.state.panorama) {

@@ -392,14 +392,13 @@ fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         let (max_h, max_v) = pano.projection.max_fov();
         let mut h = pano.h_fov.to_degrees().min(max_h.to_degrees());
         let mut v = pano.v_fov.to_degrees().min(max_v.to_degrees());
-        ui.add(
-            Slider::new(&mut h, 90f32.min(max_h.to_degrees())..=max_h.to_degrees())
-                .text("horizontal FoV °"),
-        );
-        ui.add(Slider::new(&mut v, 10.0..=max_v.to_degrees()).text("vertical FoV °"));
+        // Ranges that hold every value the config accepts: a slider clamps what it shows.
+        ui.add(Slider::new(&mut h, 1.0..=max_h.to_degrees()).text("horizontal FoV °"));
+        ui.add(Slider::new(&mut v, 1.0..=max_v.to_degrees()).text("vertical FoV °"));
         pano.h_fov = h.to_radians();
         pano.v_fov = v.to_radians();
-        let mut yaw = pano.yaw.to_degrees();
+        // The same direction, shown within ±180°.
+        let mut yaw = crate::pano::wrap_degrees(pano.yaw.to_degrees());
         ui.add(Slider::new(&mut yaw, -180.0..=180.0).text("turn °"));
         pano.yaw = yaw.to_radians();
         let geometric = pano.projection.geometric() && info.tessellation_supported;

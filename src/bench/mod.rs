@@ -58,6 +58,8 @@ pub struct BenchOptions {
     pub frames: Option<usize>,
     /// Replaces every wall's pixel size (quick default: 192×108).
     pub size: Option<[u32; 2]>,
+    /// Only the panorama methods (`panorama.csv` and a report of them alone).
+    pub panorama_only: bool,
 }
 
 /// Wall size of a quick run: 15 % of the thesis CAVE's in each direction, so that CI's
@@ -363,10 +365,12 @@ pub fn run(
     let mut rows = Vec::new();
     let total: usize = scenes
         .iter()
+        .filter(|_| !options.panorama_only)
         .map(|(_, s)| cases(&config, options.quick, s.is_some()).len())
         .sum();
     let mut done = 0;
-    for (scene_name, scene) in &scenes {
+    let wall_scenes: &[(String, Option<Scene>)] = if options.panorama_only { &[] } else { &scenes };
+    for (scene_name, scene) in wall_scenes {
         for case in cases(&config, options.quick, scene.is_some()) {
             let what = format!(
                 "{scene_name}, {}, head {}: {} methods × {frames} frames",
@@ -409,13 +413,24 @@ pub fn run(
         frames,
     )?;
     progress(total, total, "done");
-    let mut files = write_outputs(options, &config, &adapter, frames, &rows)?;
-    // The panorama section at the end of the report.
     let md_path = options.out.join("report.md");
-    let mut md = std::fs::read_to_string(&md_path).map_err(|source| BenchError::Write {
-        path: md_path.clone(),
-        source,
-    })?;
+    let (mut files, mut md) = if options.panorama_only {
+        let md = format!(
+            "# omnicave bench: the panorama methods\n\nadapter: {adapter}\n\ncommand: `omnicave \
+             bench --panorama-only --config {}{}`\n",
+            options.config.display(),
+            if options.quick { " --quick" } else { "" }
+        );
+        (Vec::new(), md)
+    } else {
+        let files = write_outputs(options, &config, &adapter, frames, &rows)?;
+        // The panorama section at the end of the report.
+        let md = std::fs::read_to_string(&md_path).map_err(|source| BenchError::Write {
+            path: md_path.clone(),
+            source,
+        })?;
+        (files, md)
+    };
     let images: Vec<PathBuf> = pano_files
         .iter()
         .filter(|p| p.extension().is_some_and(|e| e == "png"))
@@ -427,6 +442,9 @@ pub fn run(
         &images,
     ));
     write_file(&md_path, &md)?;
+    if options.panorama_only {
+        files.push(md_path);
+    }
     files.extend(pano_files);
     Ok(BenchReport {
         pano_rows,

@@ -9,11 +9,14 @@ use super::{BenchError, percentile};
 use crate::config::Config;
 use crate::headless::frame_params;
 use crate::output;
-use crate::pano::raycast::{Comparison, RayCaster, compare, flat_colours};
+use crate::pano::raycast::{Comparison, compare, flat_reference};
 use crate::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
 use crate::render::{Gpu, RenderSettings, Renderer};
 use crate::scene::Scene;
 use crate::tess::{Criterion, TessSettings};
+
+/// The ray caster's colour at each pixel (`None`: nothing hit).
+type Reference = Vec<Option<[u8; 3]>>;
 
 /// One panorama method.
 #[derive(Debug, Clone, PartialEq)]
@@ -112,15 +115,19 @@ pub fn run_panorama(
     quick: bool,
     frames: usize,
 ) -> Result<(Vec<PanoRow>, Vec<PathBuf>), BenchError> {
+    std::fs::create_dir_all(out).map_err(|source| BenchError::Write {
+        path: out.to_owned(),
+        source,
+    })?;
     let size = pano_size(quick);
     let methods = pano_methods(quick);
     let mut rows = Vec::new();
     let mut files = Vec::new();
     let head = config.head.position;
     for (scene_name, scene) in scenes {
-        // The reference: the ray caster on the scene in flat colours.
-        let (flat, colours) = flat_colours(scene);
-        let caster = RayCaster::new(&flat, config.world_from_cave.inverse());
+        // The reference: the ray caster on the scene in flat colours, once per projection
+        // (mono, full sphere, from the head).
+        let mut references: Vec<(Projection, Scene, Reference)> = Vec::new();
         for method in &methods {
             let pano = settings(method, size);
             let tess = TessSettings {
@@ -178,19 +185,30 @@ pub fn run_panorama(
                 }
             }
             // Accuracy: the same method on the flat-coloured scene against the ray caster.
-            renderer.set_scene(&flat);
+            if !references.iter().any(|(p, _, _)| *p == method.projection) {
+                let (flat, reference) = flat_reference(
+                    scene,
+                    config.world_from_cave.inverse(),
+                    &pano,
+                    head,
+                    config.cave.near,
+                    config.cave.far,
+                );
+                references.push((method.projection, flat, reference));
+            }
+            let Some((_, flat, reference)) =
+                references.iter().find(|(p, _, _)| *p == method.projection)
+            else {
+                continue;
+            };
+            renderer.set_scene(flat);
             renderer.render_panorama(&frame, &pano)?;
             let [image, _] = renderer.read_panorama()?;
-            let hits = caster.panorama(&pano, head, config.cave.near);
-            let reference: Vec<Option<[u8; 3]>> = hits
-                .iter()
-                .map(|h| h.map(|h| colours[h.triangle]))
-                .collect();
             let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();
             let bg = config
                 .background
                 .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
-            let comparison = compare(&pixels, &reference, size[0] as usize, bg);
+            let comparison = compare(&pixels, reference, size[0] as usize, bg);
             tracing::info!(
                 "panorama {scene_name}, {}: {:.2} ms, {:.3} % of pixels off the ray caster",
                 method.name,

@@ -9,6 +9,14 @@ use glam::{Mat4, Vec3};
 
 pub use projection::{PanoProjection, Projection, direction, lon_lat};
 
+/// An angle in degrees as the same direction within [−180, 180].
+pub fn wrap_degrees(a: f32) -> f32 {
+    if !a.is_finite() {
+        return 0.0;
+    }
+    a - 360.0 * (a / 360.0).round()
+}
+
 /// How the panorama is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum PanoRoute {

@@ -28,7 +28,8 @@ pub enum Projection {
 }
 
 /// Standard parallels of [`Projection::AlbersConic`] (degrees): one at the horizon, one
-/// above it, so that the view ahead is true to shape and the cone opens downwards.
+/// above it, so that the view ahead is true to shape and the cone opens downwards. Keep in
+/// sync with the `ALBERS_*` constants in shaders/common.wgsl (derived from these).
 pub const ALBERS_PARALLELS_DEG: [f32; 2] = [0.0, 45.0];
 
 impl Projection {

@@ -21,6 +21,9 @@ pub struct Hit {
 #[derive(Debug)]
 pub struct RayCaster {
     triangles: Vec<[Vec3; 3]>,
+    /// Per triangle: seen from one side only (its material is single-sided), as the GPU
+    /// culls it.
+    single_sided: Vec<bool>,
     /// Triangle indices, ordered so that each node's triangles are contiguous.
     order: Vec<u32>,
     nodes: Vec<Node>,
@@ -49,9 +52,22 @@ impl RayCaster {
             .chunks_exact(3)
             .map(|t| [position(t[0]), position(t[1]), position(t[2])])
             .collect();
+        let mut single_sided = vec![false; triangles.len()];
+        for d in &scene.draws {
+            let sided = scene
+                .materials
+                .get(d.material)
+                .is_some_and(|m| !m.double_sided);
+            let first = (d.first_index / 3) as usize;
+            let last = ((d.first_index + d.index_count) / 3) as usize;
+            for s in single_sided.iter_mut().take(last).skip(first) {
+                *s = sided;
+            }
+        }
         let mut caster = Self {
             order: (0..triangles.len() as u32).collect(),
             triangles,
+            single_sided,
             nodes: Vec::new(),
         };
         if !caster.triangles.is_empty() {
@@ -115,8 +131,9 @@ impl RayCaster {
         self.build(left + 1);
     }
 
-    /// The nearest triangle along the ray `origin + t·dir` (t > `min_t`).
-    pub fn cast(&self, origin: Vec3, dir: Vec3, min_t: f32) -> Option<Hit> {
+    /// The nearest triangle along the ray `origin + t·dir` (`min_t` < t < `max_t`), back faces
+    /// of single-sided triangles left out.
+    pub fn cast(&self, origin: Vec3, dir: Vec3, min_t: f32, max_t: f32) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -125,7 +142,7 @@ impl RayCaster {
         let mut stack = vec![0usize];
         while let Some(n) = stack.pop() {
             let node = self.nodes[n];
-            let far = best.map_or(f32::INFINITY, |h| h.distance);
+            let far = best.map_or(max_t, |h| h.distance);
             if !slab_hit(node.lo, node.hi, origin, inv, far) {
                 continue;
             }
@@ -136,8 +153,18 @@ impl RayCaster {
             }
             let range = node.first as usize..(node.first + node.count) as usize;
             for &t in &self.order[range] {
-                if let Some(d) = intersect(self.triangles[t as usize], origin, dir)
+                let corners = self.triangles[t as usize];
+                // Counter-clockwise seen from the front: the ray runs against the normal.
+                let back = (corners[1] - corners[0])
+                    .cross(corners[2] - corners[0])
+                    .dot(dir)
+                    > 0.0;
+                if self.single_sided[t as usize] && back {
+                    continue;
+                }
+                if let Some(d) = intersect(corners, origin, dir)
                     && d > min_t
+                    && d < max_t
                     && best.is_none_or(|b| d < b.distance)
                 {
                     best = Some(Hit {
@@ -151,9 +178,15 @@ impl RayCaster {
     }
 
     /// One hit per pixel (row-major, top row first) of a mono panorama seen from `head`
-    /// (CAVE space), nearer hits than `near` ignored. Pixels outside the projection's
-    /// outline are `None`.
-    pub fn panorama(&self, settings: &PanoSettings, head: Vec3, near: f32) -> Vec<Option<Hit>> {
+    /// (CAVE space), between the clipping spheres `near` and `far`. Pixels outside the
+    /// projection's outline are `None`.
+    pub fn panorama(
+        &self,
+        settings: &PanoSettings,
+        head: Vec3,
+        near: f32,
+        far: f32,
+    ) -> Vec<Option<Hit>> {
         let projection: PanoProjection = settings.fitted();
         let cave_from_view = settings.view_from_cave(head).inverse();
         let [w, h] = settings.size;
@@ -166,7 +199,7 @@ impl RayCaster {
                 );
                 out.push(projection.unproject(ndc).and_then(|d| {
                     let dir = cave_from_view.transform_vector3(d);
-                    self.cast(head, dir, near)
+                    self.cast(head, dir, near, far)
                 }));
             }
         }
@@ -207,6 +240,25 @@ pub fn flat_colours(scene: &Scene) -> (Scene, Vec<[u8; 3]>) {
         }
     }
     (flat, colours)
+}
+
+/// The reference a GPU panorama of `scene` is compared with: the scene in flat colours (to
+/// render) and the colour the ray caster sees at each pixel (`None`: nothing).
+pub fn flat_reference(
+    scene: &Scene,
+    cave_from_world: Mat4,
+    settings: &PanoSettings,
+    head: Vec3,
+    near: f32,
+    far: f32,
+) -> (Scene, Vec<Option<[u8; 3]>>) {
+    let (flat, colours) = flat_colours(scene);
+    let hits = RayCaster::new(&flat, cave_from_world).panorama(settings, head, near, far);
+    let reference = hits
+        .iter()
+        .map(|h| h.map(|h| colours[h.triangle]))
+        .collect();
+    (flat, reference)
 }
 
 /// How a rendered panorama differs from the ray caster's.
@@ -343,11 +395,17 @@ mod tests {
         scene.add_mesh(&far.vertices, &far.indices, m);
         let caster = RayCaster::new(&scene, Mat4::IDENTITY);
         let hit = caster
-            .cast(Vec3::ZERO, Vec3::NEG_Z, 0.0)
+            .cast(Vec3::ZERO, Vec3::NEG_Z, 0.0, f32::INFINITY)
             .expect("the ray ahead hits the quads");
         assert!((hit.distance - 3.0).abs() < 1e-5, "{hit:?}");
         assert!(hit.triangle < 2, "the near quad, not the far one: {hit:?}");
-        assert!(caster.cast(Vec3::ZERO, Vec3::Z, 0.0).is_none());
+        assert!(
+            caster
+                .cast(Vec3::ZERO, Vec3::Z, 0.0, f32::INFINITY)
+                .is_none()
+        );
+        // Beyond the far limit: nothing.
+        assert!(caster.cast(Vec3::ZERO, Vec3::NEG_Z, 0.0, 2.5).is_none());
     }
 
     #[test]
@@ -358,7 +416,7 @@ mod tests {
             size: [64, 32],
             ..Default::default()
         };
-        let hits = caster.panorama(&settings, Vec3::ZERO, 0.01);
+        let hits = caster.panorama(&settings, Vec3::ZERO, 0.01, 100.0);
         let at = |x: usize, y: usize| hits[y * 64 + x];
         assert!(at(31, 15).is_some() && at(32, 16).is_some());
         assert!(at(0, 16).is_none() && at(63, 16).is_none() && at(32, 0).is_none());

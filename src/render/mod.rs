@@ -310,7 +310,7 @@ impl Renderer {
         self.scene_pass.pipelines_built
             + self.sky_pass.pipelines_built
             + self.present.pipelines_built()
-            + panorama::PANO_PIPELINES
+            + self.pano.pipelines_built
             + if self.tessellator.is_some() {
                 Tessellator::PIPELINES
             } else {
@@ -549,33 +549,14 @@ impl Renderer {
                 buffers.encode(tessellator, &mut encoder, index, rounds);
             }
             let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
-            let (attachment, resolve) = match &target.msaa_view {
-                Some(msaa) => (msaa, Some(&target.color_view)),
-                None => (&target.color_view, None),
-            };
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("Renderer::scene_pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: attachment,
-                    depth_slice: None,
-                    resolve_target: resolve,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &target.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = targets::begin_scene_pass(
+                &mut encoder,
+                "Renderer::scene_pass",
+                &target.color_view,
+                target.msaa_view.as_ref(),
+                &target.depth_view,
+                clear,
+            );
             match (&self.scene, tess) {
                 (Some(scene), Some(buffers)) => {
                     self.scene_pass
@@ -667,11 +648,8 @@ impl Renderer {
                     clip_from_cave: panorama::face_clip_from_cave(f, head, face_size, near, far)
                         .to_cols_array_2d(),
                     eye_position: head.extend(1.0).to_array(),
-                    wall_plane: [0.0; 4],
-                    omni_head: [0.0; 4],
-                    pano: [0.0; 4],
-                    pano_window: [0.0; 4],
-                    pano_size: [0.0; 4],
+                    // A plain perspective view: no omnistereo, no panorama fields.
+                    ..bytemuck::Zeroable::zeroed()
                 });
                 self.scene_pass
                     .write_uniforms(&self.queue, &frame_uniforms, faces);
@@ -718,8 +696,17 @@ impl Renderer {
                     &frame.lighting,
                     omni.then_some(frame.omni),
                 );
+                let msaa = self.settings.msaa;
                 let views = eyes.iter().map(|&eye| {
-                    panorama::pano_view_uniforms(pano, head, eye, frame.eye_separation, near, far)
+                    panorama::pano_view_uniforms(
+                        pano,
+                        head,
+                        eye,
+                        frame.eye_separation,
+                        near,
+                        far,
+                        msaa,
+                    )
                 });
                 self.scene_pass
                     .write_uniforms(&self.queue, &frame_uniforms, views);

@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
 use super::shaders;
-use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, WallTargets};
+use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, WallTargets, begin_scene_pass};
 use super::uniforms::ViewUniforms;
 use crate::cave::Eye;
 use crate::pano::{PanoSettings, PanoStereo};
@@ -68,6 +68,7 @@ pub fn pano_view_uniforms(
     ipd: f32,
     near: f32,
     far: f32,
+    msaa: u32,
 ) -> ViewUniforms {
     let sign = eye.map_or(0.0, Eye::sign);
     let (stereo_code, omni_half, volume) = match settings.stereo {
@@ -79,7 +80,7 @@ pub fn pano_view_uniforms(
     ViewUniforms {
         clip_from_cave: settings.view_from_cave(head).to_cols_array_2d(),
         eye_position: head.extend(1.0).to_array(),
-        wall_plane: [volume[2], 0.0, 0.0, 0.0],
+        wall_plane: [volume[2], msaa as f32, 0.0, 0.0],
         omni_head: head.extend(omni_half).to_array(),
         pano: [
             (fitted.projection.code() + 1) as f32,
@@ -191,10 +192,9 @@ pub struct PanoPass {
     targets: Option<(WallTargets, u32)>,
     /// Bumped whenever the eye targets are replaced.
     pub generation: u64,
+    /// Pipelines built so far (once, at creation).
+    pub pipelines_built: u64,
 }
-
-/// Render pipelines [`PanoPass::new`] builds.
-pub const PANO_PIPELINES: u64 = 1;
 
 impl PanoPass {
     pub fn new(device: &wgpu::Device) -> Self {
@@ -281,6 +281,7 @@ impl PanoPass {
             resolve_group: None,
             targets: None,
             generation: 0,
+            pipelines_built: 1,
         }
     }
 
@@ -346,33 +347,14 @@ impl PanoPass {
             return;
         };
         for (face, face_view) in cube.faces.iter().enumerate() {
-            let (attachment, resolve) = match &cube.msaa_view {
-                Some(msaa) => (msaa, Some(face_view)),
-                None => (face_view, None),
-            };
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("PanoPass::face_pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: attachment,
-                    depth_slice: None,
-                    resolve_target: resolve,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &cube.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = begin_scene_pass(
+                encoder,
+                "PanoPass::face_pass",
+                face_view,
+                cube.msaa_view.as_ref(),
+                &cube.depth_view,
+                clear,
+            );
             draw_face(&mut pass, face);
         }
     }
@@ -411,32 +393,13 @@ impl PanoPass {
         clear: wgpu::Color,
     ) -> Option<wgpu::RenderPass<'e>> {
         let target = &self.targets()?.eyes[eye.min(1)];
-        let (attachment, resolve) = match &target.msaa_view {
-            Some(msaa) => (msaa, Some(&target.color_view)),
-            None => (&target.color_view, None),
-        };
-        Some(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("PanoPass::eye_pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: attachment,
-                depth_slice: None,
-                resolve_target: resolve,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(clear),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &target.depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        }))
+        Some(begin_scene_pass(
+            encoder,
+            "PanoPass::eye_pass",
+            &target.color_view,
+            target.msaa_view.as_ref(),
+            &target.depth_view,
+            clear,
+        ))
     }
 }

@@ -77,7 +77,9 @@ pub struct ViewUniforms {
     pub wall_plane: [f32; 4],
     pub omni_head: [f32; 4],
     /// Panorama views only (zero for walls): x projection code + 1, y near and z far
-    /// clipping sphere radius (metres), w stereo (0 mono, 1 volume, 2 omni).
+    /// clipping sphere radius (metres), w stereo (0 mono, 1 volume, 2 omni). In a panorama
+    /// view `wall_plane` holds x: the volume stereo's zero-parallax depth, y: the target's
+    /// MSAA sample count.
     pub pano: [f32; 4],
     /// Panorama: the field of view's centre and half size in map coordinates.
     pub pano_window: [f32; 4],
