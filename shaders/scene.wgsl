@@ -470,9 +470,33 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
     }
     let inside = hit.y >= 0.0 && hit.z >= 0.0 && hit.y + hit.z <= 1.0;
     let met = ray.shown && hit.x > 0.0;
+    // Coverage: where the rays meet the triangle, between the clipping spheres (an edge-on
+    // triangle covers nothing). With MSAA, each sample's own ray decides its bit, so edges
+    // are antialiased as the walls' are; shading stays once per pixel, from the centre's
+    // ray, or from the first covered sample's where the centre's misses.
+    var mask = select(0u, 1u, met && inside);
+    let samples = u32(view.wall_plane.y);
+    if samples == 4u {
+        mask = 0u;
+        let corner = floor(in.clip.xy);
+        var first = true;
+        for (var k = 0u; k < 4u; k++) {
+            let r = pano_ray(corner + SAMPLE_POSITIONS_4[k], depth);
+            let h = ray_plane(r.origin, r.dir, in.p0, in.p1, in.p2);
+            if r.shown && h.x > 0.0 && h.y >= 0.0 && h.z >= 0.0 && h.y + h.z <= 1.0 {
+                mask |= 1u << k;
+                if first && !(met && inside) {
+                    ray = r;
+                    hit = h;
+                    depth = pano_depth(h.x);
+                }
+                first = false;
+            }
+        }
+    }
     // Everything from the exact hit, in uniform control flow (so that the texture's
-    // gradients come from the neighbouring pixels' exact coordinates; a pixel whose ray
-    // misses is discarded below, but still lends its neighbours a gradient).
+    // gradients come from the neighbouring pixels' exact coordinates; a pixel whose rays
+    // miss is discarded below, but still lends its neighbours a gradient).
     let w = vec3<f32>(1.0 - hit.y - hit.z, hit.y, hit.z);
     let position = w.x * in.p0 + w.y * in.p1 + w.z * in.p2;
     let normal = w.x * in.n0 + w.y * in.n1 + w.z * in.n2;
@@ -481,22 +505,6 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
     let ddy = dpdy(uv);
     let eye = ray.origin;
     let facing = dot(cross(in.p1 - in.p0, in.p2 - in.p0), ray.origin - in.p0) >= 0.0;
-    // Coverage: where the rays meet the triangle, between the clipping spheres (an edge-on
-    // triangle covers nothing). With MSAA, each sample's own ray decides its bit, so edges
-    // are antialiased as the walls' are; shading stays once per pixel.
-    var mask = select(0u, 1u, met && inside);
-    let samples = u32(view.wall_plane.y);
-    if samples == 4u && met {
-        mask = 0u;
-        let corner = floor(in.clip.xy);
-        for (var k = 0u; k < 4u; k++) {
-            let r = pano_ray(corner + SAMPLE_POSITIONS_4[k], depth);
-            let h = ray_plane(r.origin, r.dir, in.p0, in.p1, in.p2);
-            if r.shown && h.x > 0.0 && h.y >= 0.0 && h.z >= 0.0 && h.y + h.z <= 1.0 {
-                mask |= 1u << k;
-            }
-        }
-    }
     let keep = mask != 0u && depth >= 0.0 && depth <= 1.0;
     let color = surface_color(position, normal, uv, ddx, ddy, eye, facing);
     if !keep || color.a < 0.0 {

@@ -380,6 +380,9 @@ fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             "Panorama view"
         },
     );
+    // Choosing "volume" uses the configured parameters.
+    let [ioid, d, offset] = state.panorama_volume;
+    let volume = PanoStereo::Volume { ioid, d, offset };
     let pano = &mut state.panorama;
     ui.add_enabled_ui(state.panorama_on, |ui| {
         combo(
@@ -413,11 +416,7 @@ fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             ui.label("this projection is drawn by the image route");
         }
         ui.add_enabled_ui(pano.effective_route() == PanoRoute::Geometric, |ui| {
-            let stereos = [
-                PanoStereo::Mono,
-                PanoStereo::VOLUME_DEFAULT,
-                PanoStereo::Omni,
-            ];
+            let stereos = [PanoStereo::Mono, volume, PanoStereo::Omni];
             let mut chosen = stereos
                 .iter()
                 .position(|s| s.name() == pano.stereo.name())

@@ -154,6 +154,9 @@ pub struct AppState {
     /// The panorama view: shown or not, and its settings.
     pub panorama_on: bool,
     pub panorama: PanoSettings,
+    /// The volume stereo's parameters as configured (the panel's choice of "volume" uses
+    /// them).
+    pub panorama_volume: [f32; 3],
     pub quit_requested: bool,
     pub save_requested: bool,
     /// Where "save" writes.
@@ -217,6 +220,7 @@ impl AppState {
             gamepad_mode: config.gamepad.mode,
             panorama_on: config.file.panorama.show,
             panorama: config.panorama,
+            panorama_volume: config.file.panorama.volume_ioid_d_offset,
             quit_requested: false,
             save_requested: false,
             save_path,
