@@ -274,7 +274,7 @@ pub fn render_to_dir(
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
     if overrides.panorama {
-        return render_panorama_to_dir(&gpu, &config, &scene, out_dir, formats);
+        return render_panorama_to_dir(&gpu, &config, &scene, sky.as_ref(), out_dir, formats);
     }
     let mut renderer = render_frame(&gpu, &config, &scene, sky.as_ref())?;
     let images = renderer.read_images()?;
@@ -298,9 +298,14 @@ pub fn render_to_dir(
     Ok(written)
 }
 
-/// Renders the panorama view of a config and scene (its `[panorama]` settings) and returns the
-/// renderer holding it.
-pub fn render_panorama(gpu: &Gpu, config: &Config, scene: &Scene) -> Result<Renderer, RenderError> {
+/// Renders the panorama view of a config and scene (its `[panorama]` settings, and `sky`
+/// behind it if any) and returns the renderer holding it.
+pub fn render_panorama(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+) -> Result<Renderer, RenderError> {
     let mut renderer = Renderer::new(
         gpu,
         &config.cave,
@@ -310,6 +315,9 @@ pub fn render_panorama(gpu: &Gpu, config: &Config, scene: &Scene) -> Result<Rend
         },
     )?;
     renderer.set_scene(scene);
+    if let Err(e) = renderer.set_sky(sky) {
+        tracing::error!("{e}; rendering without a sky");
+    }
     let pano = &config.panorama;
     renderer.render_panorama(&frame_params(config), pano)?;
     let fitted = pano.fitted();
@@ -349,10 +357,11 @@ fn render_panorama_to_dir(
     gpu: &Gpu,
     config: &Config,
     scene: &Scene,
+    sky: Option<&CubeMap>,
     out_dir: &Path,
     formats: &[StereoFormat],
 ) -> Result<Written, HeadlessError> {
-    let mut renderer = render_panorama(gpu, config, scene)?;
+    let mut renderer = render_panorama(gpu, config, scene, sky)?;
     let [left, right] = renderer.read_panorama()?;
     output::ensure_dir(out_dir)?;
     let mut files = Vec::new();

@@ -745,8 +745,9 @@ fn the_operator_window_shows_the_panorama_beside_the_panel() {
     let config = Config::load(&path).expect("config");
     assert!(config.file.panorama.show);
     let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
-    let renderer =
-        headless::render_panorama(common::gpu(), &config, &scene).expect("headless panorama");
+    let sky = headless::load_config_sky(&config);
+    let renderer = headless::render_panorama(common::gpu(), &config, &scene, sky.as_ref())
+        .expect("headless panorama");
     let [reference, _] = renderer.read_panorama().expect("read back");
 
     let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());

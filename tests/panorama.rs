@@ -708,3 +708,58 @@ fn the_render_command_writes_a_stereo_panorama_in_its_formats() {
         "{stderr}"
     );
 }
+
+#[test]
+fn the_sky_shows_behind_the_panorama_where_its_beacons_are() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/sky.png");
+    let sky = omnicave::sky::load_sky(&path).expect("bundled sky");
+    let cave = cave();
+    // A box in front of the red beacon (azimuth 0°, 15° up): the scene hides the sky there.
+    let hider = marker_scene(
+        &[HEAD + omnicave::sky::bundled::BEACONS[0].direction() * 2.0],
+        HEAD,
+        0.1,
+    );
+    for route in PanoRoute::ALL {
+        let mut pano = settings(Projection::Equirectangular, route, [360.0, 180.0]);
+        pano.size = [1440, 720];
+        pano.cube_size = 1024;
+        let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+        renderer.set_sky(Some(&sky)).expect("sky");
+        renderer.set_scene(&hider);
+        let frame = test_frame(
+            &cave,
+            Head::at(HEAD),
+            RenderMode::Mono,
+            OmniSettings::default(),
+            TessSettings::default(),
+        );
+        renderer.render_panorama(&frame, &pano).expect("panorama");
+        let [image, _] = renderer.read_panorama().expect("read back");
+        keep(&format!("sky-{}", route.name()), &image);
+        for (i, beacon) in omnicave::sky::bundled::BEACONS.iter().enumerate() {
+            let dir = pano
+                .view_from_cave(HEAD)
+                .transform_vector3(beacon.direction());
+            let at = cpu_pixel(&pano, dir).expect("every direction has a pixel");
+            let p = image.get_pixel(at.x as u32, at.y as u32);
+            let got = [p[0], p[1], p[2]];
+            // The marker hiding the first beacon is red too ([255, 0, 0], unlit); the others
+            // show the beacon's own colour at its centre (a 1.5° cap is 6 px across here:
+            // its centre is unfiltered) within the sky's 8-bit rounding and the lookup's
+            // bilinear filtering, 24 levels.
+            let expected = if i == 0 { [255, 0, 0] } else { beacon.rgb };
+            println!(
+                "{} route: beacon {} at {at}: {got:?}, expected {expected:?}",
+                route.name(),
+                beacon.name
+            );
+            assert!(
+                channel_diff(got, expected) <= 24,
+                "{} route: beacon {} at {at} shows {got:?}, expected {expected:?}",
+                route.name(),
+                beacon.name
+            );
+        }
+    }
+}

@@ -28,7 +28,7 @@ use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_se
 use crate::config::Lighting;
 use crate::pano::{PanoRoute, PanoSettings};
 use crate::scene::Scene;
-use crate::sky::{CubeMap, SkySettings};
+use crate::sky::{CubeMap, SkyMode, SkySettings};
 use crate::tess::{TessSettings, TessStats};
 
 /// Everything that can go wrong in the render layer.
@@ -202,6 +202,7 @@ impl Renderer {
             tessellator.as_ref().map(|t| &t.draw_layout),
         );
         let sky_pass = SkyPass::new(&gpu.device, settings.msaa, cave.walls.len() * 2);
+        let pano = panorama::PanoPass::new(&gpu.device, sky_pass.cube_layout(), settings.msaa);
         let mut renderer = Self {
             device: gpu.device.clone(),
             queue: gpu.queue.clone(),
@@ -220,7 +221,7 @@ impl Renderer {
             timer: None,
             present: present::PresentPass::new(&gpu.device),
             targets_generation: 0,
-            pano: panorama::PanoPass::new(&gpu.device),
+            pano,
             pano_views: 0,
             pano_tessellated: false,
         };
@@ -431,6 +432,7 @@ impl Renderer {
         if msaa_changed {
             self.scene_pass.build_pipelines(&self.device, settings.msaa);
             self.sky_pass.build_pipelines(&self.device, settings.msaa);
+            self.pano.set_msaa(&self.device, settings.msaa);
             self.targets.clear();
             self.sync_walls(cave);
         }
@@ -637,9 +639,28 @@ impl Renderer {
         if let Some(timer) = &self.timer {
             encoder.write_timestamp(&timer.queries, 0);
         }
+        // The sky behind the panorama: a direction lookup (at infinity, the same for every
+        // eye), unless the sky is off.
+        let use_sky = frame.sky.mode != SkyMode::Off;
+        let face_size = pano.cube_size.clamp(4, max);
+        let fitted = pano.fitted();
+        self.pano.write_resolve(
+            &self.queue,
+            &panorama::ResolveUniforms {
+                cave_from_view: pano.view_from_cave(head).inverse().to_cols_array_2d(),
+                cube_from_cave: sky_pass::cube_from_cave(frame.world_from_cave).to_cols_array_2d(),
+                window: fitted.map_window(),
+                params: [
+                    fitted.projection.code() as f32,
+                    panorama::face_half_extent(face_size),
+                    frame.sky.exposure,
+                    0.0,
+                ],
+                background: [clear.r as f32, clear.g as f32, clear.b as f32, 1.0],
+            },
+        );
         match route {
             PanoRoute::Image => {
-                let face_size = pano.cube_size.clamp(4, max);
                 self.pano
                     .ensure_cube(&self.device, face_size, self.settings.msaa);
                 let frame_uniforms =
@@ -653,34 +674,17 @@ impl Renderer {
                 });
                 self.scene_pass
                     .write_uniforms(&self.queue, &frame_uniforms, faces);
-                let fitted = pano.fitted();
-                let background = clear;
-                self.pano.write_resolve(
-                    &self.queue,
-                    &panorama::ResolveUniforms {
-                        cave_from_view: pano.view_from_cave(head).inverse().to_cols_array_2d(),
-                        window: fitted.map_window(),
-                        params: [
-                            fitted.projection.code() as f32,
-                            panorama::face_half_extent(face_size),
-                            0.0,
-                            0.0,
-                        ],
-                        background: [
-                            background.r as f32,
-                            background.g as f32,
-                            background.b as f32,
-                            1.0,
-                        ],
-                    },
-                );
                 let (scene_pass, scene) = (&self.scene_pass, &self.scene);
-                self.pano.encode_faces(&mut encoder, clear, |pass, face| {
-                    if let Some(scene) = scene {
-                        scene_pass.draw(pass, scene, face, false);
-                    }
-                });
-                self.pano.encode_resolve(&mut encoder);
+                // Alpha 0 where the faces show nothing: the look-up puts the sky there.
+                let face_clear = wgpu::Color { a: 0.0, ..clear };
+                self.pano
+                    .encode_faces(&mut encoder, face_clear, |pass, face| {
+                        if let Some(scene) = scene {
+                            scene_pass.draw(pass, scene, face, false);
+                        }
+                    });
+                let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);
+                self.pano.encode_resolve(&mut encoder, sky);
                 self.pano_views = 1;
                 self.pano_tessellated = false;
             }
@@ -734,18 +738,26 @@ impl Renderer {
                     );
                 }
                 let rounds = tessellator::rounds(&frame.tess);
+                let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);
                 for index in 0..eyes.len() {
                     let (Some(scene), Some((buffers, _)), Some(tessellator)) =
                         (&self.scene, &self.tess_buffers, &self.tessellator)
                     else {
-                        // No scene: the target is only cleared.
-                        drop(self.pano.begin_eye_pass(&mut encoder, index, clear));
+                        // No scene: the sky alone (or the clear colour).
+                        if let (Some(mut pass), Some(sky)) =
+                            (self.pano.begin_eye_pass(&mut encoder, index, clear), sky)
+                        {
+                            self.pano.draw_sky(&mut pass, sky);
+                        }
                         continue;
                     };
                     buffers.encode(tessellator, &mut encoder, index, rounds);
                     if let Some(mut pass) = self.pano.begin_eye_pass(&mut encoder, index, clear) {
                         self.scene_pass
                             .draw_panorama(&mut pass, scene, buffers, index);
+                        if let Some(sky) = sky {
+                            self.pano.draw_sky(&mut pass, sky);
+                        }
                     }
                 }
                 self.pano_views = eyes.len();

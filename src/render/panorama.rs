@@ -54,6 +54,7 @@ pub fn face_clip_from_cave(face: usize, head: Vec3, size: u32, near: f32, far: f
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct ResolveUniforms {
     pub cave_from_view: [[f32; 4]; 4],
+    pub cube_from_cave: [[f32; 4]; 4],
     pub window: [f32; 4],
     pub params: [f32; 4],
     pub background: [f32; 4],
@@ -179,87 +180,99 @@ impl CubeTargets {
     }
 }
 
-/// The panorama's resources: eye targets, cube faces and the look-up pipeline (built once).
+/// The panorama's resources: eye targets, cube faces, the look-up and sky pipelines (built
+/// once; the sky's again when MSAA changes).
 #[derive(Debug)]
 pub struct PanoPass {
-    resolve_layout: wgpu::BindGroupLayout,
+    uniform_group: wgpu::BindGroup,
+    faces_layout: wgpu::BindGroupLayout,
+    /// The image route's look-up, without and with a sky.
     resolve_pipeline: wgpu::RenderPipeline,
+    resolve_sky_pipeline: wgpu::RenderPipeline,
+    /// The geometric route's sky, behind the scene in the eye targets.
+    sky_pipeline: wgpu::RenderPipeline,
+    sky_layout: wgpu::PipelineLayout,
+    module: wgpu::ShaderModule,
     sampler: wgpu::Sampler,
     resolve_uniforms: wgpu::Buffer,
     cube: Option<CubeTargets>,
-    resolve_group: Option<wgpu::BindGroup>,
+    faces_group: Option<wgpu::BindGroup>,
     /// The eye targets and their sample count.
     targets: Option<(WallTargets, u32)>,
     /// Bumped whenever the eye targets are replaced.
     pub generation: u64,
-    /// Pipelines built so far (once, at creation).
+    /// Pipelines built so far.
     pub pipelines_built: u64,
 }
 
+/// A fragment-stage binding of a layout.
+fn fragment_entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty,
+        count: None,
+    }
+}
+
 impl PanoPass {
-    pub fn new(device: &wgpu::Device) -> Self {
-        let resolve_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("PanoPass::resolve_layout"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
+    /// `sky_layout`: the sky pass's cube-map layout (the sky is bound as the sky pass has
+    /// it); `msaa`: the eye targets' sample count.
+    pub fn new(device: &wgpu::Device, sky_layout: &wgpu::BindGroupLayout, msaa: u32) -> Self {
+        let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("PanoPass::uniform_layout"),
+            entries: &[fragment_entry(
+                0,
+                wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
+            )],
+        });
+        let faces_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("PanoPass::faces_layout"),
+            entries: &[
+                fragment_entry(
+                    0,
+                    wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Float { filterable: true },
                         view_dimension: wgpu::TextureViewDimension::D2Array,
                         multisampled: false,
                     },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
+                ),
+                fragment_entry(
+                    1,
+                    wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                ),
             ],
         });
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("PanoPass::resolve_pipeline_layout"),
-            bind_group_layouts: &[Some(&resolve_layout)],
-            immediate_size: 0,
-        });
+        let pipeline_layout = |label: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: groups,
+                immediate_size: 0,
+            })
+        };
+        let resolve_layout = pipeline_layout(
+            "PanoPass::resolve_pipeline_layout",
+            &[Some(&uniform_layout), Some(&faces_layout)],
+        );
+        let resolve_sky_layout = pipeline_layout(
+            "PanoPass::resolve_sky_pipeline_layout",
+            &[Some(&uniform_layout), Some(&faces_layout), Some(sky_layout)],
+        );
+        let sky_pipeline_layout = pipeline_layout(
+            "PanoPass::sky_pipeline_layout",
+            &[Some(&uniform_layout), None, Some(sky_layout)],
+        );
         let module = shaders::module(device, "PanoPass::shader", shaders::PANORAMA);
-        let resolve_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("PanoPass::resolve_pipeline"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_fullscreen"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_resolve"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let resolve_pipeline =
+            fullscreen_pipeline(device, &module, &resolve_layout, "fs_resolve", None);
+        let resolve_sky_pipeline =
+            fullscreen_pipeline(device, &module, &resolve_sky_layout, "fs_resolve_sky", None);
+        let sky_pipeline =
+            fullscreen_pipeline(device, &module, &sky_pipeline_layout, "fs_sky", Some(msaa));
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("PanoPass::face_sampler"),
             mag_filter: wgpu::FilterMode::Linear,
@@ -272,17 +285,37 @@ impl PanoPass {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("PanoPass::uniform_group"),
+            layout: &uniform_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: resolve_uniforms.as_entire_binding(),
+            }],
+        });
         Self {
-            resolve_layout,
+            uniform_group,
+            faces_layout,
             resolve_pipeline,
+            resolve_sky_pipeline,
+            sky_pipeline,
+            sky_layout: sky_pipeline_layout,
+            module,
             sampler,
             resolve_uniforms,
             cube: None,
-            resolve_group: None,
+            faces_group: None,
             targets: None,
             generation: 0,
-            pipelines_built: 1,
+            pipelines_built: 3,
         }
+    }
+
+    /// Rebuilds the sky pipeline for a new sample count (when MSAA changes, not per frame).
+    pub fn set_msaa(&mut self, device: &wgpu::Device, msaa: u32) {
+        self.sky_pipeline =
+            fullscreen_pipeline(device, &self.module, &self.sky_layout, "fs_sky", Some(msaa));
+        self.pipelines_built += 1;
     }
 
     /// Makes the eye targets match the image size and sample count (rebuilt only on change).
@@ -307,20 +340,16 @@ impl PanoPass {
             return;
         }
         let cube = CubeTargets::new(device, size, msaa);
-        self.resolve_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("PanoPass::resolve_group"),
-            layout: &self.resolve_layout,
+        self.faces_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("PanoPass::faces_group"),
+            layout: &self.faces_layout,
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: self.resolve_uniforms.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
                     resource: wgpu::BindingResource::TextureView(&cube.array_view),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 2,
+                    binding: 1,
                     resource: wgpu::BindingResource::Sampler(&self.sampler),
                 },
             ],
@@ -359,9 +388,14 @@ impl PanoPass {
         }
     }
 
-    /// Records the look-up of every pixel of the (left) eye target in the cube faces.
-    pub fn encode_resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        let (Some(targets), Some(group)) = (self.targets(), &self.resolve_group) else {
+    /// Records the look-up of every pixel of the (left) eye target in the cube faces, with
+    /// the sky (its cube-map group) where the faces show nothing.
+    pub fn encode_resolve(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        sky: Option<&wgpu::BindGroup>,
+    ) {
+        let (Some(targets), Some(faces)) = (self.targets(), &self.faces_group) else {
             return;
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -380,8 +414,23 @@ impl PanoPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.resolve_pipeline);
-        pass.set_bind_group(0, group, &[]);
+        pass.set_bind_group(0, &self.uniform_group, &[]);
+        pass.set_bind_group(1, faces, &[]);
+        match sky {
+            Some(sky) => {
+                pass.set_pipeline(&self.resolve_sky_pipeline);
+                pass.set_bind_group(2, sky, &[]);
+            }
+            None => pass.set_pipeline(&self.resolve_pipeline),
+        }
+        pass.draw(0..3, 0..1);
+    }
+
+    /// Records the sky behind what an eye pass has drawn (the geometric route).
+    pub fn draw_sky(&self, pass: &mut wgpu::RenderPass<'_>, sky: &wgpu::BindGroup) {
+        pass.set_pipeline(&self.sky_pipeline);
+        pass.set_bind_group(0, &self.uniform_group, &[]);
+        pass.set_bind_group(2, sky, &[]);
         pass.draw(0..3, 0..1);
     }
 
@@ -402,4 +451,50 @@ impl PanoPass {
             clear,
         ))
     }
+}
+
+/// A full-screen pipeline of shaders/panorama.wgsl: the look-up into a single-sampled target
+/// (`msaa` `None`), or the sky behind a scene (`Some(samples)`: depth tested less-equal at
+/// the far plane, not written).
+fn fullscreen_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    fragment: &str,
+    msaa: Option<u32>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(&format!("PanoPass::{fragment}_pipeline")),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: msaa.map(|_| wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::LessEqual),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: wgpu::MultisampleState {
+            count: msaa.unwrap_or(1),
+            ..Default::default()
+        },
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fragment),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: COLOR_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }

@@ -40,13 +40,18 @@ pub struct SkyFrame {
     pub exposure: f32,
 }
 
+/// The hardware cube-map direction of a CAVE-space direction: directions only, the rotation
+/// (and uniform scale, which a lookup ignores) of the placement, then the cube-map
+/// convention's z flip (src/sky/cubemap.rs).
+pub fn cube_from_cave(world_from_cave: Mat4) -> Mat4 {
+    let flip = Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0));
+    Mat4::from_mat3(flip * Mat3::from_mat4(world_from_cave))
+}
+
 impl SkyUniforms {
     pub fn new(view: &ViewSetup, cave: &Cave, frame: &SkyFrame) -> Self {
         let wall = &cave.walls[view.wall];
-        // Directions only: the rotation (and uniform scale, which a lookup ignores) of the
-        // placement, then the cube-map convention's z flip.
-        let flip = Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0));
-        let cube_from_cave = Mat4::from_mat3(flip * Mat3::from_mat4(frame.world_from_cave));
+        let cube_from_cave = cube_from_cave(frame.world_from_cave);
         let (eye, half) = match view.eye {
             Some(e) => (
                 frame.offaxis_eyes[e as usize],
@@ -295,6 +300,17 @@ impl SkyPass {
 
     pub fn has_cube(&self) -> bool {
         self.cube.is_some()
+    }
+
+    /// Layout of the sky's cube map and sampler (group 1 of shaders/sky.wgsl; the panorama
+    /// binds the same group).
+    pub fn cube_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.cube_layout
+    }
+
+    /// The sky's cube map and sampler, if a sky is set.
+    pub fn cube_bind_group(&self) -> Option<&wgpu::BindGroup> {
+        self.cube.as_ref().map(|c| &c.bind_group)
     }
 
     fn upload(&self, device: &wgpu::Device, queue: &wgpu::Queue, cube: &CubeMap) -> CubeGpu {
