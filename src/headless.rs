@@ -161,6 +161,30 @@ pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
     }
 }
 
+/// A renderer for `config` holding `scene` and `sky` (a sky the device cannot hold is reported
+/// and left out).
+fn renderer_for(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+    wireframe: bool,
+) -> Result<Renderer, RenderError> {
+    let mut renderer = Renderer::new(
+        gpu,
+        &config.cave,
+        RenderSettings {
+            msaa: config.msaa,
+            wireframe,
+        },
+    )?;
+    renderer.set_scene(scene);
+    if let Err(e) = renderer.set_sky(sky) {
+        tracing::error!("{e}; rendering without a sky");
+    }
+    Ok(renderer)
+}
+
 /// Renders one frame of `scene` (and `sky`, if any) as configured; returns the renderer holding
 /// the frame (to read or compose its images).
 pub fn render_frame(
@@ -169,18 +193,7 @@ pub fn render_frame(
     scene: &Scene,
     sky: Option<&CubeMap>,
 ) -> Result<Renderer, RenderError> {
-    let mut renderer = Renderer::new(
-        gpu,
-        &config.cave,
-        RenderSettings {
-            msaa: config.msaa,
-            wireframe: config.wireframe,
-        },
-    )?;
-    renderer.set_scene(scene);
-    if let Err(e) = renderer.set_sky(sky) {
-        tracing::error!("{e}; rendering without a sky");
-    }
+    let mut renderer = renderer_for(gpu, config, scene, sky, config.wireframe)?;
     renderer.render(&frame_params(config))?;
     for (view, stats) in renderer
         .last_views()
@@ -306,18 +319,7 @@ pub fn render_panorama(
     scene: &Scene,
     sky: Option<&CubeMap>,
 ) -> Result<Renderer, RenderError> {
-    let mut renderer = Renderer::new(
-        gpu,
-        &config.cave,
-        RenderSettings {
-            msaa: config.msaa,
-            wireframe: false,
-        },
-    )?;
-    renderer.set_scene(scene);
-    if let Err(e) = renderer.set_sky(sky) {
-        tracing::error!("{e}; rendering without a sky");
-    }
+    let mut renderer = renderer_for(gpu, config, scene, sky, false)?;
     let pano = &config.panorama;
     renderer.render_panorama(&frame_params(config), pano)?;
     let fitted = pano.fitted();

@@ -334,6 +334,21 @@ fn preview_window(shot: &RgbImage) -> RgbImage {
 /// The unfolded walls in a preview window: the bounding box (x, y, w, h) of what is neither
 /// background nor panel right of the docked panel. Asserts the walls meet without a gap.
 fn preview_strip(window: &RgbImage, config: &Config) -> (u32, u32, u32, u32) {
+    let (row, column) = beside_panel(window, config);
+    let (x0, x1) = (row[0], row[row.len() - 1]);
+    // The walls meet without a gap: every column of the strip shows the scene.
+    assert_eq!(
+        row.len() as u32,
+        x1 - x0 + 1,
+        "a gap between walls in the preview"
+    );
+    let (y0, y1) = (column[0], column[column.len() - 1]);
+    (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+}
+
+/// What shows the scene (not the background) right of the docked panel: its columns along
+/// the window's middle row, and its rows along the middle column of those.
+fn beside_panel(window: &RgbImage, config: &Config) -> (Vec<u32>, Vec<u32>) {
     let (width, height) = window.dimensions();
     let bg = config.background.map(|c| (c * 255.0).round() as u8);
     let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
@@ -345,24 +360,17 @@ fn preview_strip(window: &RgbImage, config: &Config) -> (u32, u32, u32, u32) {
             p[0] == p[1] && p[1] == p[2] && (20..=40).contains(&p[0])
         })
         .expect("panel");
-    // The strip's extent along the window's middle row and then its middle column (a
-    // separator line beside the panel is skipped by starting two columns further).
+    // A separator line beside the panel is skipped by starting two columns further.
     let mid_y = height / 2;
     let row: Vec<u32> = (panel_edge + 2..width)
         .filter(|&x| is_scene(window.get_pixel(x, mid_y)))
         .collect();
-    let (x0, x1) = (row[0], row[row.len() - 1]);
-    // The walls meet without a gap: every column of the strip shows the scene.
-    assert_eq!(
-        row.len() as u32,
-        x1 - x0 + 1,
-        "a gap between walls in the preview"
-    );
+    assert!(!row.is_empty(), "nothing shown beside the panel");
+    let mid_x = (row[0] + row[row.len() - 1]) / 2;
     let column: Vec<u32> = (0..height)
-        .filter(|&y| is_scene(window.get_pixel((x0 + x1) / 2, y)))
+        .filter(|&y| is_scene(window.get_pixel(mid_x, y)))
         .collect();
-    let (y0, y1) = (column[0], column[column.len() - 1]);
-    (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+    (row, column)
 }
 
 /// Share of `strip` pixels that do not match `reference` scaled (nearest texel) to it. Two
@@ -768,25 +776,8 @@ fn the_operator_window_shows_the_panorama_beside_the_panel() {
         "operator panel",
     );
     // The panorama: what is not background right of the docked panel.
-    let (width, height) = window.dimensions();
-    let bg = config.background.map(|c| (c * 255.0).round() as u8);
-    let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
-    let panel_edge = (0..width)
-        .rev()
-        .find(|&x| {
-            let p = window.get_pixel(x, height - 2).0;
-            p[0] == p[1] && p[1] == p[2] && (20..=40).contains(&p[0])
-        })
-        .expect("panel");
-    let mid_y = height / 2;
-    let row: Vec<u32> = (panel_edge + 2..width)
-        .filter(|&x| is_scene(window.get_pixel(x, mid_y)))
-        .collect();
-    assert!(!row.is_empty(), "no panorama beside the panel");
+    let (row, column) = beside_panel(&window, &config);
     let (x0, x1) = (row[0], row[row.len() - 1]);
-    let column: Vec<u32> = (0..height)
-        .filter(|&y| is_scene(window.get_pixel((x0 + x1) / 2, y)))
-        .collect();
     let (y0, y1) = (column[0], column[column.len() - 1]);
     let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
     let aspect = w as f32 / h as f32;

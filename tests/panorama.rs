@@ -235,20 +235,25 @@ fn at_boundary(mask: &[bool], w: usize, i: usize) -> bool {
     })
 }
 
-#[test]
-fn triangles_across_the_rear_meridian_and_over_a_pole_are_drawn_in_pieces_in_their_footprint() {
-    // Behind the viewer, across the rear meridian; overhead, around the north pole; below,
-    // around the south pole. Untessellated, so the pre-clip alone must handle them.
-    let rear_pano = settings(
+/// A triangle behind the viewer, across the rear meridian (longitudes 150°, −140°, 175°).
+fn rear_triangle() -> [Vec3; 3] {
+    let pano = settings(
         Projection::Equirectangular,
         PanoRoute::Geometric,
         [360.0, 180.0],
     );
-    let behind = [
-        point_at(&rear_pano, 150.0, -20.0, 3.0),
-        point_at(&rear_pano, -140.0, -10.0, 3.0),
-        point_at(&rear_pano, 175.0, 35.0, 3.0),
-    ];
+    [
+        point_at(&pano, 150.0, -20.0, 3.0),
+        point_at(&pano, -140.0, -10.0, 3.0),
+        point_at(&pano, 175.0, 35.0, 3.0),
+    ]
+}
+
+#[test]
+fn triangles_across_the_rear_meridian_and_over_a_pole_are_drawn_in_pieces_in_their_footprint() {
+    // Behind the viewer, across the rear meridian; overhead, around the north pole; below,
+    // around the south pole. Untessellated, so the pre-clip alone must handle them.
+    let behind = rear_triangle();
     let overhead = [
         HEAD + Vec3::new(-1.0, 0.9, -0.8),
         HEAD + Vec3::new(1.2, 0.9, -0.5),
@@ -364,12 +369,7 @@ fn msaa_antialiases_the_geometric_route_along_the_exact_outline_only() {
         PanoRoute::Geometric,
         [360.0, 180.0],
     );
-    let corners = [
-        point_at(&pano, 150.0, -20.0, 3.0),
-        point_at(&pano, -140.0, -10.0, 3.0),
-        point_at(&pano, 175.0, 35.0, 3.0),
-    ];
-    let scene = triangle_scene(&[(corners, [255, 0, 0])]);
+    let scene = triangle_scene(&[(rear_triangle(), [255, 0, 0])]);
     let msaa = omnicave::render::RenderSettings {
         msaa: 4,
         wireframe: false,
