@@ -506,7 +506,9 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
     let eye = ray.origin;
     let facing = dot(cross(in.p1 - in.p0, in.p2 - in.p0), ray.origin - in.p0) >= 0.0;
     let keep = mask != 0u && depth >= 0.0 && depth <= 1.0;
-    let color = surface_color(position, normal, uv, ddx, ddy, eye, facing);
+    // Explicit gradients: those of the exact coordinates, not of the rasterised varyings.
+    let texel = textureSampleGrad(base_texture, base_sampler, uv, ddx, ddy);
+    let color = surface_color(position, normal, texel, eye, facing);
     if !keep || color.a < 0.0 {
         discard;
     }
@@ -530,15 +532,10 @@ const SAMPLE_POSITIONS_4 = array<vec2<f32>, 4>(
 fn surface_color(
     position: vec3<f32>,
     normal: vec3<f32>,
-    uv: vec2<f32>,
-    uv_ddx: vec2<f32>,
-    uv_ddy: vec2<f32>,
+    texel: vec4<f32>,
     eye: vec3<f32>,
     front_facing: bool,
 ) -> vec4<f32> {
-    // Materials without a texture are bound to a 1×1 white one, so this is always valid.
-    // Explicit gradients: the panorama's pre-clipped fragments compute their own.
-    let texel = textureSampleGrad(base_texture, base_sampler, uv, uv_ddx, uv_ddy);
     let base = material.base_color * texel;
     if material.params.z >= 0.0 && base.a < material.params.z {
         return vec4<f32>(0.0, 0.0, 0.0, -1.0);
@@ -559,9 +556,9 @@ fn surface_color(
 
 @fragment
 fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
-    let color = surface_color(
-        in.cave_position, in.normal, in.uv, dpdx(in.uv), dpdy(in.uv), in.eye, front_facing,
-    );
+    // Materials without a texture are bound to a 1×1 white one, so this is always valid.
+    let texel = textureSample(base_texture, base_sampler, in.uv);
+    let color = surface_color(in.cave_position, in.normal, texel, in.eye, front_facing);
     if color.a < 0.0 {
         discard;
     }
