@@ -120,20 +120,18 @@ override PANO_CULL_BACK: bool = true;
 
 struct PanoOutput {
     @builtin(position) clip: vec4<f32>,
-    @location(0) cave_position: vec3<f32>,
-    @location(1) normal: vec3<f32>,
-    @location(2) uv: vec2<f32>,
-    @location(3) eye: vec3<f32>,
-    // 1 for a pre-clipped triangle: its corners follow for the per-fragment ray.
-    @location(4) @interpolate(flat) preclipped: u32,
-    @location(5) @interpolate(flat) p0: vec3<f32>,
-    @location(6) @interpolate(flat) p1: vec3<f32>,
-    @location(7) @interpolate(flat) p2: vec3<f32>,
-    @location(8) @interpolate(flat) n0: vec3<f32>,
-    @location(9) @interpolate(flat) n1: vec3<f32>,
-    @location(10) @interpolate(flat) n2: vec3<f32>,
-    @location(11) @interpolate(flat) uv01: vec4<f32>,
-    @location(12) @interpolate(flat) uv2: vec2<f32>,
+    // 1 for a pre-clipped triangle (drawn over a band of latitudes).
+    @location(0) @interpolate(flat) preclipped: u32,
+    // The triangle itself (CAVE space), for every fragment's own ray: nothing else is
+    // interpolated.
+    @location(1) @interpolate(flat) p0: vec3<f32>,
+    @location(2) @interpolate(flat) p1: vec3<f32>,
+    @location(3) @interpolate(flat) p2: vec3<f32>,
+    @location(4) @interpolate(flat) n0: vec3<f32>,
+    @location(5) @interpolate(flat) n1: vec3<f32>,
+    @location(6) @interpolate(flat) n2: vec3<f32>,
+    @location(7) @interpolate(flat) uv01: vec4<f32>,
+    @location(8) @interpolate(flat) uv2: vec2<f32>,
 }
 
 // The eye a CAVE-space point is seen from: the head, or in omnistereo its own eye.
@@ -274,10 +272,6 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
     out.n2 = n[2];
     out.uv01 = vec4<f32>(corners[0].uv, corners[1].uv);
     out.uv2 = corners[2].uv;
-    out.cave_position = p[k];
-    out.normal = n[k];
-    out.uv = corners[k].uv;
-    out.eye = eyes[k];
 
     let geometric = cross(p[1] - p[0], p[2] - p[0]);
     let g_len = length(geometric);
