@@ -8,7 +8,7 @@ use wgpu::util::DeviceExt;
 
 use super::shaders;
 use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
-use super::uniforms::{FrameUniforms, MaterialUniforms, ViewUniforms};
+use super::uniforms::{FrameUniforms, MaterialUniforms, UNIFORM_STRIDE, ViewUniforms};
 use crate::scene::{Scene, Texture, Wrap};
 
 /// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl.
@@ -42,9 +42,6 @@ enum Variant {
     Tessellated,
     Panorama,
 }
-
-/// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
-pub const UNIFORM_STRIDE: u64 = 256;
 
 /// The scene pass: layouts, pipelines and per-frame uniform buffers.
 #[derive(Debug)]

@@ -360,7 +360,7 @@ impl Tessellator {
         });
         let uniforms = buffer(
             "TessBuffers::uniforms",
-            super::scene_pass::UNIFORM_STRIDE * views.max(1) as u64,
+            super::uniforms::UNIFORM_STRIDE * views.max(1) as u64,
             wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
         let stats = buffer(
@@ -452,7 +452,7 @@ impl Tessellator {
             sorted,
             stats,
             stats_capacity: views.max(1),
-            staging: Vec::with_capacity(views.max(1) * super::scene_pass::UNIFORM_STRIDE as usize),
+            staging: Vec::with_capacity(views.max(1) * super::uniforms::UNIFORM_STRIDE as usize),
         })
     }
 }
@@ -483,7 +483,7 @@ impl TessBuffers {
                 self.draws,
             ];
             self.staging.extend_from_slice(bytemuck::bytes_of(&u));
-            let stride = super::scene_pass::UNIFORM_STRIDE as usize;
+            let stride = super::uniforms::UNIFORM_STRIDE as usize;
             self.staging
                 .resize(self.staging.len().next_multiple_of(stride), 0);
         }
@@ -507,7 +507,7 @@ impl TessBuffers {
                 label: Some("Tessellator::pass"),
                 timestamp_writes: None,
             });
-            let offset = (view_index as u64 * super::scene_pass::UNIFORM_STRIDE) as u32;
+            let offset = (view_index as u64 * super::uniforms::UNIFORM_STRIDE) as u32;
             pass.set_bind_group(0, &self.shared_group, &[offset, offset]);
             // cs_init appends to list A (the "out" side of the B→A group).
             pass.set_bind_group(1, &self.lists_ba, &[]);

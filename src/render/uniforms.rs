@@ -5,8 +5,11 @@ use glam::{Mat4, Vec3};
 
 use crate::cave::ViewSetup;
 use crate::cave::omni::{OmniSettings, WarpVariant};
-use crate::config::Lighting;
+use crate::scene::Lighting;
 use crate::scene::Material;
+
+/// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
+pub const UNIFORM_STRIDE: u64 = 256;
 
 /// Per-frame data. Keep in sync with `FrameUniforms` in shaders/common.wgsl.
 #[repr(C)]
