@@ -276,11 +276,40 @@ impl App {
     }
 
     /// Renders the walls once and presents every window.
+    /// One frame: input, the panel, rendering, presenting every window, then statistics and
+    /// a requested save.
     fn frame(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_none() {
+            return;
+        }
+        let now = Instant::now();
+        self.poll_input(now);
         let Some(gfx) = self.gfx.as_mut() else {
             return;
         };
-        let now = Instant::now();
+        // The panel first, so what it changes shows in this frame.
+        let mut egui_frame = None;
+        let mut read_counts = false;
+        if let Some(host) = gfx.egui.as_mut() {
+            let win = &gfx.windows[host.window_index];
+            let (frame, requests) = host.run(&gfx.gpu, win, &mut self.state, &self.info);
+            egui_frame = Some(frame);
+            read_counts = requests.read_tess_counts;
+        }
+        if let Err(e) = render_views(gfx, &mut self.state, &mut self.info, read_counts) {
+            self.fail(event_loop, e);
+            return;
+        }
+        self.surface_recoveries += present_windows(gfx, &self.state, egui_frame);
+        let gpu_ms = gfx.renderer.poll_gpu_time_ms();
+        self.clock.record(Instant::now(), now.elapsed(), gpu_ms);
+        self.info.stats = self.clock.summary;
+        self.log_stats();
+        self.save_if_requested();
+    }
+
+    /// Tracking, gamepads and held keys move the state for the time since the last frame.
+    fn poll_input(&mut self, now: Instant) {
         let dt = self
             .last_frame
             .map_or(0.0, |t| now.duration_since(t).as_secs_f32().min(0.25));
@@ -300,115 +329,69 @@ impl App {
         {
             self.info.tracking.gamepads = pads.names().to_vec();
         }
+    }
 
-        // The panel first, so what it changes shows in this frame.
-        let mut egui_frame = None;
-        let mut read_counts = false;
-        if let Some(host) = gfx.egui.as_mut() {
-            let win = &gfx.windows[host.window_index];
-            let (frame, requests) = host.run(&gfx.gpu, win, &mut self.state, &self.info);
-            egui_frame = Some(frame);
-            read_counts = requests.read_tess_counts;
-        }
-
-        let settings = self.state.render_settings();
-        if gfx.renderer.settings() != settings
-            && let Err(e) = gfx.renderer.set_settings(settings, self.state.cave())
-        {
-            tracing::error!("{e}; keeping the previous settings");
-            self.state.msaa = gfx.renderer.settings().msaa;
-        }
-        let stats = match gfx.renderer.render(&self.state.frame_params()) {
-            Ok(stats) => stats,
-            Err(e) => {
-                self.fail(event_loop, e.into());
-                return;
-            }
+    /// The `--stats-every` log lines, when their interval has passed.
+    fn log_stats(&mut self) {
+        let Some(every) = self.options.stats_every else {
+            return;
         };
-        // The walls' tessellation counts, before the panorama reuses the tessellator.
-        if read_counts {
-            self.info.tess_emitted = read_tess_counts(&gfx.renderer, &self.state);
+        if self.last_stats_log.elapsed().as_secs_f64() < every {
+            return;
         }
-        if self.state.panorama_on {
-            let frame = self.state.frame_params();
-            if let Err(e) = gfx.renderer.render_panorama(&frame, &self.state.panorama) {
-                tracing::error!("panorama: {e}; closing the panorama view");
-                self.state.panorama_on = false;
-            }
-        }
-        // Every wall draws the whole scene once per view of it.
-        let walls = self.state.cave().walls.len().max(1);
-        self.info.triangles_per_wall = stats.triangles_submitted / walls;
-
-        for (index, win) in gfx.windows.iter_mut().enumerate() {
-            let egui = match (&mut gfx.egui, &egui_frame) {
-                (Some(host), Some(frame)) if host.window_index == index => Some((host, frame)),
-                _ => None,
-            };
-            match win.draw(&gfx.gpu, &gfx.renderer, &gfx.present, &self.state, egui) {
-                Ok(recovered) => self.surface_recoveries += u64::from(recovered),
-                Err(e) => tracing::warn!("{e}"),
-            }
-        }
-        if let (Some(host), Some(frame)) = (gfx.egui.as_mut(), egui_frame) {
-            host.free_textures(frame);
-        }
-
-        let gpu_ms = gfx.renderer.poll_gpu_time_ms();
-        self.clock.record(Instant::now(), now.elapsed(), gpu_ms);
-        self.info.stats = self.clock.summary;
-        if let Some(every) = self.options.stats_every
-            && self.last_stats_log.elapsed().as_secs_f64() >= every
-        {
-            self.last_stats_log = Instant::now();
+        self.last_stats_log = Instant::now();
+        tracing::info!(
+            target: "omnicave::stats",
+            "stats: {} | frames {} | mode {} | windows {} | surface recoveries {}",
+            self.clock.summary,
+            self.clock.total_frames,
+            self.state.mode.name(),
+            self.gfx.as_ref().map_or(0, |g| g.windows.len()),
+            self.surface_recoveries
+        );
+        let t = &self.info.tracking;
+        let head = self.state.head_position;
+        if let Some(status) = t.status.filter(|_| self.state.tracking_on) {
+            let c = &t.counters;
             tracing::info!(
                 target: "omnicave::stats",
-                "stats: {} | frames {} | mode {} | windows {} | surface recoveries {}",
-                self.clock.summary,
-                self.clock.total_frames,
-                self.state.mode.name(),
-                gfx.windows.len(),
-                self.surface_recoveries
+                "tracking: {}, {:.1} Hz, head ({:.3}, {:.3}, {:.3}) m, latency avg {:.2} ms \
+                 max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
+                 {} dropped, {} clamped",
+                status.describe(),
+                t.stats.rate_hz,
+                head.x,
+                head.y,
+                head.z,
+                t.stats.latency_avg_ms,
+                t.stats.latency_max_ms,
+                t.stats.latency_max_frames,
+                c.received,
+                c.accepted,
+                c.ignored,
+                c.dropped(),
+                t.stats.clamped
             );
-            let t = &self.info.tracking;
-            let head = self.state.head_position;
-            if let Some(status) = t.status.filter(|_| self.state.tracking_on) {
-                let c = &t.counters;
-                tracing::info!(
-                    target: "omnicave::stats",
-                    "tracking: {}, {:.1} Hz, head ({:.3}, {:.3}, {:.3}) m, latency avg {:.2} ms \
-                     max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
-                     {} dropped, {} clamped",
-                    status.describe(),
-                    t.stats.rate_hz,
-                    head.x,
-                    head.y,
-                    head.z,
-                    t.stats.latency_avg_ms,
-                    t.stats.latency_max_ms,
-                    t.stats.latency_max_frames,
-                    c.received,
-                    c.accepted,
-                    c.ignored,
-                    c.dropped(),
-                    t.stats.clamped
-                );
+        }
+    }
+
+    /// Writes the settings if the panel, a key or a button asked to.
+    fn save_if_requested(&mut self) {
+        if !self.state.save_requested {
+            return;
+        }
+        self.state.save_requested = false;
+        let path = self.state.save_path.clone();
+        self.info.save_message = Some(match self.state.save(&path) {
+            Ok(()) => {
+                tracing::info!("settings saved to {}", path.display());
+                format!("saved to {}", path.display())
             }
-        }
-        if self.state.save_requested {
-            self.state.save_requested = false;
-            let path = self.state.save_path.clone();
-            self.info.save_message = Some(match self.state.save(&path) {
-                Ok(()) => {
-                    tracing::info!("settings saved to {}", path.display());
-                    format!("saved to {}", path.display())
-                }
-                Err(e) => {
-                    tracing::error!("{e}");
-                    e.to_string()
-                }
-            });
-        }
+            Err(e) => {
+                tracing::error!("{e}");
+                e.to_string()
+            }
+        });
     }
 
     fn quit_now(&mut self, event_loop: &ActiveEventLoop, why: &str) {
@@ -547,6 +530,63 @@ impl ApplicationHandler for App {
     fn exiting(&mut self, _event_loop: &ActiveEventLoop) {
         tracing::info!("{} frames rendered", self.clock.total_frames);
     }
+}
+
+/// Renders the walls (and the panorama when shown) from the state; applies settings that
+/// change pipelines or targets first.
+fn render_views(
+    gfx: &mut Graphics,
+    state: &mut AppState,
+    info: &mut PanelInfo,
+    read_counts: bool,
+) -> Result<(), AppError> {
+    let settings = state.render_settings();
+    if gfx.renderer.settings() != settings
+        && let Err(e) = gfx.renderer.set_settings(settings, state.cave())
+    {
+        tracing::error!("{e}; keeping the previous settings");
+        state.msaa = gfx.renderer.settings().msaa;
+    }
+    let stats = gfx.renderer.render(&state.frame_params())?;
+    // The walls' tessellation counts, before the panorama reuses the tessellator.
+    if read_counts {
+        info.tess_emitted = read_tess_counts(&gfx.renderer, state);
+    }
+    if state.panorama_on {
+        let frame = state.frame_params();
+        if let Err(e) = gfx.renderer.render_panorama(&frame, &state.panorama) {
+            tracing::error!("panorama: {e}; closing the panorama view");
+            state.panorama_on = false;
+        }
+    }
+    // Every wall draws the whole scene once per view of it.
+    let walls = state.cave().walls.len().max(1);
+    info.triangles_per_wall = stats.triangles_submitted / walls;
+    Ok(())
+}
+
+/// Composes and presents every window (the panel into its host window); the number of
+/// surfaces recovered on the way.
+fn present_windows(
+    gfx: &mut Graphics,
+    state: &AppState,
+    egui_frame: Option<window::EguiFrame>,
+) -> u64 {
+    let mut recovered = 0;
+    for (index, win) in gfx.windows.iter_mut().enumerate() {
+        let egui = match (&mut gfx.egui, &egui_frame) {
+            (Some(host), Some(frame)) if host.window_index == index => Some((host, frame)),
+            _ => None,
+        };
+        match win.draw(&gfx.gpu, &gfx.renderer, &gfx.present, state, egui) {
+            Ok(r) => recovered += u64::from(r),
+            Err(e) => tracing::warn!("{e}"),
+        }
+    }
+    if let (Some(host), Some(frame)) = (gfx.egui.as_mut(), egui_frame) {
+        host.free_textures(frame);
+    }
+    recovered
 }
 
 /// Reads the tessellator's counts of the last frame, summed per wall (a blocking read, only
