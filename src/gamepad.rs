@@ -17,20 +17,10 @@ pub enum GamepadMode {
     Head,
 }
 
-impl GamepadMode {
-    pub const ALL: [GamepadMode; 2] = [Self::Navigate, Self::Head];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Navigate => "navigate",
-            Self::Head => "head",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|m| m.name() == name)
-    }
-}
+crate::named_enum!(GamepadMode {
+    Self::Navigate => "navigate",
+    Self::Head => "head",
+});
 
 /// What a button can do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -54,53 +44,25 @@ pub enum GamepadAction {
     ToggleTracking,
 }
 
-impl GamepadAction {
-    pub const ALL: [GamepadAction; 17] = [
-        Self::NextRenderMode,
-        Self::PreviousRenderMode,
-        Self::ToggleTessellation,
-        Self::NextSkybox,
-        Self::ToggleWireframe,
-        Self::TogglePoleMerge,
-        Self::NextWarp,
-        Self::NextOutput,
-        Self::SwapEyes,
-        Self::EyeSeparationUp,
-        Self::EyeSeparationDown,
-        Self::ResetView,
-        Self::ToggleGamepadMode,
-        Self::SpeedUp,
-        Self::SpeedDown,
-        Self::TogglePanel,
-        Self::ToggleTracking,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::NextRenderMode => "next-render-mode",
-            Self::PreviousRenderMode => "previous-render-mode",
-            Self::ToggleTessellation => "toggle-tessellation",
-            Self::NextSkybox => "next-skybox",
-            Self::ToggleWireframe => "toggle-wireframe",
-            Self::TogglePoleMerge => "toggle-pole-merge",
-            Self::NextWarp => "next-warp",
-            Self::NextOutput => "next-output",
-            Self::SwapEyes => "swap-eyes",
-            Self::EyeSeparationUp => "eye-separation-up",
-            Self::EyeSeparationDown => "eye-separation-down",
-            Self::ResetView => "reset-view",
-            Self::ToggleGamepadMode => "toggle-gamepad-mode",
-            Self::SpeedUp => "speed-up",
-            Self::SpeedDown => "speed-down",
-            Self::TogglePanel => "toggle-panel",
-            Self::ToggleTracking => "toggle-tracking",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|a| a.name() == name)
-    }
-}
+crate::named_enum!(GamepadAction {
+    Self::NextRenderMode => "next-render-mode",
+    Self::PreviousRenderMode => "previous-render-mode",
+    Self::ToggleTessellation => "toggle-tessellation",
+    Self::NextSkybox => "next-skybox",
+    Self::ToggleWireframe => "toggle-wireframe",
+    Self::TogglePoleMerge => "toggle-pole-merge",
+    Self::NextWarp => "next-warp",
+    Self::NextOutput => "next-output",
+    Self::SwapEyes => "swap-eyes",
+    Self::EyeSeparationUp => "eye-separation-up",
+    Self::EyeSeparationDown => "eye-separation-down",
+    Self::ResetView => "reset-view",
+    Self::ToggleGamepadMode => "toggle-gamepad-mode",
+    Self::SpeedUp => "speed-up",
+    Self::SpeedDown => "speed-down",
+    Self::TogglePanel => "toggle-panel",
+    Self::ToggleTracking => "toggle-tracking",
+});
 
 /// Button names in the config: the Xbox labels (and gilrs's own names).
 pub const BUTTON_NAMES: &[(&str, Button)] = &[

@@ -56,7 +56,7 @@ pub struct Overrides {
     pub panorama: bool,
     pub pano_projection: Option<crate::pano::Projection>,
     pub pano_route: Option<crate::pano::PanoRoute>,
-    pub pano_stereo: Option<crate::pano::PanoStereo>,
+    pub pano_stereo: Option<crate::pano::PanoStereoKind>,
     /// Horizontal and vertical field of view, degrees.
     pub pano_fov_degrees: Option<[f32; 2]>,
     pub pano_yaw_degrees: Option<f32>,
@@ -112,15 +112,10 @@ impl Overrides {
         if let Some(r) = self.pano_route {
             pano.route = r;
         }
-        if let Some(st) = self.pano_stereo {
-            pano.stereo = match st {
-                // `--pano-stereo volume` keeps the config's volume parameters.
-                crate::pano::PanoStereo::Volume { .. } => {
-                    let [ioid, d, offset] = config.file.panorama.volume_ioid_d_offset;
-                    crate::pano::PanoStereo::Volume { ioid, d, offset }
-                }
-                other => other,
-            };
+        if let Some(kind) = self.pano_stereo {
+            // `--pano-stereo volume` keeps the config's volume parameters.
+            pano.stereo =
+                crate::pano::PanoStereo::of_kind(kind, config.file.panorama.volume_ioid_d_offset);
         }
         if let Some([h, v]) = self.pano_fov_degrees {
             pano.h_fov = h.to_radians();

@@ -14,6 +14,7 @@ pub mod cave;
 pub mod config;
 pub mod gamepad;
 pub mod headless;
+pub mod named;
 pub mod output;
 pub mod pano;
 pub mod render;

@@ -42,6 +42,22 @@ enum Command {
     /// Send a moving head over OSC (circle, figure eight or a recorded path), as a tracker
     /// would: to test head tracking without one.
     TrackSim(TrackSimArgs),
+    /// Print a shell completion script (e.g. `omnicave completions bash > omnicave.bash`).
+    Completions {
+        /// The shell to complete in.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Config file tools.
+    #[command(subcommand)]
+    Config(ConfigCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum ConfigCommand {
+    /// Print the config file's JSON Schema (what `config/omnicave.schema.json` holds), for
+    /// editors that validate and complete TOML.
+    Schema,
 }
 
 #[derive(Debug, clap::Args)]
@@ -53,8 +69,8 @@ struct TrackSimArgs {
     /// use (the path is given in CAVE space and sent in the tracker's frame).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// circle, figure-eight or still.
-    #[arg(long, default_value = "circle", value_parser = parse_pattern_name)]
+    /// The path to move along (or --replay FILE).
+    #[arg(long, value_enum, default_value_t = PatternName::Circle)]
     pattern: PatternName,
     /// Replay a recorded path instead: CSV lines t,x,y,z[,qw,qx,qy,qz] (s, CAVE m), looping.
     #[arg(long, value_name = "CSV")]
@@ -76,41 +92,19 @@ struct TrackSimArgs {
     duration: Option<f64>,
     /// Message form: position, pose (x y z + quaternion), bundle (position + orientation
     /// messages), euler (position + yaw pitch roll), natnet (/rigidbody <id> position/quat).
-    #[arg(long, default_value = "bundle", value_parser = parse_sim_form)]
+    #[arg(long, value_enum, default_value_t = SimForm::Bundle)]
     form: SimForm,
     /// Quaternion order to send (default: the config's).
-    #[arg(long, value_parser = parse_quaternion_order)]
+    #[arg(long, value_enum)]
     quaternion_order: Option<QuaternionOrder>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// `track-sim --pattern`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum PatternName {
     Circle,
     FigureEight,
     Still,
-}
-
-fn parse_pattern_name(s: &str) -> Result<PatternName, String> {
-    match s.trim() {
-        "circle" => Ok(PatternName::Circle),
-        "figure-eight" => Ok(PatternName::FigureEight),
-        "still" => Ok(PatternName::Still),
-        _ => Err(format!(
-            "unknown pattern '{s}'; expected circle, figure-eight or still (or --replay FILE)"
-        )),
-    }
-}
-
-fn parse_sim_form(s: &str) -> Result<SimForm, String> {
-    SimForm::from_name(s.trim()).ok_or_else(|| {
-        let names: Vec<_> = SimForm::ALL.iter().map(|f| f.name()).collect();
-        format!("unknown form '{s}'; expected one of: {}", names.join(", "))
-    })
-}
-
-fn parse_quaternion_order(s: &str) -> Result<QuaternionOrder, String> {
-    QuaternionOrder::from_name(s.trim())
-        .ok_or_else(|| format!("unknown quaternion order '{s}'; expected wxyz or xyzw"))
 }
 
 fn parse_radius(s: &str) -> Result<f32, String> {
@@ -228,8 +222,8 @@ struct RenderArgs {
     /// path.
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// Render mode: mono, stereo, tracked-stereo, omni-onaxis, omni-offaxis; default: the config's.
-    #[arg(long, value_parser = parse_mode)]
+    /// Render mode; default: the config's.
+    #[arg(long, value_enum)]
     mode: Option<RenderMode>,
     /// Head position in CAVE space, metres: X,Y,Z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -250,7 +244,7 @@ struct RenderArgs {
     #[arg(long)]
     wireframe: bool,
     /// Omnistereo warp: similar-triangles (stable) or intersection-point (to show its failures).
-    #[arg(long, value_parser = parse_warp)]
+    #[arg(long, value_enum)]
     warp: Option<WarpVariant>,
     /// Omnistereo pole merge: START,END elevation in degrees (e.g. 60,75), or "off".
     #[arg(long, value_parser = parse_pole_merge)]
@@ -265,28 +259,25 @@ struct RenderArgs {
     /// Sky: an equirectangular image (PNG/JPEG/HDR) or a folder of six faces, or "none".
     #[arg(long, value_parser = parse_skybox)]
     skybox: Option<SkyboxArg>,
-    /// Sky mode: auto (follows the render mode), offaxis, omni-quad, omni-exact or off.
-    #[arg(long, value_parser = parse_sky_mode)]
+    /// Sky mode (auto follows the render mode).
+    #[arg(long, value_enum)]
     skybox_mode: Option<SkyMode>,
-    /// Also write each wall in a stereo output format (repeatable): frame-sequential,
-    /// side-by-side[-half], top-bottom[-half], frame-packing, row-interleaved, anaglyph,
-    /// anaglyph-optimized, left-only, right-only, mono.
-    #[arg(long = "format", value_parser = parse_format)]
+    /// Also write each wall in a stereo output format (repeatable).
+    #[arg(long = "format", value_enum)]
     formats: Vec<StereoFormat>,
-    /// What to render: "walls" (every wall, both eyes) or "panorama" (the wide field of
-    /// view, as the config's [panorama] section and the flags below say).
-    #[arg(long, default_value = "walls", value_parser = parse_view)]
+    /// What to render: every wall with both eyes, or the panorama (the wide field of view, as
+    /// the config's [panorama] section and the flags below say).
+    #[arg(long, value_enum, default_value_t = ViewArg::Walls)]
     view: ViewArg,
-    /// Panorama projection: perspective, equirectangular, hammer, albers,
-    /// azimuthal-equidistant.
-    #[arg(long, value_parser = parse_projection)]
+    /// Panorama projection.
+    #[arg(long, value_enum)]
     projection: Option<omnicave::pano::Projection>,
     /// Panorama route: geometric (equirectangular and Hammer) or image.
-    #[arg(long, value_parser = parse_pano_route)]
+    #[arg(long, value_enum)]
     pano_route: Option<omnicave::pano::PanoRoute>,
-    /// Panorama stereo (geometric route): mono, volume or omni.
-    #[arg(long, value_parser = parse_pano_stereo)]
-    pano_stereo: Option<omnicave::pano::PanoStereo>,
+    /// Panorama stereo (geometric route).
+    #[arg(long, value_enum)]
+    pano_stereo: Option<omnicave::pano::PanoStereoKind>,
     /// Panorama field of view in degrees: H,V (e.g. 360,180).
     #[arg(long, value_parser = parse_fov)]
     fov: Option<[f32; 2]>,
@@ -301,40 +292,11 @@ struct RenderArgs {
     out: PathBuf,
 }
 
-/// `--view`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// `render --view`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum ViewArg {
     Walls,
     Panorama,
-}
-
-fn parse_view(s: &str) -> Result<ViewArg, String> {
-    match s {
-        "walls" => Ok(ViewArg::Walls),
-        "panorama" => Ok(ViewArg::Panorama),
-        _ => Err(format!("unknown view '{s}'; expected walls or panorama")),
-    }
-}
-
-fn parse_projection(s: &str) -> Result<omnicave::pano::Projection, String> {
-    use omnicave::pano::Projection;
-    Projection::from_name(s).ok_or_else(|| {
-        let names: Vec<_> = Projection::ALL.iter().map(|p| p.name()).collect();
-        format!(
-            "unknown projection '{s}'; expected one of: {}",
-            names.join(", ")
-        )
-    })
-}
-
-fn parse_pano_route(s: &str) -> Result<omnicave::pano::PanoRoute, String> {
-    omnicave::pano::PanoRoute::from_name(s)
-        .ok_or_else(|| format!("unknown panorama route '{s}'; expected geometric or image"))
-}
-
-fn parse_pano_stereo(s: &str) -> Result<omnicave::pano::PanoStereo, String> {
-    omnicave::pano::PanoStereo::from_name(s)
-        .ok_or_else(|| format!("unknown panorama stereo '{s}'; expected mono, volume or omni"))
 }
 
 fn parse_fov(s: &str) -> Result<[f32; 2], String> {
@@ -357,16 +319,6 @@ fn parse_fov(s: &str) -> Result<[f32; 2], String> {
     Ok([parse(h, "horizontal", 360.0)?, parse(v, "vertical", 360.0)?])
 }
 
-fn parse_format(s: &str) -> Result<StereoFormat, String> {
-    StereoFormat::from_name(s).ok_or_else(|| {
-        let names: Vec<_> = StereoFormat::ALL.iter().map(|f| f.name()).collect();
-        format!(
-            "unknown output format '{s}'; expected one of: {}",
-            names.join(", ")
-        )
-    })
-}
-
 /// `--skybox` value (a newtype: clap reads `Option<Option<T>>` as an optional-value flag).
 #[derive(Debug, Clone)]
 struct SkyboxArg(Option<PathBuf>);
@@ -377,30 +329,6 @@ fn parse_skybox(s: &str) -> Result<SkyboxArg, String> {
         "none" => Ok(SkyboxArg(None)),
         path => Ok(SkyboxArg(Some(PathBuf::from(path)))),
     }
-}
-
-fn parse_sky_mode(s: &str) -> Result<SkyMode, String> {
-    SkyMode::from_name(s).ok_or_else(|| {
-        let names: Vec<_> = SkyMode::ALL.iter().map(|m| m.name()).collect();
-        format!(
-            "unknown sky mode '{s}'; expected one of: {}",
-            names.join(", ")
-        )
-    })
-}
-
-fn parse_mode(s: &str) -> Result<RenderMode, String> {
-    RenderMode::from_name(s).ok_or_else(|| {
-        let names: Vec<_> = RenderMode::ALL.iter().map(|m| m.name()).collect();
-        format!("unknown mode '{s}'; expected one of: {}", names.join(", "))
-    })
-}
-
-fn parse_warp(s: &str) -> Result<WarpVariant, String> {
-    WarpVariant::from_name(s).ok_or_else(|| {
-        let names: Vec<_> = WarpVariant::ALL.iter().map(|w| w.name()).collect();
-        format!("unknown warp '{s}'; expected one of: {}", names.join(", "))
-    })
 }
 
 /// `--pole-merge` value: angles, or `None` for "off" (a newtype, because clap reads
@@ -662,6 +590,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::TrackSim(args) => track_sim(args),
+        Command::Completions { shell } => {
+            let mut command = <Cli as clap::CommandFactory>::command();
+            clap_complete::generate(shell, &mut command, "omnicave", &mut std::io::stdout());
+            Ok(())
+        }
+        Command::Config(ConfigCommand::Schema) => {
+            use std::io::Write;
+            std::io::stdout()
+                .write_all(omnicave::config::schema::json_schema_text().as_bytes())
+                .context("cannot write the schema")?;
+            Ok(())
+        }
         Command::Render(args) => {
             let overrides = Overrides {
                 scene: args.scene,

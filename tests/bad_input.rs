@@ -395,11 +395,11 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["render", "--mode", "bogus", "--out", out],
-            "unknown mode 'bogus'",
+            "invalid value 'bogus' for '--mode",
         ),
         (
             vec!["render", "--view", "dome", "--out", out],
-            "unknown view 'dome'",
+            "invalid value 'dome' for '--view",
         ),
         (
             vec![
@@ -411,7 +411,7 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
                 "--out",
                 out,
             ],
-            "unknown projection 'mercator'",
+            "invalid value 'mercator' for '--projection",
         ),
         (
             vec![
@@ -433,7 +433,7 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
                 "--out",
                 out,
             ],
-            "unknown panorama route 'ray'",
+            "invalid value 'ray' for '--pano-route",
         ),
         // The application refuses a bad config or scene before opening any window.
         (
@@ -481,7 +481,7 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
         ),
         (
             vec!["render", "--warp", "fast", "--out", out],
-            "unknown warp 'fast'",
+            "invalid value 'fast' for '--warp",
         ),
         (
             vec!["render", "--pole-merge", "75,60", "--out", out],
@@ -509,11 +509,11 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
         ),
         (
             vec!["render", "--skybox-mode", "exact", "--out", out],
-            "unknown sky mode 'exact'",
+            "invalid value 'exact' for '--skybox-mode",
         ),
         (
             vec!["render", "--format", "checkerboard", "--out", out],
-            "unknown output format 'checkerboard'",
+            "invalid value 'checkerboard' for '--format",
         ),
         (vec!["render"], "--out"),
         (vec!["fly"], "unrecognized subcommand"),
@@ -527,13 +527,16 @@ fn bad_cli_arguments_exit_nonzero_with_a_message() {
         ),
         (
             vec!["track-sim", "--pattern", "spiral"],
-            "unknown pattern 'spiral'",
+            "invalid value 'spiral' for '--pattern",
         ),
-        (vec!["track-sim", "--form", "smoke"], "unknown form 'smoke'"),
+        (
+            vec!["track-sim", "--form", "smoke"],
+            "invalid value 'smoke' for '--form",
+        ),
         (vec!["track-sim", "--rate", "0"], "outside 0.1..10000 Hz"),
         (
             vec!["track-sim", "--quaternion-order", "zwxy"],
-            "unknown quaternion order",
+            "invalid value 'zwxy' for '--quaternion-order",
         ),
         (
             vec!["track-sim", "--replay", "no-such-path.csv"],

@@ -510,38 +510,35 @@ impl AppState {
         file.cave.projection_centre = Some(self.cave.projection_centre.to_array());
         file.head.position = self.head_position.to_array();
         file.head.yaw_degrees = self.head_yaw_degrees;
-        file.render.mode = self.mode.name().into();
+        file.render.mode = self.mode;
         file.render.msaa = self.msaa;
         file.render.wireframe = self.wireframe;
-        file.omnistereo.warp = self.warp.name().into();
+        file.omnistereo.warp = self.warp;
         file.omnistereo.pole_merge = self.pole_merge_on;
         let omni = self.omni();
         let merge = omni.pole_merge.unwrap_or(self.pole_merge);
         file.omnistereo.pole_merge_start_degrees = merge.start_degrees;
         file.omnistereo.pole_merge_end_degrees = merge.end_degrees;
-        file.tessellation.criterion = match self.criterion() {
-            None => "none".into(),
-            Some(c) => c.to_string(),
-        };
+        file.tessellation.criterion = self.criterion();
         file.tessellation.max_depth = self.tess_max_depth;
         file.tessellation.backface_cull = self.tess_backface_cull;
         file.tessellation.frustum_cull = self.tess_frustum_cull;
-        file.skybox.mode = self.sky_mode.name().into();
-        file.app.preview_output = self.preview_output.name().into();
+        file.skybox.mode = self.sky_mode;
+        file.app.preview_output = self.preview_output;
         file.app.navigation_speed = self.navigation_speed;
         file.tracking.enabled = self.tracking_on;
         file.tracking.filter.enabled = self.tracking_filter_on;
         file.tracking.filter.min_cutoff_hz = self.tracking_filter.min_cutoff_hz;
         file.tracking.filter.beta = self.tracking_filter.beta;
         file.tracking.filter.derivative_cutoff_hz = self.tracking_filter.derivative_cutoff_hz;
-        file.gamepad.mode = self.gamepad_mode.name().into();
+        file.gamepad.mode = self.gamepad_mode;
         let pano = &self.panorama;
         file.panorama.show = self.panorama_on;
-        file.panorama.projection = pano.projection.name().into();
+        file.panorama.projection = pano.projection;
         file.panorama.h_fov_degrees = pano.h_fov.to_degrees();
         file.panorama.v_fov_degrees = pano.v_fov.to_degrees();
-        file.panorama.route = pano.route.name().into();
-        file.panorama.stereo = pano.stereo.name().into();
+        file.panorama.route = pano.route;
+        file.panorama.stereo = pano.stereo.kind();
         if let PanoStereo::Volume { ioid, d, offset } = pano.stereo {
             file.panorama.volume_ioid_d_offset = [ioid, d, offset];
         }
@@ -555,7 +552,7 @@ impl AppState {
             section.lower_left = wall.lower_left.to_array();
             section.lower_right = wall.lower_right.to_array();
             section.upper_left = wall.upper_left.to_array();
-            section.output = Some(output.name().into());
+            section.output = Some(*output);
         }
         // Relative paths were relative to the loaded file; keep them valid from the new one.
         let source_dir = self.config.source.parent().unwrap_or(Path::new("."));

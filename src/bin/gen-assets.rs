@@ -15,17 +15,20 @@ use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, NodeDesc};
 use omnicave::sky::bundled;
 use omnicave::sky::cubemap::{equirect_direction, equirect_taps, linear_to_srgb, srgb_to_linear};
 
+/// Generates the bundled scenes (living room, city) and sky, deterministically.
+#[derive(Debug, clap::Parser)]
+#[command(name = "gen-assets", version)]
+struct Args {
+    /// Folder to write living-room.glb, city.glb and sky.png into.
+    #[arg(long, default_value = "assets")]
+    out: PathBuf,
+    /// Write nothing: fail if the files in --out differ from what the generator makes.
+    #[arg(long)]
+    check: bool,
+}
+
 fn main() -> anyhow::Result<()> {
-    let mut out = PathBuf::from("assets");
-    let mut check = false;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--check" => check = true,
-            "--out" => out = PathBuf::from(args.next().context("--out needs a folder")?),
-            other => bail!("unknown argument '{other}' (use --out DIR and/or --check)"),
-        }
-    }
+    let Args { out, check } = <Args as clap::Parser>::parse();
     let files = [
         ("living-room.glb", living_room()?),
         ("city.glb", city()?),

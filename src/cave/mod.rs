@@ -272,31 +272,15 @@ pub enum RenderMode {
     OmniOffAxis,
 }
 
+crate::named_enum!(RenderMode {
+    Self::Mono => "mono",
+    Self::Stereo => "stereo",
+    Self::TrackedStereo => "tracked-stereo",
+    Self::OmniOnAxis => "omni-onaxis",
+    Self::OmniOffAxis => "omni-offaxis",
+});
+
 impl RenderMode {
-    pub const ALL: [RenderMode; 5] = [
-        Self::Mono,
-        Self::Stereo,
-        Self::TrackedStereo,
-        Self::OmniOnAxis,
-        Self::OmniOffAxis,
-    ];
-
-    /// The name used by the CLI and the config.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Mono => "mono",
-            Self::Stereo => "stereo",
-            Self::TrackedStereo => "tracked-stereo",
-            Self::OmniOnAxis => "omni-onaxis",
-            Self::OmniOffAxis => "omni-offaxis",
-        }
-    }
-
-    /// Parses a CLI/config name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|m| m.name() == name)
-    }
-
     /// Whether the two eyes see different images.
     pub fn is_stereo(self) -> bool {
         !matches!(self, Self::Mono)
@@ -305,12 +289,6 @@ impl RenderMode {
     /// Whether vertices get their own eyes (omnidirectional stereo).
     pub fn is_omni(self) -> bool {
         matches!(self, Self::OmniOnAxis | Self::OmniOffAxis)
-    }
-}
-
-impl std::fmt::Display for RenderMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
     }
 }
 

@@ -48,20 +48,10 @@ pub enum WarpVariant {
     IntersectionPoint,
 }
 
-impl WarpVariant {
-    pub const ALL: [WarpVariant; 2] = [Self::SimilarTriangles, Self::IntersectionPoint];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::SimilarTriangles => "similar-triangles",
-            Self::IntersectionPoint => "intersection-point",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|w| w.name() == name)
-    }
-}
+crate::named_enum!(WarpVariant {
+    Self::SimilarTriangles => "similar-triangles",
+    Self::IntersectionPoint => "intersection-point",
+});
 
 /// The omnistereo settings of a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -35,43 +35,22 @@ pub enum StereoFormat {
     Mono,
 }
 
+crate::named_enum!(StereoFormat {
+    Self::FrameSequential => "frame-sequential",
+    Self::SideBySide { half: false } => "side-by-side",
+    Self::SideBySide { half: true } => "side-by-side-half",
+    Self::TopBottom { half: false } => "top-bottom",
+    Self::TopBottom { half: true } => "top-bottom-half",
+    Self::FramePacking => "frame-packing",
+    Self::RowInterleaved => "row-interleaved",
+    Self::Anaglyph => "anaglyph",
+    Self::AnaglyphOptimized => "anaglyph-optimized",
+    Self::LeftOnly => "left-only",
+    Self::RightOnly => "right-only",
+    Self::Mono => "mono",
+});
+
 impl StereoFormat {
-    pub const ALL: [StereoFormat; 12] = [
-        Self::FrameSequential,
-        Self::SideBySide { half: false },
-        Self::SideBySide { half: true },
-        Self::TopBottom { half: false },
-        Self::TopBottom { half: true },
-        Self::FramePacking,
-        Self::RowInterleaved,
-        Self::Anaglyph,
-        Self::AnaglyphOptimized,
-        Self::LeftOnly,
-        Self::RightOnly,
-        Self::Mono,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::FrameSequential => "frame-sequential",
-            Self::SideBySide { half: false } => "side-by-side",
-            Self::SideBySide { half: true } => "side-by-side-half",
-            Self::TopBottom { half: false } => "top-bottom",
-            Self::TopBottom { half: true } => "top-bottom-half",
-            Self::FramePacking => "frame-packing",
-            Self::RowInterleaved => "row-interleaved",
-            Self::Anaglyph => "anaglyph",
-            Self::AnaglyphOptimized => "anaglyph-optimized",
-            Self::LeftOnly => "left-only",
-            Self::RightOnly => "right-only",
-            Self::Mono => "mono",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|f| f.name() == name)
-    }
-
     /// The output image size for eye images of `eye` = [width, height].
     pub fn output_size(self, [w, h]: [u32; 2]) -> [u32; 2] {
         match self {
@@ -98,12 +77,6 @@ impl StereoFormat {
             Self::RightOnly => 10,
             Self::Mono => 11,
         }
-    }
-}
-
-impl std::fmt::Display for StereoFormat {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
     }
 }
 

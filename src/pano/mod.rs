@@ -29,20 +29,14 @@ pub enum PanoRoute {
     Image,
 }
 
-impl PanoRoute {
-    pub const ALL: [PanoRoute; 2] = [Self::Geometric, Self::Image];
+crate::named_enum!(PanoRoute {
+    Self::Geometric => "geometric",
+    Self::Image => "image",
+});
 
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Geometric => "geometric",
-            Self::Image => "image",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|r| r.name() == name)
-    }
-}
+/// VR'14's volume stereo parameters: inter-ocular distance, viewing distance and zero-parallax
+/// depth, in normalised device units.
+pub const VOLUME_DEFAULT_PARAMS: [f32; 3] = [0.5, 5.0, -0.8];
 
 /// How the two eyes of a panorama differ (geometric route; the image route is mono).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,33 +57,56 @@ pub enum PanoStereo {
 
 impl PanoStereo {
     pub const VOLUME_DEFAULT: PanoStereo = PanoStereo::Volume {
-        ioid: 0.5,
-        d: 5.0,
-        offset: -0.8,
+        ioid: VOLUME_DEFAULT_PARAMS[0],
+        d: VOLUME_DEFAULT_PARAMS[1],
+        offset: VOLUME_DEFAULT_PARAMS[2],
     };
 
-    pub fn name(self) -> &'static str {
+    pub fn kind(self) -> PanoStereoKind {
         match self {
-            Self::Mono => "mono",
-            Self::Volume { .. } => "volume",
-            Self::Omni => "omni",
+            Self::Mono => PanoStereoKind::Mono,
+            Self::Volume { .. } => PanoStereoKind::Volume,
+            Self::Omni => PanoStereoKind::Omni,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        self.kind().name()
+    }
+
+    /// The stereo of a kind; volume stereo takes its parameters `[ioid, d, offset]`.
+    pub fn of_kind(kind: PanoStereoKind, [ioid, d, offset]: [f32; 3]) -> Self {
+        match kind {
+            PanoStereoKind::Mono => Self::Mono,
+            PanoStereoKind::Volume => Self::Volume { ioid, d, offset },
+            PanoStereoKind::Omni => Self::Omni,
         }
     }
 
     /// `mono`, `volume` (with VR'14's parameters) or `omni`.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "mono" => Some(Self::Mono),
-            "volume" => Some(Self::VOLUME_DEFAULT),
-            "omni" => Some(Self::Omni),
-            _ => None,
-        }
+        PanoStereoKind::from_name(name).map(|k| Self::of_kind(k, VOLUME_DEFAULT_PARAMS))
     }
 
     pub fn is_stereo(self) -> bool {
         !matches!(self, Self::Mono)
     }
 }
+
+/// The kind of panorama stereo, as the config, the CLI and the panel name it (volume stereo's
+/// parameters are set apart).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PanoStereoKind {
+    Mono,
+    Volume,
+    Omni,
+}
+
+crate::named_enum!(PanoStereoKind {
+    Self::Mono => "mono",
+    Self::Volume => "volume",
+    Self::Omni => "omni",
+});
 
 /// Everything that defines a panorama image, apart from the scene and the head.
 #[derive(Debug, Clone, Copy, PartialEq)]

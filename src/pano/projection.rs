@@ -32,26 +32,15 @@ pub enum Projection {
 /// sync with the `ALBERS_*` constants in shaders/common.wgsl (derived from these).
 pub const ALBERS_PARALLELS_DEG: [f32; 2] = [0.0, 45.0];
 
+crate::named_enum!(Projection {
+    Self::Perspective => "perspective",
+    Self::Equirectangular => "equirectangular",
+    Self::Hammer => "hammer",
+    Self::AlbersConic => "albers",
+    Self::AzimuthalEquidistant => "azimuthal-equidistant",
+});
+
 impl Projection {
-    pub const ALL: [Projection; 5] = [
-        Self::Perspective,
-        Self::Equirectangular,
-        Self::Hammer,
-        Self::AlbersConic,
-        Self::AzimuthalEquidistant,
-    ];
-
-    /// The name used by the CLI, the config and the panel.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Perspective => "perspective",
-            Self::Equirectangular => "equirectangular",
-            Self::Hammer => "hammer",
-            Self::AlbersConic => "albers",
-            Self::AzimuthalEquidistant => "azimuthal-equidistant",
-        }
-    }
-
     /// The projection's number in WGSL (`pano_map` in shaders/common.wgsl; keep in step).
     pub fn code(self) -> u32 {
         match self {
@@ -68,10 +57,6 @@ impl Projection {
     /// meridian and the poles.
     pub fn geometric(self) -> bool {
         matches!(self, Self::Equirectangular | Self::Hammer)
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|p| p.name() == name)
     }
 
     /// The largest field of view (horizontal, vertical; radians) the projection can show.

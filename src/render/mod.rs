@@ -25,8 +25,8 @@ use uniforms::{FrameUniforms, ViewUniforms};
 
 use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
-use crate::config::Lighting;
 use crate::pano::{PanoRoute, PanoSettings};
+use crate::scene::Lighting;
 use crate::scene::Scene;
 use crate::sky::{CubeMap, SkyMode, SkySettings};
 use crate::tess::{TessSettings, TessStats};

@@ -6,8 +6,10 @@
 pub mod build;
 pub mod glb_writer;
 mod gltf_loader;
+mod lighting;
 
 pub use gltf_loader::{SceneError, load_gltf};
+pub use lighting::Lighting;
 
 use glam::Vec3;
 

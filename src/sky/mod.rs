@@ -29,29 +29,15 @@ pub enum SkyMode {
     Off,
 }
 
+crate::named_enum!(SkyMode {
+    Self::Auto => "auto",
+    Self::Offaxis => "offaxis",
+    Self::OmniQuad => "omni-quad",
+    Self::OmniExact => "omni-exact",
+    Self::Off => "off",
+});
+
 impl SkyMode {
-    pub const ALL: [SkyMode; 5] = [
-        Self::Auto,
-        Self::Offaxis,
-        Self::OmniQuad,
-        Self::OmniExact,
-        Self::Off,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Auto => "auto",
-            Self::Offaxis => "offaxis",
-            Self::OmniQuad => "omni-quad",
-            Self::OmniExact => "omni-exact",
-            Self::Off => "off",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|m| m.name() == name)
-    }
-
     /// The concrete mode used with `render_mode` (never `Auto`).
     pub fn resolve(self, render_mode: RenderMode) -> Self {
         match self {
@@ -59,12 +45,6 @@ impl SkyMode {
             Self::Auto => Self::Offaxis,
             other => other,
         }
-    }
-}
-
-impl std::fmt::Display for SkyMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
     }
 }
 

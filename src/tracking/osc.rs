@@ -36,20 +36,12 @@ pub enum QuaternionOrder {
     Xyzw,
 }
 
+crate::named_enum!(QuaternionOrder {
+    Self::Wxyz => "wxyz",
+    Self::Xyzw => "xyzw",
+});
+
 impl QuaternionOrder {
-    pub const ALL: [QuaternionOrder; 2] = [Self::Wxyz, Self::Xyzw];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Wxyz => "wxyz",
-            Self::Xyzw => "xyzw",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|o| o.name() == name)
-    }
-
     /// The quaternion from four numbers in this order.
     pub fn quaternion(self, v: [f64; 4]) -> DQuat {
         match self {

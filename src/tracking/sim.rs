@@ -206,29 +206,13 @@ pub enum SimForm {
     Natnet,
 }
 
-impl SimForm {
-    pub const ALL: [SimForm; 5] = [
-        Self::Position,
-        Self::Pose,
-        Self::Bundle,
-        Self::Euler,
-        Self::Natnet,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Position => "position",
-            Self::Pose => "pose",
-            Self::Bundle => "bundle",
-            Self::Euler => "euler",
-            Self::Natnet => "natnet",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|f| f.name() == name)
-    }
-}
+crate::named_enum!(SimForm {
+    Self::Position => "position",
+    Self::Pose => "pose",
+    Self::Bundle => "bundle",
+    Self::Euler => "euler",
+    Self::Natnet => "natnet",
+});
 
 /// Builds the packet a tracker would send for a CAVE-space pose.
 pub fn packet_for(

@@ -9,8 +9,8 @@ use image::RgbaImage;
 
 use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Cave, Head, RenderMode};
-use omnicave::config::Lighting;
 use omnicave::render::{FrameParams, Gpu, RenderSettings, Renderer, WallImages};
+use omnicave::scene::Lighting;
 use omnicave::scene::build::{MeshData, uv_sphere};
 use omnicave::scene::{Material, Scene};
 use omnicave::tess::TessSettings;

@@ -1,0 +1,571 @@
+//! The config file as written: every section and setting with its type, default and doc line.
+//!
+//! This is the settings model. The TOML file deserialises straight into it (unknown keys and
+//! unknown enum names are refused by serde, with the line), "Save settings" serialises it, and
+//! the JSON schema (`omnicave config schema`) is derived from it. Each section's `Default` is
+//! the one place its defaults are written; enums are the domain's own types, named once by
+//! [`named_enum!`](crate::named_enum).
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::cave::RenderMode;
+use crate::cave::omni::{PoleMerge, WarpVariant};
+use crate::gamepad::{GamepadMode, GamepadSettings};
+use crate::output::formats::StereoFormat;
+use crate::pano::{PanoRoute, PanoStereoKind, Projection, VOLUME_DEFAULT_PARAMS};
+use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
+use crate::tess::{Criterion, TessSettings};
+use crate::tracking::{
+    DEFAULT_OSC_PORT, OneEuroParams, OscMapping, QuaternionOrder, TrackingSettings,
+};
+
+/// The whole configuration file, as written.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct ConfigFile {
+    pub cave: CaveSection,
+    pub head: HeadSection,
+    pub render: RenderSection,
+    pub scene: SceneSection,
+    pub lighting: LightingSection,
+    pub omnistereo: OmnistereoSection,
+    pub tessellation: TessellationSection,
+    pub skybox: SkyboxSection,
+    pub app: AppSection,
+    pub tracking: TrackingSection,
+    pub gamepad: GamepadSection,
+    pub panorama: PanoramaSection,
+    /// The projection walls (screens), at least one: `[[wall]]` tables.
+    #[serde(rename = "wall")]
+    pub walls: Vec<WallSection>,
+}
+
+/// The CAVE's eyes and clipping.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct CaveSection {
+    /// Interpupillary distance in metres (0 to 0.5).
+    pub eye_separation: f32,
+    /// Near clipping distance, metres.
+    pub near: f32,
+    /// Far clipping distance, metres (at least ten times `near`).
+    pub far: f32,
+    /// View direction assumed by fixed-direction stereo; default −z (⟂ the front wall).
+    pub stereo_view_direction: [f32; 3],
+    /// Projective viewpoint of the on-axis omnistereo warp; default: the room's centre.
+    pub projection_centre: Option<[f32; 3]>,
+}
+
+impl Default for CaveSection {
+    fn default() -> Self {
+        Self {
+            eye_separation: 0.064,
+            near: 0.05,
+            far: 2000.0,
+            stereo_view_direction: [0.0, 0.0, -1.0],
+            projection_centre: None,
+        }
+    }
+}
+
+/// Omnistereo settings.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct OmnistereoSection {
+    /// `similar-triangles` (stable) or `intersection-point` (only to show where it breaks).
+    pub warp: WarpVariant,
+    /// Fade the eye separation to zero near the vertical axis through the head.
+    pub pole_merge: bool,
+    /// Elevation where the fade starts, degrees (0 to 90).
+    pub pole_merge_start_degrees: f32,
+    /// Elevation where the eye separation reaches zero, degrees (start to 90).
+    pub pole_merge_end_degrees: f32,
+}
+
+impl Default for OmnistereoSection {
+    fn default() -> Self {
+        let merge = PoleMerge::default();
+        Self {
+            warp: WarpVariant::default(),
+            pole_merge: true,
+            pole_merge_start_degrees: merge.start_degrees,
+            pole_merge_end_degrees: merge.end_degrees,
+        }
+    }
+}
+
+/// Adaptive tessellation before the omnistereo warp.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct TessellationSection {
+    /// `none`, `uniform:N`, `edge:PX`, `sphere:PX` or `error:PX`.
+    #[serde(with = "criterion_text")]
+    #[schemars(with = "String")]
+    pub criterion: Option<Criterion>,
+    /// Deepest subdivision (0 to 16 levels; 2^depth segments per edge at most).
+    pub max_depth: u32,
+    /// Cull back faces before splitting.
+    pub backface_cull: bool,
+    /// Cull triangles whose warped footprint misses the wall before splitting.
+    pub frustum_cull: bool,
+}
+
+impl Default for TessellationSection {
+    fn default() -> Self {
+        let tess = TessSettings::default();
+        Self {
+            criterion: None,
+            max_depth: tess.max_depth,
+            backface_cull: tess.backface_cull,
+            frustum_cull: tess.frustum_cull,
+        }
+    }
+}
+
+/// A tessellation criterion as its text (`none`, `error:0.5`, …).
+mod criterion_text {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    use crate::tess::{Criterion, parse_criterion};
+
+    pub fn serialize<S: Serializer>(c: &Option<Criterion>, s: S) -> Result<S::Ok, S::Error> {
+        match c {
+            None => s.serialize_str("none"),
+            Some(c) => s.collect_str(c),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Criterion>, D::Error> {
+        let text = String::deserialize(d)?;
+        parse_criterion(&text).map_err(serde::de::Error::custom)
+    }
+}
+
+/// The sky behind the scene.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct SkyboxSection {
+    /// An equirectangular image (PNG/JPEG/HDR) or a folder of six faces; relative to the
+    /// config's folder. Absent or "none": no sky.
+    pub file: Option<PathBuf>,
+    /// How the sky is drawn: `auto` follows the render mode.
+    pub mode: SkyMode,
+    /// Omni-quad mesh density: one slice per this many pixels (1 to 4096).
+    pub pixels_per_slice: f32,
+    /// Multiplier on the sky's linear colour.
+    pub exposure: f32,
+}
+
+impl Default for SkyboxSection {
+    fn default() -> Self {
+        Self {
+            file: None,
+            mode: SkyMode::default(),
+            pixels_per_slice: DEFAULT_PIXELS_PER_SLICE,
+            exposure: 1.0,
+        }
+    }
+}
+
+/// OSC head tracking (`omnicave run`).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackingSection {
+    /// Listen for head positions over OSC from the start (the panel can switch it).
+    pub enabled: bool,
+    /// UDP address:port to listen on; 0.0.0.0 is every interface.
+    pub listen: String,
+    /// Senders allowed to move the head (IP addresses); empty: any.
+    pub allowed_senders: Vec<String>,
+    /// `x y z` (or + quaternion, or + yaw pitch roll); empty string: off.
+    pub position_address: String,
+    /// A quaternion; empty string: off.
+    pub orientation_address: String,
+    /// `yaw pitch roll` in degrees; empty string: off.
+    pub euler_address: String,
+    /// The order of a quaternion's numbers.
+    pub quaternion_order: QuaternionOrder,
+    /// The NatNet-to-OSC form (`/rigidbody <id> position x y z`); empty string: off.
+    pub natnet_address: String,
+    /// The rigid body id that is the head, in the NatNet form.
+    pub natnet_rigid_body: i64,
+    /// No packet for this long: "tracking lost", the head holds its last pose.
+    pub timeout_seconds: f32,
+    pub calibration: CalibrationSection,
+    pub filter: FilterSection,
+}
+
+impl Default for TrackingSection {
+    fn default() -> Self {
+        let mapping = OscMapping::default();
+        Self {
+            enabled: false,
+            listen: format!("0.0.0.0:{DEFAULT_OSC_PORT}"),
+            allowed_senders: Vec::new(),
+            position_address: mapping.position_address,
+            orientation_address: mapping.orientation_address,
+            euler_address: mapping.euler_address,
+            quaternion_order: mapping.quaternion_order,
+            natnet_address: mapping.natnet_address,
+            natnet_rigid_body: mapping.natnet_rigid_body,
+            timeout_seconds: TrackingSettings::default().timeout.as_secs_f32(),
+            calibration: CalibrationSection::default(),
+            filter: FilterSection::default(),
+        }
+    }
+}
+
+/// Tracker frame → CAVE space: `cave = offset + rotation · (scale · axes(tracker))`.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct CalibrationSection {
+    /// The CAVE's x, y, z as signed tracker axes: ["x", "z", "-y"] for a right-handed z-up
+    /// tracker, ["x", "y", "-z"] for a left-handed y-up one.
+    pub axes: [String; 3],
+    /// Tracker units to metres (0.001 for millimetres).
+    pub scale: f32,
+    /// Yaw, pitch, roll in degrees, applied after the axis remap.
+    pub rotation_degrees: [f32; 3],
+    /// Where the tracker's origin is in CAVE space, metres.
+    pub offset: [f32; 3],
+}
+
+impl Default for CalibrationSection {
+    fn default() -> Self {
+        Self {
+            axes: ["x".into(), "y".into(), "z".into()],
+            scale: 1.0,
+            rotation_degrees: [0.0; 3],
+            offset: [0.0; 3],
+        }
+    }
+}
+
+/// One Euro filter against tracker jitter.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct FilterSection {
+    pub enabled: bool,
+    /// Cutoff at rest, Hz: lower is smoother and lags more.
+    pub min_cutoff_hz: f32,
+    /// How fast the cutoff rises with speed: higher lags less when moving.
+    pub beta: f32,
+    /// Cutoff of the speed estimate, Hz.
+    pub derivative_cutoff_hz: f32,
+}
+
+impl Default for FilterSection {
+    fn default() -> Self {
+        let params = OneEuroParams::default();
+        Self {
+            enabled: true,
+            min_cutoff_hz: params.min_cutoff_hz,
+            beta: params.beta,
+            derivative_cutoff_hz: params.derivative_cutoff_hz,
+        }
+    }
+}
+
+/// The gamepad (gilrs, hot-plug).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct GamepadSection {
+    pub enabled: bool,
+    /// `navigate` (move through the scene) or `head` (move the head in the CAVE).
+    pub mode: GamepadMode,
+    /// Radial stick dead zone, 0..1.
+    pub dead_zone: f32,
+    /// Trigger dead zone, 0..1.
+    pub trigger_dead_zone: f32,
+    /// Head speed at full stick (head mode), metres per second.
+    pub head_speed: f32,
+    /// Button (Xbox label) → action, over the default map; "none" unbinds a button.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub buttons: BTreeMap<String, String>,
+}
+
+impl Default for GamepadSection {
+    fn default() -> Self {
+        let pad = GamepadSettings::default();
+        Self {
+            enabled: true,
+            mode: pad.mode,
+            dead_zone: pad.dead_zone,
+            trigger_dead_zone: pad.trigger_dead_zone,
+            head_speed: pad.head_speed,
+            buttons: BTreeMap::new(),
+        }
+    }
+}
+
+/// Where the head starts (and how it is turned, for tracked stereo).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct HeadSection {
+    /// CAVE metres.
+    pub position: [f32; 3],
+    pub yaw_degrees: f32,
+    pub pitch_degrees: f32,
+    pub roll_degrees: f32,
+}
+
+impl Default for HeadSection {
+    fn default() -> Self {
+        Self {
+            position: [0.0, 1.7, 0.0],
+            yaw_degrees: 0.0,
+            pitch_degrees: 0.0,
+            roll_degrees: 0.0,
+        }
+    }
+}
+
+/// How the walls are rendered.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderSection {
+    pub mode: RenderMode,
+    /// MSAA sample count: 1 (off) or 4.
+    pub msaa: u32,
+    pub wireframe: bool,
+    /// Clear colour, sRGB components in 0..1.
+    pub background: [f32; 3],
+}
+
+impl Default for RenderSection {
+    fn default() -> Self {
+        Self {
+            mode: RenderMode::Stereo,
+            msaa: 4,
+            wireframe: false,
+            background: [0.02, 0.02, 0.03],
+        }
+    }
+}
+
+/// The scene and where the CAVE stands in it.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct SceneSection {
+    /// glTF file; relative paths are relative to the config file's folder.
+    pub path: Option<PathBuf>,
+    pub world_from_cave: PlacementSection,
+}
+
+/// Where the CAVE stands in the scene: scene point = translation + yaw · scale · CAVE point.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlacementSection {
+    pub translation: [f32; 3],
+    pub yaw_degrees: f32,
+    pub scale: f32,
+}
+
+impl Default for PlacementSection {
+    fn default() -> Self {
+        Self {
+            translation: [0.0; 3],
+            yaw_degrees: 0.0,
+            scale: 1.0,
+        }
+    }
+}
+
+/// The lights, in scene space.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct LightingSection {
+    /// Ambient light colour (linear).
+    pub ambient: [f32; 3],
+    pub directional: DirectionalLightSection,
+    pub point: PointLightSection,
+}
+
+impl Default for LightingSection {
+    fn default() -> Self {
+        Self {
+            ambient: [0.18, 0.18, 0.2],
+            directional: DirectionalLightSection::default(),
+            point: PointLightSection::default(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct DirectionalLightSection {
+    /// Direction the light travels, in scene (world) space.
+    pub direction: [f32; 3],
+    pub color: [f32; 3],
+    pub intensity: f32,
+}
+
+impl Default for DirectionalLightSection {
+    fn default() -> Self {
+        Self {
+            direction: [-0.4, -1.0, -0.3],
+            color: [1.0, 0.97, 0.9],
+            intensity: 0.6,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct PointLightSection {
+    /// Position in scene (world) space.
+    pub position: [f32; 3],
+    pub color: [f32; 3],
+    pub intensity: f32,
+    /// Distance (metres) at which the light has faded to zero.
+    pub range: f32,
+}
+
+impl Default for PointLightSection {
+    fn default() -> Self {
+        Self {
+            position: [0.0, 2.4, 0.0],
+            color: [1.0, 0.9, 0.75],
+            intensity: 0.8,
+            range: 12.0,
+        }
+    }
+}
+
+/// One projection wall: a planar rectangle given by three corners as seen from inside.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WallSection {
+    /// 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files).
+    pub name: String,
+    pub lower_left: [f32; 3],
+    pub lower_right: [f32; 3],
+    pub upper_left: [f32; 3],
+    /// Pixels (width, height).
+    pub resolution: [u32; 2],
+    /// The monitor this wall's window goes fullscreen on (CAVE mode): an index into the
+    /// system's monitor list or a monitor name. Missing monitor: `window_position`/`size`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub monitor: Option<MonitorRef>,
+    /// Borderless window position (screen pixels) when no monitor is named or found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_position: Option<[i32; 2]>,
+    /// Window size (pixels) when no monitor is named or found; default: `resolution`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_size: Option<[u32; 2]>,
+    /// Stereo output format of this wall's window; default: `app.wall_output`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output: Option<StereoFormat>,
+}
+
+/// The panorama view (wide field of view up to 360°): the operator's overview of everything
+/// around the CAVE user, or a desktop view on its own.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct PanoramaSection {
+    /// Show the panorama in the application (below the walls in the preview; beside the
+    /// panel in CAVE mode's operator window).
+    pub show: bool,
+    pub projection: Projection,
+    /// Horizontal field of view, degrees (up to what the projection shows).
+    pub h_fov_degrees: f32,
+    /// Vertical field of view, degrees (up to what the projection shows).
+    pub v_fov_degrees: f32,
+    /// "geometric" (per-vertex projection with pre-clip; equirectangular and Hammer) or
+    /// "image" (cube map and inverse projection; every projection).
+    pub route: PanoRoute,
+    /// "mono", "volume" (VR'14: the projected volume seen by two eyes) or "omni"
+    /// (omnidirectional stereo per vertex). Geometric route only.
+    pub stereo: PanoStereoKind,
+    /// Volume stereo: inter-ocular distance, viewing distance and zero-parallax depth, in
+    /// normalised device units (VR'14's values).
+    pub volume_ioid_d_offset: [f32; 3],
+    /// Turn from the navigation direction, degrees, positive to the right.
+    pub yaw_degrees: f32,
+    /// Image pixels (width, height).
+    pub size: [u32; 2],
+    /// Cube face pixels of the image route.
+    pub cube_size: u32,
+}
+
+impl Default for PanoramaSection {
+    fn default() -> Self {
+        Self {
+            show: false,
+            projection: Projection::Equirectangular,
+            h_fov_degrees: 360.0,
+            v_fov_degrees: 180.0,
+            route: PanoRoute::Geometric,
+            stereo: PanoStereoKind::Mono,
+            volume_ioid_d_offset: VOLUME_DEFAULT_PARAMS,
+            yaw_degrees: 0.0,
+            size: [1024, 512],
+            cube_size: 512,
+        }
+    }
+}
+
+/// A monitor named in the config: by position in the system's list or by name.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize, Serialize, JsonSchema)]
+#[serde(untagged)]
+pub enum MonitorRef {
+    Index(usize),
+    Name(String),
+}
+
+/// How the application shows the walls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AppMode {
+    /// One borderless window per wall, on the monitors the config names.
+    Cave,
+    /// One window with the walls unfolded side by side and the panel docked.
+    Preview,
+}
+
+crate::named_enum!(AppMode {
+    Self::Cave => "cave",
+    Self::Preview => "preview",
+});
+
+/// The interactive application (`omnicave run`): windows, panel, output formats.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct AppSection {
+    /// "cave" (a window per wall) or "preview" (one window, walls unfolded).
+    pub mode: AppMode,
+    /// Where the control panel goes in CAVE mode: "window" (its own operator window),
+    /// "overlay:<wall>" (drawn over that wall's window) or "hidden".
+    pub panel: String,
+    /// Operator (or preview) window position, screen pixels; default: chosen by the system.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub window_position: Option<[i32; 2]>,
+    /// Operator (or preview) window size in pixels.
+    pub window_size: [u32; 2],
+    /// Default stereo output format of the wall windows.
+    pub wall_output: StereoFormat,
+    /// Stereo output format of the preview's unfolded walls.
+    pub preview_output: StereoFormat,
+    /// Wait for vertical blank (no tearing; caps the frame rate at the display's).
+    pub vsync: bool,
+    /// Navigation speed in the scene, metres per second (keyboard and gamepad).
+    pub navigation_speed: f32,
+}
+
+impl Default for AppSection {
+    fn default() -> Self {
+        Self {
+            mode: AppMode::Preview,
+            panel: "window".into(),
+            window_position: None,
+            window_size: [1280, 720],
+            wall_output: StereoFormat::FrameSequential,
+            preview_output: StereoFormat::Anaglyph,
+            vsync: true,
+            navigation_speed: 1.5,
+        }
+    }
+}

@@ -1,0 +1,628 @@
+//! Validation of the config file, section by section: ranges, geometry and cross-field
+//! checks that the file's types cannot express, each error naming the file, line and field.
+
+use std::net::{IpAddr, SocketAddr};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use glam::{Mat4, Quat, Vec3};
+
+use super::file::*;
+use super::spans;
+use super::{AppConfig, Config, ConfigError, PanelPlacement, TrackingConfig, WallWindow};
+use crate::cave::omni::{OmniSettings, PoleMerge};
+use crate::cave::{Cave, Head, Wall, left_of};
+use crate::gamepad::{GamepadSettings, button_map};
+use crate::pano::{PanoRoute, PanoSettings, PanoStereo};
+use crate::scene::Lighting;
+use crate::sky::SkySettings;
+use crate::tess::{MAX_DEPTH_LIMIT, TessSettings};
+use crate::tracking::{Calibration, OneEuroParams, OscMapping, ReceiverSettings, TrackingSettings};
+
+/// Builds errors that name the file, the field's line (where the text is known) and value.
+struct Checker<'a> {
+    path: &'a Path,
+    text: Option<&'a str>,
+}
+
+impl Checker<'_> {
+    fn fail(&self, field: &str, value: impl std::fmt::Debug, reason: &str) -> ConfigError {
+        ConfigError::Invalid {
+            path: self.path.to_owned(),
+            line: self
+                .text
+                .and_then(|text| spans::line_of(text, field))
+                .map(|line| format!(", line {line}"))
+                .unwrap_or_default(),
+            field: field.to_owned(),
+            value: format!("{value:?}"),
+            reason: reason.to_owned(),
+        }
+    }
+
+    fn finite3(&self, field: &str, v: [f32; 3]) -> Result<Vec3, ConfigError> {
+        if v.iter().all(|c| c.is_finite()) {
+            Ok(Vec3::from(v))
+        } else {
+            Err(self.fail(field, v, "every component must be a finite number"))
+        }
+    }
+
+    fn range(&self, field: &str, v: f32, lo: f32, hi: f32) -> Result<f32, ConfigError> {
+        if v.is_finite() && v >= lo && v <= hi {
+            Ok(v)
+        } else {
+            Err(self.fail(field, v, &format!("must be between {lo} and {hi}")))
+        }
+    }
+
+    fn colour(&self, field: &str, v: [f32; 3], max: f32) -> Result<Vec3, ConfigError> {
+        let c = self.finite3(field, v)?;
+        if c.min_element() < 0.0 || c.max_element() > max {
+            return Err(self.fail(field, v, &format!("components must be in 0..{max}")));
+        }
+        Ok(c)
+    }
+}
+
+/// Largest accepted wall image side; beyond any projector and wgpu's default texture limit.
+const MAX_WALL_PIXELS: u32 = 8192;
+
+impl ConfigFile {
+    /// Checks every field and builds the ready-to-use config (errors name no line).
+    pub fn validate(&self, path: &Path) -> Result<Config, ConfigError> {
+        self.validate_text(path, None)
+    }
+
+    /// Checks every field against the text it was read from (errors name the line).
+    pub(super) fn validate_text(
+        &self,
+        path: &Path,
+        text: Option<&str>,
+    ) -> Result<Config, ConfigError> {
+        let ck = Checker { path, text };
+
+        if self.walls.is_empty() {
+            return Err(ck.fail("wall", "[]", "at least one [[wall]] is required"));
+        }
+        let mut walls = Vec::with_capacity(self.walls.len());
+        for (i, w) in self.walls.iter().enumerate() {
+            walls.push(validate_wall(&ck, i, w, &walls)?);
+        }
+
+        let c = &self.cave;
+        let eye_separation = ck.range("cave.eye_separation", c.eye_separation, 0.0, 0.5)?;
+        let near = ck.range("cave.near", c.near, 1e-4, 10.0)?;
+        let far = c.far;
+        if !(far.is_finite() && far > near * 10.0 && far <= 1e7) {
+            return Err(ck.fail(
+                "cave.far",
+                far,
+                "must be finite, at most 1e7 and at least ten times cave.near",
+            ));
+        }
+        let view_dir = ck.finite3("cave.stereo_view_direction", c.stereo_view_direction)?;
+        if left_of(view_dir).is_none() {
+            return Err(ck.fail(
+                "cave.stereo_view_direction",
+                c.stereo_view_direction,
+                "must have a horizontal component (it sets which way the stereo eyes are split)",
+            ));
+        }
+
+        let projection_centre = match c.projection_centre {
+            Some(p) => ck.finite3("cave.projection_centre", p)?,
+            None => Cave::default_projection_centre(&walls),
+        };
+        // The on-axis warp projects every wall from this point: it must see each wall's front.
+        for (i, w) in walls.iter().enumerate() {
+            if w.signed_distance(projection_centre) < 0.01 {
+                return Err(ck.fail(
+                    "cave.projection_centre",
+                    projection_centre.to_array(),
+                    &format!(
+                        "must lie at least 1 cm in front of every wall; wall[{i}] ({}) is not",
+                        w.name
+                    ),
+                ));
+            }
+        }
+
+        let o = &self.omnistereo;
+        let start = ck.range(
+            "omnistereo.pole_merge_start_degrees",
+            o.pole_merge_start_degrees,
+            0.0,
+            90.0,
+        )?;
+        let end = ck.range(
+            "omnistereo.pole_merge_end_degrees",
+            o.pole_merge_end_degrees,
+            start,
+            90.0,
+        )?;
+        let omni = OmniSettings {
+            warp: o.warp,
+            pole_merge: o.pole_merge.then_some(PoleMerge {
+                start_degrees: start,
+                end_degrees: end,
+            }),
+        };
+
+        let t = &self.tessellation;
+        if t.max_depth > MAX_DEPTH_LIMIT {
+            return Err(ck.fail(
+                "tessellation.max_depth",
+                t.max_depth,
+                &format!("must be at most {MAX_DEPTH_LIMIT}"),
+            ));
+        }
+        let tess = TessSettings {
+            criterion: t.criterion,
+            max_depth: t.max_depth,
+            backface_cull: t.backface_cull,
+            frustum_cull: t.frustum_cull,
+        };
+
+        let h = &self.head;
+        let head_pos = ck.finite3("head.position", h.position)?;
+        let cave_for_check = Cave {
+            walls: walls.clone(),
+            near,
+            far,
+            stereo_view_direction: view_dir,
+            projection_centre,
+        };
+        if let Some(problem) = cave_for_check.head_problem(head_pos) {
+            return Err(ck.fail("head.position", h.position, &problem));
+        }
+        for (field, v) in [
+            ("head.yaw_degrees", h.yaw_degrees),
+            ("head.pitch_degrees", h.pitch_degrees),
+            ("head.roll_degrees", h.roll_degrees),
+        ] {
+            ck.range(field, v, -360.0, 360.0)?;
+        }
+
+        let r = &self.render;
+        if !matches!(r.msaa, 1 | 4) {
+            return Err(ck.fail("render.msaa", r.msaa, "must be 1 (off) or 4"));
+        }
+        let background = ck.colour("render.background", r.background, 1.0)?;
+
+        let p = &self.scene.world_from_cave;
+        let translation = ck.finite3("scene.world_from_cave.translation", p.translation)?;
+        let yaw = ck.range(
+            "scene.world_from_cave.yaw_degrees",
+            p.yaw_degrees,
+            -360.0,
+            360.0,
+        )?;
+        let scale = ck.range("scene.world_from_cave.scale", p.scale, 1e-3, 1e3)?;
+        let world_from_cave = Mat4::from_scale_rotation_translation(
+            Vec3::splat(scale),
+            Quat::from_rotation_y(yaw.to_radians()),
+            translation,
+        );
+
+        let l = &self.lighting;
+        ck.colour("lighting.ambient", l.ambient, 10.0)?;
+        let sun = ck.finite3("lighting.directional.direction", l.directional.direction)?;
+        if sun.length() < 1e-6 {
+            return Err(ck.fail(
+                "lighting.directional.direction",
+                l.directional.direction,
+                "must not be the zero vector",
+            ));
+        }
+        ck.colour("lighting.directional.color", l.directional.color, 10.0)?;
+        ck.range(
+            "lighting.directional.intensity",
+            l.directional.intensity,
+            0.0,
+            100.0,
+        )?;
+        ck.finite3("lighting.point.position", l.point.position)?;
+        ck.colour("lighting.point.color", l.point.color, 10.0)?;
+        ck.range("lighting.point.intensity", l.point.intensity, 0.0, 100.0)?;
+        ck.range("lighting.point.range", l.point.range, 1e-3, 1e6)?;
+
+        let resolve = |p: &PathBuf| {
+            if p.is_absolute() {
+                p.clone()
+            } else {
+                path.parent().unwrap_or(Path::new(".")).join(p)
+            }
+        };
+        let scene_path = self.scene.path.as_ref().map(resolve);
+
+        let k = &self.skybox;
+        let sky = SkySettings {
+            mode: k.mode,
+            pixels_per_slice: ck.range(
+                "skybox.pixels_per_slice",
+                k.pixels_per_slice,
+                1.0,
+                4096.0,
+            )?,
+            exposure: ck.range("skybox.exposure", k.exposure, 0.0, 1e4)?,
+        };
+        let sky_path = k
+            .file
+            .as_ref()
+            .filter(|p| p.as_os_str() != "none")
+            .map(resolve);
+
+        Ok(Config {
+            source: path.to_owned(),
+            cave: cave_for_check,
+            head: Head {
+                position: head_pos,
+                orientation: Head::orientation_from_degrees(
+                    h.yaw_degrees,
+                    h.pitch_degrees,
+                    h.roll_degrees,
+                ),
+            },
+            eye_separation,
+            mode: r.mode,
+            msaa: r.msaa,
+            wireframe: r.wireframe,
+            background: background.to_array(),
+            scene_path,
+            world_from_cave,
+            lighting: l.to_lighting(),
+            omni,
+            tess,
+            sky_path,
+            sky,
+            app: self.validate_app(&ck)?,
+            tracking: self.validate_tracking(&ck)?,
+            gamepad: self.validate_gamepad(&ck)?,
+            panorama: self.panorama.validate(&ck)?,
+            file: self.clone(),
+        })
+    }
+
+    fn validate_tracking(&self, ck: &Checker<'_>) -> Result<TrackingConfig, ConfigError> {
+        let t = &self.tracking;
+        let listen: SocketAddr = t.listen.trim().parse().map_err(|_| {
+            ck.fail(
+                "tracking.listen",
+                &t.listen,
+                "must be an address:port such as \"0.0.0.0:7000\" or \"[::]:7000\"",
+            )
+        })?;
+        let mut allowed_senders = Vec::with_capacity(t.allowed_senders.len());
+        for (i, s) in t.allowed_senders.iter().enumerate() {
+            let ip: IpAddr = s.trim().parse().map_err(|_| {
+                ck.fail(
+                    &format!("tracking.allowed_senders[{i}]"),
+                    s,
+                    "must be an IP address such as \"192.168.1.20\"",
+                )
+            })?;
+            allowed_senders.push(ip);
+        }
+        for (field, address) in [
+            ("tracking.position_address", &t.position_address),
+            ("tracking.orientation_address", &t.orientation_address),
+            ("tracking.euler_address", &t.euler_address),
+            ("tracking.natnet_address", &t.natnet_address),
+        ] {
+            if !address.is_empty() && (!address.starts_with('/') || address.contains(' ')) {
+                return Err(ck.fail(
+                    field,
+                    address,
+                    "must be an OSC address starting with '/' (no spaces), or \"\" for off",
+                ));
+            }
+        }
+        let timeout = ck.range("tracking.timeout_seconds", t.timeout_seconds, 0.01, 60.0)?;
+
+        let c = &t.calibration;
+        let remap = Calibration::remap_from_axes(&c.axes)
+            .map_err(|e| ck.fail("tracking.calibration.axes", &c.axes, &e.to_string()))?;
+        let scale = ck.range("tracking.calibration.scale", c.scale, 1e-6, 1e6)?;
+        let [yaw, pitch, roll] = c.rotation_degrees;
+        for v in c.rotation_degrees {
+            ck.range("tracking.calibration.rotation_degrees", v, -360.0, 360.0)?;
+        }
+        let offset = ck.finite3("tracking.calibration.offset", c.offset)?;
+
+        let f = &t.filter;
+        let params = OneEuroParams {
+            min_cutoff_hz: ck.range("tracking.filter.min_cutoff_hz", f.min_cutoff_hz, 1e-3, 1e3)?,
+            beta: ck.range("tracking.filter.beta", f.beta, 0.0, 1e3)?,
+            derivative_cutoff_hz: ck.range(
+                "tracking.filter.derivative_cutoff_hz",
+                f.derivative_cutoff_hz,
+                1e-3,
+                1e3,
+            )?,
+        };
+        Ok(TrackingConfig {
+            enabled: t.enabled,
+            receiver: ReceiverSettings {
+                listen,
+                allowed_senders,
+                mapping: OscMapping {
+                    position_address: t.position_address.clone(),
+                    orientation_address: t.orientation_address.clone(),
+                    euler_address: t.euler_address.clone(),
+                    quaternion_order: t.quaternion_order,
+                    natnet_address: t.natnet_address.clone(),
+                    natnet_rigid_body: t.natnet_rigid_body,
+                },
+            },
+            settings: TrackingSettings {
+                calibration: Calibration {
+                    remap,
+                    scale,
+                    rotation: Head::orientation_from_degrees(yaw, pitch, roll),
+                    offset,
+                },
+                filter: f.enabled.then_some(params),
+                timeout: Duration::from_secs_f32(timeout),
+            },
+        })
+    }
+
+    fn validate_gamepad(&self, ck: &Checker<'_>) -> Result<GamepadSettings, ConfigError> {
+        let g = &self.gamepad;
+        let buttons = button_map(&g.buttons).map_err(|e| {
+            let (field, value) = match &e {
+                crate::gamepad::ButtonMapError::Button(b) => {
+                    (format!("gamepad.buttons.{b}"), b.clone())
+                }
+                crate::gamepad::ButtonMapError::Action(a) => {
+                    let key = g
+                        .buttons
+                        .iter()
+                        .find(|(_, v)| *v == a)
+                        .map_or_else(String::new, |(k, _)| k.clone());
+                    (format!("gamepad.buttons.{key}"), a.clone())
+                }
+            };
+            ck.fail(&field, value, &e.to_string())
+        })?;
+        Ok(GamepadSettings {
+            enabled: g.enabled,
+            mode: g.mode,
+            dead_zone: ck.range("gamepad.dead_zone", g.dead_zone, 0.0, 0.9)?,
+            trigger_dead_zone: ck.range(
+                "gamepad.trigger_dead_zone",
+                g.trigger_dead_zone,
+                0.0,
+                0.9,
+            )?,
+            head_speed: ck.range("gamepad.head_speed", g.head_speed, 0.0, 10.0)?,
+            buttons,
+        })
+    }
+
+    fn validate_app(&self, ck: &Checker<'_>) -> Result<AppConfig, ConfigError> {
+        let a = &self.app;
+        let panel = match a.panel.as_str() {
+            "window" => PanelPlacement::Window,
+            "hidden" => PanelPlacement::Hidden,
+            other => match other.strip_prefix("overlay:") {
+                Some(wall) => PanelPlacement::Overlay(
+                    self.walls
+                        .iter()
+                        .position(|w| w.name == wall)
+                        .ok_or_else(|| {
+                            ck.fail("app.panel", other, "names no wall of this config")
+                        })?,
+                ),
+                None => {
+                    return Err(ck.fail(
+                        "app.panel",
+                        other,
+                        "must be \"window\", \"hidden\" or \"overlay:<wall name>\"",
+                    ));
+                }
+            },
+        };
+        let size_ok = |s: [u32; 2]| s.iter().all(|&v| (1..=MAX_WALL_PIXELS).contains(&v));
+        if !size_ok(a.window_size) {
+            return Err(ck.fail(
+                "app.window_size",
+                a.window_size,
+                &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
+            ));
+        }
+        let navigation_speed = ck.range("app.navigation_speed", a.navigation_speed, 0.0, 1000.0)?;
+        let mut walls = Vec::with_capacity(self.walls.len());
+        for (i, w) in self.walls.iter().enumerate() {
+            let size = w.window_size.unwrap_or(w.resolution);
+            if !size_ok(size) {
+                return Err(ck.fail(
+                    &format!("wall[{i}].window_size"),
+                    size,
+                    &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
+                ));
+            }
+            let output = w.output.unwrap_or(a.wall_output);
+            walls.push(WallWindow {
+                monitor: w.monitor.clone(),
+                position: w.window_position,
+                size,
+                output,
+            });
+        }
+        Ok(AppConfig {
+            mode: a.mode,
+            panel,
+            window_position: a.window_position,
+            window_size: a.window_size,
+            preview_output: a.preview_output,
+            vsync: a.vsync,
+            navigation_speed,
+            walls,
+        })
+    }
+}
+
+fn validate_wall(
+    ck: &Checker<'_>,
+    index: usize,
+    w: &WallSection,
+    earlier: &[Wall],
+) -> Result<Wall, ConfigError> {
+    let field = |name: &str| format!("wall[{index}].{name}");
+    let name_ok = !w.name.is_empty()
+        && w.name.len() <= 64
+        && w.name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if !name_ok {
+        return Err(ck.fail(
+            &field("name"),
+            &w.name,
+            "must be 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files)",
+        ));
+    }
+    if earlier.iter().any(|e| e.name == w.name) {
+        return Err(ck.fail(&field("name"), &w.name, "another wall has this name"));
+    }
+    let ll = ck.finite3(&field("lower_left"), w.lower_left)?;
+    let lr = ck.finite3(&field("lower_right"), w.lower_right)?;
+    let ul = ck.finite3(&field("upper_left"), w.upper_left)?;
+    // A wall narrower than a millimetre is a typo, not a screen.
+    const MIN_SIDE_M: f32 = 1e-3;
+    let width = (lr - ll).length();
+    if width < MIN_SIDE_M {
+        return Err(ck.fail(
+            &field("lower_right"),
+            w.lower_right,
+            "coincides with lower_left: the wall has no width",
+        ));
+    }
+    let height = (ul - ll).length();
+    if height < MIN_SIDE_M {
+        return Err(ck.fail(
+            &field("upper_left"),
+            w.upper_left,
+            "coincides with lower_left: the wall has no height",
+        ));
+    }
+    // The two edges from lower_left must be perpendicular (cosine below ~0.06°); a skewed
+    // parallelogram cannot be driven by a rectangular image.
+    let cosine = (lr - ll).dot(ul - ll) / (width * height);
+    if cosine.abs() > 1e-3 {
+        return Err(ck.fail(
+            &field("upper_left"),
+            w.upper_left,
+            &format!(
+                "edges lower_left→lower_right and lower_left→upper_left are not perpendicular \
+                 (angle {:.2}°): walls must be rectangles",
+                cosine.clamp(-1.0, 1.0).acos().to_degrees()
+            ),
+        ));
+    }
+    let [pw, ph] = w.resolution;
+    if pw == 0 || ph == 0 || pw > MAX_WALL_PIXELS || ph > MAX_WALL_PIXELS {
+        return Err(ck.fail(
+            &field("resolution"),
+            w.resolution,
+            &format!("width and height must be 1..={MAX_WALL_PIXELS} pixels"),
+        ));
+    }
+    Ok(Wall {
+        name: w.name.clone(),
+        lower_left: ll,
+        lower_right: lr,
+        upper_left: ul,
+        resolution: w.resolution,
+    })
+}
+
+impl PanoramaSection {
+    fn validate(&self, ck: &Checker<'_>) -> Result<PanoSettings, ConfigError> {
+        let (projection, route) = (self.projection, self.route);
+        let [ioid, d, offset] = self.volume_ioid_d_offset;
+        let volume_valid = (0.0..=2.0).contains(&ioid)
+            && d.is_finite()
+            && d > 1.0
+            && (-1.0..=1.0).contains(&offset);
+        if !volume_valid {
+            return Err(ck.fail(
+                "panorama.volume_ioid_d_offset",
+                self.volume_ioid_d_offset,
+                "needs 0 ≤ ioid ≤ 2, d > 1 (outside the unit cube) and −1 ≤ offset ≤ 1",
+            ));
+        }
+        let stereo = PanoStereo::of_kind(self.stereo, [ioid, d, offset]);
+        let (max_h, max_v) = projection.max_fov();
+        let h = ck.range(
+            "panorama.h_fov_degrees",
+            self.h_fov_degrees,
+            1.0,
+            max_h.to_degrees().round(),
+        )?;
+        let v = ck.range(
+            "panorama.v_fov_degrees",
+            self.v_fov_degrees,
+            1.0,
+            max_v.to_degrees().round(),
+        )?;
+        let yaw = ck.range("panorama.yaw_degrees", self.yaw_degrees, -360.0, 360.0)?;
+        let [w, h_px] = self.size;
+        if !(1..=8192).contains(&w) || !(1..=8192).contains(&h_px) {
+            return Err(ck.fail("panorama.size", self.size, "must be 1 to 8192 pixels each"));
+        }
+        if !(4..=8192).contains(&self.cube_size) {
+            return Err(ck.fail(
+                "panorama.cube_size",
+                self.cube_size,
+                "must be 4 to 8192 pixels",
+            ));
+        }
+        if route == PanoRoute::Geometric && !projection.geometric() {
+            tracing::warn!(
+                "{}: panorama.route = \"geometric\" draws equirectangular and hammer only; \
+                 {} is drawn by the image route",
+                ck.path.display(),
+                projection.name()
+            );
+        }
+        if stereo.is_stereo() && (route == PanoRoute::Image || !projection.geometric()) {
+            tracing::warn!(
+                "{}: panorama.stereo = \"{}\" needs the geometric route; the image route is mono",
+                ck.path.display(),
+                stereo.name()
+            );
+        }
+        Ok(PanoSettings {
+            projection,
+            h_fov: h.to_radians(),
+            v_fov: v.to_radians(),
+            route,
+            stereo,
+            yaw: yaw.to_radians(),
+            size: self.size,
+            cube_size: self.cube_size,
+        })
+    }
+}
+
+impl Default for Lighting {
+    /// The config's default lights.
+    fn default() -> Self {
+        LightingSection::default().to_lighting()
+    }
+}
+
+impl LightingSection {
+    fn to_lighting(&self) -> Lighting {
+        Lighting {
+            ambient: Vec3::from(self.ambient),
+            sun_direction: Vec3::from(self.directional.direction).normalize_or(Vec3::NEG_Y),
+            sun_color: Vec3::from(self.directional.color) * self.directional.intensity,
+            point_position: Vec3::from(self.point.position),
+            point_color: Vec3::from(self.point.color) * self.point.intensity,
+            point_range: self.point.range,
+        }
+    }
+}
