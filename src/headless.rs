@@ -2,14 +2,15 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cave::{Eye, Head, RenderMode};
-use crate::config::{Config, ConfigError};
+use crate::cave::{Eye, RenderMode};
+use crate::config::{Config, ConfigError, ConfigFile};
 use crate::output::formats::StereoFormat;
 use crate::output::{self, OutputError};
 use crate::render::present::PresentParams;
-use crate::render::{FrameParams, Gpu, RenderError, RenderSettings, Renderer, WallImages};
+use crate::render::{Gpu, RenderError, WallImages};
 use crate::scene::{Scene, SceneError, load_gltf};
-use crate::sky::{CubeMap, load_sky};
+use crate::setup::{load_config_sky, render_frame, render_panorama};
+use crate::sky::CubeMap;
 
 /// Anything that stops a headless render.
 #[derive(Debug, thiserror::Error)]
@@ -24,11 +25,6 @@ pub enum HeadlessError {
     Output(#[from] OutputError),
     #[error("no scene given: pass --scene or set [scene] path in {0}")]
     NoScene(PathBuf),
-    #[error("head position {position} {problem}")]
-    Head {
-        position: glam::Vec3,
-        problem: String,
-    },
 }
 
 /// Per-run overrides of the config (what the CLI flags set).
@@ -64,178 +60,73 @@ pub struct Overrides {
 }
 
 impl Overrides {
-    /// Applies the overrides to a loaded config.
-    pub fn apply(&self, config: &mut Config) {
+    /// Applies the overrides to the settings model (validated again afterwards, so an override
+    /// is checked exactly as the config file's value would be).
+    pub fn apply(&self, settings: &mut ConfigFile) {
         if let Some(mode) = self.mode {
-            config.mode = mode;
+            settings.render.mode = mode;
         }
         if let Some(p) = self.head {
-            config.head.position = p;
+            settings.head.position = p.to_array();
         }
         if let Some(yaw) = self.head_yaw_degrees {
-            config.head = Head {
-                position: config.head.position,
-                orientation: Head::orientation_from_degrees(yaw, 0.0, 0.0),
-            };
+            settings.head.yaw_degrees = yaw;
+            settings.head.pitch_degrees = 0.0;
+            settings.head.roll_degrees = 0.0;
         }
         if let Some(ipd) = self.eye_separation {
-            config.eye_separation = ipd;
+            settings.cave.eye_separation = ipd;
         }
         if let Some(size) = self.size {
-            for wall in &mut config.cave.walls {
+            for wall in &mut settings.walls {
                 wall.resolution = size;
             }
         }
         if let Some(msaa) = self.msaa {
-            config.msaa = msaa;
+            settings.render.msaa = msaa;
         }
-        config.wireframe |= self.wireframe;
+        settings.render.wireframe |= self.wireframe;
+        let omni = &mut settings.omnistereo;
         if let Some(warp) = self.warp {
-            config.omni.warp = warp;
+            omni.warp = warp;
         }
         if let Some(pole) = self.pole_merge {
-            config.omni.pole_merge = pole;
+            omni.pole_merge = pole.is_some();
+            if let Some(p) = pole {
+                omni.pole_merge_start_degrees = p.start_degrees;
+                omni.pole_merge_end_degrees = p.end_degrees;
+            }
         }
         if let Some(criterion) = self.tess {
-            config.tess.criterion = criterion;
+            settings.tessellation.criterion = criterion;
         }
         if let Some(depth) = self.tess_max_depth {
-            config.tess.max_depth = depth;
+            settings.tessellation.max_depth = depth;
         }
-        if let Some(sky) = &self.sky {
-            config.sky_path = sky.clone();
+        if let Some(mode) = self.sky_mode {
+            settings.skybox.mode = mode;
         }
-        let pano = &mut config.panorama;
+        let pano = &mut settings.panorama;
         if let Some(p) = self.pano_projection {
             pano.projection = p;
         }
         if let Some(r) = self.pano_route {
             pano.route = r;
         }
+        // `--pano-stereo volume` keeps the config's volume parameters.
         if let Some(kind) = self.pano_stereo {
-            // `--pano-stereo volume` keeps the config's volume parameters.
-            pano.stereo =
-                crate::pano::PanoStereo::of_kind(kind, config.file.panorama.volume_ioid_d_offset);
+            pano.stereo = kind;
         }
         if let Some([h, v]) = self.pano_fov_degrees {
-            pano.h_fov = h.to_radians();
-            pano.v_fov = v.to_radians();
+            pano.h_fov_degrees = h;
+            pano.v_fov_degrees = v;
         }
         if let Some(yaw) = self.pano_yaw_degrees {
-            pano.yaw = yaw.to_radians();
+            pano.yaw_degrees = yaw;
         }
         if let Some(size) = self.pano_size {
             pano.size = size;
         }
-        if let Some(mode) = self.sky_mode {
-            config.sky.mode = mode;
-        }
-    }
-}
-
-/// Loads the config's sky, if it names one. A missing or malformed sky file is logged as an
-/// error naming the file, and the scene renders without a sky.
-pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
-    let path = config.sky_path.as_ref()?;
-    match load_sky(path) {
-        Ok(cube) => {
-            tracing::info!(
-                "sky {}: {}×{} per face, {} mip levels{}",
-                path.display(),
-                cube.size(),
-                cube.size(),
-                cube.levels.len(),
-                if cube.is_hdr() { ", HDR" } else { "" }
-            );
-            Some(cube)
-        }
-        Err(e) => {
-            tracing::error!("{e}; rendering without a sky");
-            None
-        }
-    }
-}
-
-/// A renderer for `config` holding `scene` and `sky` (a sky the device cannot hold is reported
-/// and left out).
-fn renderer_for(
-    gpu: &Gpu,
-    config: &Config,
-    scene: &Scene,
-    sky: Option<&CubeMap>,
-    wireframe: bool,
-) -> Result<Renderer, RenderError> {
-    let mut renderer = Renderer::new(
-        gpu,
-        &config.cave,
-        RenderSettings {
-            msaa: config.msaa,
-            wireframe,
-        },
-    )?;
-    renderer.set_scene(scene);
-    if let Err(e) = renderer.set_sky(sky) {
-        tracing::error!("{e}; rendering without a sky");
-    }
-    Ok(renderer)
-}
-
-/// Renders one frame of `scene` (and `sky`, if any) as configured; returns the renderer holding
-/// the frame (to read or compose its images).
-pub fn render_frame(
-    gpu: &Gpu,
-    config: &Config,
-    scene: &Scene,
-    sky: Option<&CubeMap>,
-) -> Result<Renderer, RenderError> {
-    let mut renderer = renderer_for(gpu, config, scene, sky, config.wireframe)?;
-    renderer.render(&frame_params(config))?;
-    for (view, stats) in renderer
-        .last_views()
-        .iter()
-        .zip(renderer.read_tess_stats()?)
-    {
-        tracing::info!(
-            "tessellation {} {}: {} input, {} back-face culled, {} frustum culled, {} emitted{}",
-            config.cave.walls[view.wall].name,
-            view.eye.map_or("mono", |e| e.name()),
-            stats.input,
-            stats.culled_backface,
-            stats.culled_frustum,
-            stats.emitted,
-            if stats.overflowed {
-                " (budget exceeded: less refined than asked)"
-            } else {
-                ""
-            }
-        );
-    }
-    Ok(renderer)
-}
-
-/// Renders one frame as [`render_frame`] and returns every wall's eye images.
-pub fn render_images(
-    gpu: &Gpu,
-    config: &Config,
-    scene: &Scene,
-    sky: Option<&CubeMap>,
-) -> Result<Vec<WallImages>, RenderError> {
-    render_frame(gpu, config, scene, sky)?.read_images()
-}
-
-/// The frame parameters a config describes.
-pub fn frame_params(config: &Config) -> FrameParams<'_> {
-    FrameParams {
-        cave: &config.cave,
-        head: config.head,
-        mode: config.mode,
-        eye_separation: config.eye_separation,
-        world_from_cave: config.world_from_cave,
-        lighting: config.lighting,
-        background: config.background,
-        omni: config.omni,
-        tess: config.tess,
-        sky: config.sky,
     }
 }
 
@@ -253,13 +144,13 @@ pub fn render_to_dir(
     out_dir: &Path,
     formats: &[StereoFormat],
 ) -> Result<Written, HeadlessError> {
-    let mut config = Config::load(config_path)?;
-    overrides.apply(&mut config);
-    if let Some(problem) = config.cave.head_problem(config.head.position) {
-        return Err(HeadlessError::Head {
-            position: config.head.position,
-            problem,
-        });
+    let loaded = Config::load(config_path)?;
+    let mut settings = loaded.settings;
+    overrides.apply(&mut settings);
+    let mut config = settings.validate(config_path)?;
+    // A sky given on the command line is relative to the working directory, not the config.
+    if let Some(sky) = &overrides.sky {
+        config.sky_path = sky.clone();
     }
     let scene_path = overrides
         .scene
@@ -304,48 +195,6 @@ pub fn render_to_dir(
         }
     }
     Ok(written)
-}
-
-/// Renders the panorama view of a config and scene (its `[panorama]` settings, and `sky`
-/// behind it if any) and returns the renderer holding it.
-pub fn render_panorama(
-    gpu: &Gpu,
-    config: &Config,
-    scene: &Scene,
-    sky: Option<&CubeMap>,
-) -> Result<Renderer, RenderError> {
-    let mut renderer = renderer_for(gpu, config, scene, sky, false)?;
-    let pano = &config.panorama;
-    renderer.render_panorama(&frame_params(config), pano)?;
-    let fitted = pano.fitted();
-    tracing::info!(
-        "panorama: {} {:.0}°×{:.0}°, {} route, {}, {}×{} px",
-        fitted.projection.name(),
-        fitted.fov().x.to_degrees(),
-        fitted.fov().y.to_degrees(),
-        pano.effective_route().name(),
-        if pano.effective_route() == crate::pano::PanoRoute::Geometric {
-            pano.stereo.name()
-        } else {
-            "mono"
-        },
-        pano.size[0],
-        pano.size[1]
-    );
-    for stats in renderer.read_panorama_tess_stats()? {
-        tracing::info!(
-            "panorama tessellation: {} input, {} back-face culled, {} emitted{}",
-            stats.input,
-            stats.culled_backface,
-            stats.emitted,
-            if stats.overflowed {
-                " (budget exceeded: less refined than asked)"
-            } else {
-                ""
-            }
-        );
-    }
-    Ok(renderer)
 }
 
 /// Writes `panorama.png` (mono) or `panorama-left.png`, `panorama-right.png` and

@@ -19,6 +19,7 @@ pub mod output;
 pub mod pano;
 pub mod render;
 pub mod scene;
+pub mod setup;
 pub mod sky;
 pub mod tess;
 pub mod tracking;

@@ -651,7 +651,7 @@ fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
         Some(c) => (
             c.tracking.receiver.mapping.clone(),
             c.tracking.settings.calibration,
-            c.head.position,
+            c.settings.head().position,
         ),
         None => (
             OscMapping::default(),

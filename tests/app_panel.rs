@@ -154,7 +154,7 @@ fn render(renderer: &mut Renderer, state: &AppState) -> Vec<WallImages> {
 
 /// The reference: a fresh renderer set up from a config with the same settings.
 fn reference(config: &Config, scene: &Scene) -> Vec<WallImages> {
-    omnicave::headless::render_images(common::gpu(), config, scene, None).expect("reference")
+    omnicave::setup::render_images(common::gpu(), config, scene, None).expect("reference")
 }
 
 /// Share of eye-image pixels that differ at all.
@@ -200,7 +200,7 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
     state
         .set_head_position(Vec3::new(0.3, 1.6, 0.2))
         .expect("head inside");
-    state.head_yaw_degrees = 30.0;
+    state.settings.head.yaw_degrees = 30.0;
     let mut renderer = Renderer::new(
         gpu,
         state.cave(),
@@ -219,15 +219,15 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
     for mode in RenderMode::ALL {
         panel.choose(&mut state, "Render mode", mode.name());
         assert_eq!(
-            state.mode,
+            state.settings.render.mode,
             mode,
             "the panel did not switch to {}",
             mode.name()
         );
         let images = render(&mut renderer, &state);
         let mut expected_config = base.clone();
-        expected_config.mode = mode;
-        expected_config.head = state.head();
+        expected_config.settings.render.mode = mode;
+        expected_config.settings.head = state.settings.head.clone();
         assert!(
             same(&images, &reference(&expected_config, &scene)),
             "{}: the panel's frame differs from the same settings rendered headless",
@@ -245,19 +245,19 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
     }
 
     // Tessellation in the omnistereo mode: on, then every criterion.
-    assert_eq!(state.mode, RenderMode::OmniOffAxis);
+    assert_eq!(state.settings.render.mode, RenderMode::OmniOffAxis);
     let untessellated = render(&mut renderer, &state);
     panel.click(&mut state, "Adaptive tessellation");
-    assert!(state.tess_on);
+    assert!(state.tess_on());
     for kind in CriterionKind::ALL {
         panel.choose(&mut state, "Criterion", kind.name());
         assert_eq!(state.tess_kind, kind);
         let criterion = state.criterion().expect("criterion");
         let images = render(&mut renderer, &state);
         let mut expected_config = base.clone();
-        expected_config.mode = RenderMode::OmniOffAxis;
-        expected_config.head = state.head();
-        expected_config.tess.criterion = Some(criterion);
+        expected_config.settings.render.mode = RenderMode::OmniOffAxis;
+        expected_config.settings.head = state.settings.head.clone();
+        expected_config.settings.tessellation.criterion = Some(criterion);
         assert!(
             same_within(
                 &images,
@@ -277,12 +277,12 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
         }
     }
     panel.click(&mut state, "Adaptive tessellation");
-    assert!(!state.tess_on);
+    assert!(!state.tess_on());
     assert!(same(&render(&mut renderer, &state), &untessellated));
 
     // Wireframe is a pipeline variant built at start-up, not on demand.
     panel.click(&mut state, "Wireframe");
-    assert!(state.wireframe);
+    assert!(state.settings.render.wireframe);
     renderer
         .set_settings(state.render_settings(), state.cave())
         .expect("settings");
@@ -302,38 +302,41 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
 #[test]
 fn saved_settings_load_back_as_they_were() {
     let mut state = AppState::new(config());
-    state.mode = RenderMode::OmniOnAxis;
-    state.eye_separation = 0.07;
-    state.tess_on = true;
+    state.settings.render.mode = RenderMode::OmniOnAxis;
+    state.settings.cave.eye_separation = 0.07;
     state.tess_kind = CriterionKind::Sphere;
     *state.tess_value_mut() = 12.0;
-    state.pole_merge_on = false;
+    state.set_tess_on(true);
+    state.settings.omnistereo.pole_merge = false;
     state.set_cave_size(Vec3::new(4.0, 3.0, 3.3));
     state
         .set_head_position(Vec3::new(0.2, 1.5, -0.4))
         .expect("head inside");
-    state.preview_output = omnicave::output::formats::StereoFormat::RowInterleaved;
-    state.tracking_on = true;
-    state.tracking_filter.beta = 3.5;
-    state.gamepad_mode = omnicave::gamepad::GamepadMode::Head;
-    state.navigation_speed = 4.0;
+    state.settings.app.preview_output = omnicave::output::formats::StereoFormat::RowInterleaved;
+    state.settings.tracking.enabled = true;
+    state.settings.tracking.filter.beta = 3.5;
+    state.settings.gamepad.mode = omnicave::gamepad::GamepadMode::Head;
+    state.settings.app.navigation_speed = 4.0;
     // Another folder than the config's, so relative asset paths must be rewritten.
     let dir = std::env::temp_dir().join("omnicave-save-test");
     std::fs::create_dir_all(&dir).expect("dir");
     let path = dir.join("saved.toml");
     state.save(&path).expect("save");
     let loaded = AppState::new(Config::load(&path).expect("saved config loads"));
-    assert_eq!(loaded.mode, RenderMode::OmniOnAxis);
-    assert_eq!(loaded.eye_separation, 0.07);
+    assert_eq!(loaded.settings.render.mode, RenderMode::OmniOnAxis);
+    assert_eq!(loaded.settings.cave.eye_separation, 0.07);
     assert_eq!(loaded.criterion(), Some(Criterion::Sphere(12.0)));
     assert_eq!(loaded.omni(), state.omni());
-    assert_eq!(loaded.head_position, state.head_position);
+    assert_eq!(loaded.head_position(), state.head_position());
     assert_eq!(loaded.cave(), state.cave(), "moved walls are saved");
-    assert_eq!(loaded.preview_output, state.preview_output);
-    assert!(loaded.tracking_on);
+    assert_eq!(
+        loaded.settings.app.preview_output,
+        state.settings.app.preview_output
+    );
+    assert!(loaded.settings.tracking.enabled);
     assert_eq!(loaded.tracking_filter(), state.tracking_filter());
-    assert_eq!(loaded.gamepad_mode, state.gamepad_mode);
-    assert_eq!(loaded.navigation_speed, 4.0);
+    assert_eq!(loaded.settings.gamepad.mode, state.settings.gamepad.mode);
+    assert_eq!(loaded.settings.app.navigation_speed, 4.0);
     assert!(
         loaded
             .config
@@ -351,14 +354,14 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
 
     let mut state = AppState::new(config());
     let mut driver = PanelDriver::new();
-    assert!(!state.tracking_on);
+    assert!(!state.settings.tracking.enabled);
     driver.click(&mut state, "Use OSC tracking");
-    assert!(state.tracking_on);
-    let filter = state.tracking_filter_on;
+    assert!(state.settings.tracking.enabled);
+    let filter = state.settings.tracking.filter.enabled;
     driver.click(&mut state, "One Euro filter");
-    assert_eq!(state.tracking_filter_on, !filter);
+    assert_eq!(state.settings.tracking.filter.enabled, !filter);
     driver.choose(&mut state, "Sticks drive", "head");
-    assert_eq!(state.gamepad_mode, GamepadMode::Head);
+    assert_eq!(state.settings.gamepad.mode, GamepadMode::Head);
 
     // The receiver reports a loss: the panel says so at the top and in its section.
     driver.info.tracking.listening = Some("127.0.0.1:7000".parse().expect("address"));
@@ -388,7 +391,7 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     assert!(shown.iter().any(|t| t == "OSC: tracking"), "{shown:?}");
     // Switched off, the status line goes.
     driver.click(&mut state, "Use OSC tracking");
-    assert!(!state.tracking_on);
+    assert!(!state.settings.tracking.enabled);
     let shown = texts(&driver.frame(&mut state));
     assert!(!shown.iter().any(|t| t.starts_with("OSC:")), "{shown:?}");
 }

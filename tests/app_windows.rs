@@ -13,10 +13,10 @@ use std::time::{Duration, Instant};
 
 use image::{Rgb, RgbImage, RgbaImage};
 use omnicave::config::Config;
-use omnicave::headless;
 use omnicave::output::formats::StereoFormat;
 use omnicave::render::present::PresentParams;
 use omnicave::scene::load_gltf;
+use omnicave::setup;
 
 const SCREEN: [u32; 2] = [1600, 1000];
 const WALL: [u32; 2] = [320, 240];
@@ -350,7 +350,7 @@ fn preview_strip(window: &RgbImage, config: &Config) -> (u32, u32, u32, u32) {
 /// the window's middle row, and its rows along the middle column of those.
 fn beside_panel(window: &RgbImage, config: &Config) -> (Vec<u32>, Vec<u32>) {
     let (width, height) = window.dimensions();
-    let bg = config.background.map(|c| (c * 255.0).round() as u8);
+    let bg = config.settings.render.background.map(|c| (c * 255.0).round() as u8);
     let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
     // The panel's right edge: its fill reaches the window's bottom row.
     let panel_edge = (0..width)
@@ -417,9 +417,9 @@ fn cave_mode_shows_each_wall_in_its_window_and_the_panel_and_quits_on_request() 
     // The reference: the same config rendered headless, composed in each window's format.
     let config = Config::load(&config_path).expect("config");
     let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
-    let sky = headless::load_config_sky(&config);
+    let sky = setup::load_config_sky(&config);
     let mut renderer =
-        headless::render_frame(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
+        setup::render_frame(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
 
     let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
     let x = Xvfb::start();
@@ -496,9 +496,9 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
     let config_path = write_config(&out, "preview-test.toml");
     let config = Config::load(&config_path).expect("config");
     let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
-    let sky = headless::load_config_sky(&config);
+    let sky = setup::load_config_sky(&config);
     let images =
-        headless::render_images(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
+        setup::render_images(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
     // The unfolded anaglyph the headless renderer writes: the preview's default output.
     let anaglyphs: Vec<RgbaImage> = images
         .iter()
@@ -551,9 +551,8 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
 
 /// The headless unfolded anaglyph (the preview's default output) for `config`.
 fn unfolded_anaglyph(config: &Config, scene: &omnicave::scene::Scene) -> RgbaImage {
-    let sky = headless::load_config_sky(config);
-    let images =
-        headless::render_images(common::gpu(), config, scene, sky.as_ref()).expect("render");
+    let sky = setup::load_config_sky(config);
+    let images = setup::render_images(common::gpu(), config, scene, sky.as_ref()).expect("render");
     let anaglyphs: Vec<RgbaImage> = images
         .iter()
         .map(|w| omnicave::output::anaglyph(&w.left, &w.right).expect("anaglyph"))
@@ -604,7 +603,7 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
     let at_start = unfolded_anaglyph(&config, &scene);
     let tracked_head = glam::Vec3::new(0.5, 1.5, -0.4);
-    config.head.position = tracked_head;
+    config.settings.head.position = tracked_head.to_array();
     let at_tracked = unfolded_anaglyph(&config, &scene);
 
     let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
@@ -751,10 +750,10 @@ fn the_operator_window_shows_the_panorama_beside_the_panel() {
         + "\n[panorama]\nshow = true\nsize = [400, 200]\n";
     std::fs::write(&path, text).expect("write config");
     let config = Config::load(&path).expect("config");
-    assert!(config.file.panorama.show);
+    assert!(config.settings.panorama.show);
     let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
-    let sky = headless::load_config_sky(&config);
-    let renderer = headless::render_panorama(common::gpu(), &config, &scene, sky.as_ref())
+    let sky = setup::load_config_sky(&config);
+    let renderer = setup::render_panorama(common::gpu(), &config, &scene, sky.as_ref())
         .expect("headless panorama");
     let [reference, _] = renderer.read_panorama().expect("read back");
 

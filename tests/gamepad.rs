@@ -76,10 +76,10 @@ fn navigate_mode_moves_strafes_turns_and_climbs() {
     let config = desktop_config("");
     let mut state = AppState::new(config.clone());
     let mut m = mapper(&config);
-    assert_eq!(state.gamepad_mode, GamepadMode::Navigate);
+    assert_eq!(state.settings.gamepad.mode, GamepadMode::Navigate);
     // Left stick pushed forward for one second: the CAVE moves towards the front wall (−z).
     m.handle(&axis(Axis::LeftStickY, 1.0));
-    let motion = m.axes().motion(state.gamepad_mode);
+    let motion = m.axes().motion(state.settings.gamepad.mode);
     state.navigate(
         NavInput {
             forward: motion.forward,
@@ -119,24 +119,24 @@ fn navigate_mode_moves_strafes_turns_and_climbs() {
 fn head_mode_moves_the_head_inside_the_cave() {
     let config = desktop_config("[gamepad]\nmode = \"head\"\nhead_speed = 0.5\n");
     let mut state = AppState::new(config.clone());
-    assert_eq!(state.gamepad_mode, GamepadMode::Head);
+    assert_eq!(state.settings.gamepad.mode, GamepadMode::Head);
     let mut m = mapper(&config);
-    let start = state.head_position;
+    let start = state.head_position();
     m.handle(&axis(Axis::LeftStickX, 1.0));
     let step = m.axes().motion(GamepadMode::Head).head * config.gamepad.head_speed * 0.5;
     state.apply(omnicave::app::state::Action::MoveHead(step));
     // Half a second at full right deflection: 0.25 m to the right.
     assert!(
-        (state.head_position - (start + Vec3::new(0.25, 0.0, 0.0))).length() < 1e-5,
+        (state.head_position() - (start + Vec3::new(0.25, 0.0, 0.0))).length() < 1e-5,
         "{}",
-        state.head_position
+        state.head_position()
     );
     // Pushing on for a minute stops 5 cm inside the right wall.
     for _ in 0..120 {
         state.apply(omnicave::app::state::Action::MoveHead(step));
     }
     let (_, hi) = state.head_bounds();
-    assert!((state.head_position.x - hi.x).abs() < 1e-6);
+    assert!((state.head_position().x - hi.x).abs() < 1e-6);
     assert!(hi.x < 1.65 - 0.049);
 }
 
@@ -145,34 +145,37 @@ fn default_buttons_cycle_modes_and_toggle_features() {
     let config = desktop_config("");
     let mut state = AppState::new(config.clone());
     let mut m = mapper(&config);
-    let mode = state.mode;
+    let mode = state.settings.render.mode;
     feed(&mut m, &mut state, &[press(Button::South)]); // A
     let i = RenderMode::ALL.iter().position(|x| *x == mode).unwrap();
-    assert_eq!(state.mode, RenderMode::ALL[(i + 1) % RenderMode::ALL.len()]);
+    assert_eq!(
+        state.settings.render.mode,
+        RenderMode::ALL[(i + 1) % RenderMode::ALL.len()]
+    );
     feed(&mut m, &mut state, &[press(Button::DPadLeft)]);
-    assert_eq!(state.mode, mode);
-    let tess = state.tess_on;
+    assert_eq!(state.settings.render.mode, mode);
+    let tess = state.tess_on();
     feed(&mut m, &mut state, &[press(Button::East)]); // B
-    assert_eq!(state.tess_on, !tess);
-    let sky = state.sky_mode;
+    assert_eq!(state.tess_on(), !tess);
+    let sky = state.settings.skybox.mode;
     feed(&mut m, &mut state, &[press(Button::West)]); // X
-    assert_ne!(state.sky_mode, sky);
-    let ipd = state.eye_separation;
+    assert_ne!(state.settings.skybox.mode, sky);
+    let ipd = state.settings.cave.eye_separation;
     feed(
         &mut m,
         &mut state,
         &[press(Button::DPadUp), press(Button::DPadUp)],
     );
-    assert!((state.eye_separation - ipd - 0.004).abs() < 1e-6);
+    assert!((state.settings.cave.eye_separation - ipd - 0.004).abs() < 1e-6);
     feed(&mut m, &mut state, &[press(Button::North)]); // Y
-    assert_eq!(state.gamepad_mode, GamepadMode::Head);
-    let speed = state.navigation_speed;
+    assert_eq!(state.settings.gamepad.mode, GamepadMode::Head);
+    let speed = state.settings.app.navigation_speed;
     feed(&mut m, &mut state, &[press(Button::RightTrigger)]); // RB
-    assert!(state.navigation_speed > speed);
+    assert!(state.settings.app.navigation_speed > speed);
     state.navigation.position = Vec3::ONE;
     feed(&mut m, &mut state, &[press(Button::Start)]);
     assert_eq!(state.navigation.position, Vec3::ZERO);
-    assert_eq!(state.navigation_speed, speed);
+    assert_eq!(state.settings.app.navigation_speed, speed);
     // Releases and buttons without a binding do nothing.
     assert_eq!(
         m.handle(&EventType::ButtonReleased(Button::South, code(1, 0x130))),

@@ -115,7 +115,7 @@ impl Rig {
                 start.elapsed() < Duration::from_secs(5),
                 "{what}: not within 5 s; {:?}, head {}",
                 self.info(),
-                self.state.head_position
+                self.state.head_position()
             );
             std::thread::sleep(Duration::from_millis(2));
             self.tracking.poll(&mut self.state, Instant::now());
@@ -171,7 +171,7 @@ fn calibrated_pose_from_position_and_both_quaternion_orders() {
     for order in QuaternionOrder::ALL {
         let mut config = config(order.name(), "");
         // tracked-stereo uses the orientation.
-        config.mode = omnicave::cave::RenderMode::TrackedStereo;
+        config.settings.render.mode = omnicave::cave::RenderMode::TrackedStereo;
         let mut rig = Rig::new(config.clone());
         let mapping = &config.tracking.receiver.mapping;
         assert_eq!(rig.info().status, Some(TrackingStatus::Waiting));
@@ -436,12 +436,12 @@ fn a_busy_port_is_an_error_naming_the_address() {
     // In the application this is reported and rendering goes on without tracking.
     let mut state = AppState::new(config.clone());
     let mut tracking = Tracking::new(config.tracking.clone());
-    let head = state.head_position;
+    let head = state.head_position();
     tracking.poll(&mut state, Instant::now());
     let mut info = TrackingInfo::default();
     tracking.info(Instant::now(), &mut info);
     assert!(info.error.is_some() && info.listening.is_none(), "{info:?}");
-    assert_eq!(state.head_position, head);
+    assert_eq!(state.head_position(), head);
 }
 
 #[test]

@@ -53,7 +53,7 @@ impl Tracking {
 
     /// Once per frame, at its start: applies the newest tracked pose to the state.
     pub fn poll(&mut self, state: &mut AppState, now: Instant) {
-        if !state.tracking_on {
+        if !state.settings.tracking.enabled {
             self.was_on = false;
             return;
         }
@@ -88,7 +88,7 @@ impl Tracking {
     /// Whether the tracker is driving the head (gamepad head mode yields to it; while tracking
     /// is lost or not started, the pad may move the head).
     pub fn drives_head(&self, state: &AppState) -> bool {
-        state.tracking_on
+        state.settings.tracking.enabled
             && self.receiver.is_some()
             && self.tracker.status() == TrackingStatus::Tracking
     }
@@ -181,8 +181,8 @@ impl Gamepads {
         if axes.is_idle() {
             return;
         }
-        let motion = axes.motion(state.gamepad_mode);
-        match state.gamepad_mode {
+        let motion = axes.motion(state.settings.gamepad.mode);
+        match state.settings.gamepad.mode {
             GamepadMode::Navigate => state.navigate(
                 NavInput {
                     forward: motion.forward,

@@ -20,11 +20,11 @@ use winit::keyboard::PhysicalKey;
 use winit::window::WindowId;
 
 use crate::config::{AppMode, Config, ConfigError, PanelPlacement};
-use crate::headless::load_config_sky;
 use crate::render::gpu::Gpu;
 use crate::render::present::PresentPass;
 use crate::render::{RenderError, Renderer};
 use crate::scene::{Scene, SceneError, load_gltf};
+use crate::setup::load_config_sky;
 use crate::sky::CubeMap;
 use devices::{Gamepads, Tracking};
 use keys::HeldKeys;
@@ -80,10 +80,12 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
     if let Some(listen) = options.osc_listen {
         config.tracking.receiver.listen = listen;
         config.tracking.enabled = true;
+        config.settings.tracking.enabled = true;
     }
-    if let Some(problem) = config.cave.head_problem(config.head.position) {
+    let head = config.settings.head().position;
+    if let Some(problem) = config.cave.head_problem(head) {
         return Err(AppError::Head {
-            position: config.head.position,
+            position: head,
             problem,
         });
     }
@@ -345,13 +347,13 @@ impl App {
             "stats: {} | frames {} | mode {} | windows {} | surface recoveries {}",
             self.clock.summary,
             self.clock.total_frames,
-            self.state.mode.name(),
+            self.state.settings.render.mode.name(),
             self.gfx.as_ref().map_or(0, |g| g.windows.len()),
             self.surface_recoveries
         );
         let t = &self.info.tracking;
-        let head = self.state.head_position;
-        if let Some(status) = t.status.filter(|_| self.state.tracking_on) {
+        let head = self.state.head_position();
+        if let Some(status) = t.status.filter(|_| self.state.settings.tracking.enabled) {
             let c = &t.counters;
             tracing::info!(
                 target: "omnicave::stats",
@@ -545,18 +547,18 @@ fn render_views(
         && let Err(e) = gfx.renderer.set_settings(settings, state.cave())
     {
         tracing::error!("{e}; keeping the previous settings");
-        state.msaa = gfx.renderer.settings().msaa;
+        state.settings.render.msaa = gfx.renderer.settings().msaa;
     }
     let stats = gfx.renderer.render(&state.frame_params())?;
     // The walls' tessellation counts, before the panorama reuses the tessellator.
     if read_counts {
         info.tess_emitted = read_tess_counts(&gfx.renderer, state);
     }
-    if state.panorama_on {
+    if state.settings.panorama.show {
         let frame = state.frame_params();
-        if let Err(e) = gfx.renderer.render_panorama(&frame, &state.panorama) {
+        if let Err(e) = gfx.renderer.render_panorama(&frame, &state.settings.pano()) {
             tracing::error!("panorama: {e}; closing the panorama view");
-            state.panorama_on = false;
+            state.settings.panorama.show = false;
         }
     }
     // Every wall draws the whole scene once per view of it.

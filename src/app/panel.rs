@@ -10,7 +10,7 @@ use crate::cave::RenderMode;
 use crate::cave::omni::WarpVariant;
 use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
-use crate::pano::{PanoRoute, PanoStereo, Projection};
+use crate::pano::{PanoRoute, PanoStereoKind, Projection};
 use crate::sky::SkyMode;
 use crate::tracking::TrackingStatus;
 
@@ -110,7 +110,7 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo, requests: &mut
     };
     ui.label(format!("CPU {:.2} ms   GPU {gpu}", s.cpu_ms));
     // Tracking's state at the top, where an operator looks first.
-    if state.tracking_on {
+    if state.settings.tracking.enabled {
         match (&info.tracking.error, tracking_status(&info.tracking)) {
             (Some(e), _) => {
                 ui.colored_label(egui::Color32::LIGHT_RED, format!("OSC: {e}"));
@@ -143,29 +143,38 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo, requests: &mut
     }
 }
 
+/// The model's range of the setting at `path` (the one declared beside it in the config's
+/// settings model), for a slider.
+fn model_range(path: &str) -> std::ops::RangeInclusive<f32> {
+    crate::config::bounds(path).map_or(0.0..=1.0, |b| b.f32_range())
+}
+
 fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    let s = &mut state.settings;
     combo(
         ui,
         "Render mode",
-        &mut state.mode,
+        &mut s.render.mode,
         &RenderMode::ALL,
         RenderMode::name,
     );
+    let o = &mut s.omnistereo;
     combo(
         ui,
         "Warp",
-        &mut state.warp,
+        &mut o.warp,
         &WarpVariant::ALL,
         WarpVariant::name,
     );
-    ui.checkbox(&mut state.pole_merge_on, "Pole merge");
-    ui.add_enabled_ui(state.pole_merge_on, |ui| {
-        ui.add(Slider::new(&mut state.pole_merge.start_degrees, 0.0..=90.0).text("merge start °"));
-        let start = state.pole_merge.start_degrees;
-        ui.add(Slider::new(&mut state.pole_merge.end_degrees, start..=90.0).text("merge end °"));
+    ui.checkbox(&mut o.pole_merge, "Pole merge");
+    ui.add_enabled_ui(o.pole_merge, |ui| {
+        let range = model_range("omnistereo.pole_merge_start_degrees");
+        ui.add(Slider::new(&mut o.pole_merge_start_degrees, range.clone()).text("merge start °"));
+        let end = o.pole_merge_start_degrees..=*range.end();
+        ui.add(Slider::new(&mut o.pole_merge_end_degrees, end).text("merge end °"));
     });
     ui.add(
-        Slider::new(&mut state.eye_separation, 0.0..=MAX_EYE_SEPARATION)
+        Slider::new(&mut s.cave.eye_separation, 0.0..=MAX_EYE_SEPARATION)
             .text("eye separation m")
             .step_by(0.001),
     );
@@ -173,23 +182,24 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         combo(
             ui,
             "Skybox",
-            &mut state.sky_mode,
+            &mut s.skybox.mode,
             &SkyMode::ALL,
             SkyMode::name,
         );
     });
-    ui.checkbox(&mut state.wireframe, "Wireframe");
+    ui.checkbox(&mut s.render.wireframe, "Wireframe");
     ui.horizontal(|ui| {
         ui.label("MSAA");
-        ui.radio_value(&mut state.msaa, 1, "off");
-        ui.radio_value(&mut state.msaa, 4, "4×");
+        ui.radio_value(&mut s.render.msaa, 1, "off");
+        ui.radio_value(&mut s.render.msaa, 4, "4×");
     });
 }
 
 fn tessellation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     ui.add_enabled_ui(info.tessellation_supported, |ui| {
-        ui.checkbox(&mut state.tess_on, "Adaptive tessellation");
-        ui.add_enabled_ui(state.tess_on, |ui| {
+        let mut on = state.tess_on();
+        ui.checkbox(&mut on, "Adaptive tessellation");
+        ui.add_enabled_ui(on, |ui| {
             combo(
                 ui,
                 "Criterion",
@@ -206,19 +216,21 @@ fn tessellation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
                 slider = slider.logarithmic(true);
             }
             ui.add(slider);
+            let t = &mut state.settings.tessellation;
             ui.add(
-                Slider::new(&mut state.tess_max_depth, 0..=crate::tess::MAX_DEPTH_LIMIT)
-                    .text("max depth"),
+                Slider::new(&mut t.max_depth, 0..=crate::tess::MAX_DEPTH_LIMIT).text("max depth"),
             );
-            ui.checkbox(&mut state.tess_backface_cull, "Back-face cull");
-            ui.checkbox(&mut state.tess_frustum_cull, "Frustum cull");
+            ui.checkbox(&mut t.backface_cull, "Back-face cull");
+            ui.checkbox(&mut t.frustum_cull, "Frustum cull");
         });
+        // The kind and parameter above apply while tessellation is on.
+        state.set_tess_on(on);
     });
 }
 
 fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
     ui.label("Head (CAVE space, m)");
-    let mut head = state.head_position;
+    let mut head = state.head_position();
     let size = state.cave_size;
     let mut changed = false;
     for (axis, name) in ["x", "y", "z"].iter().enumerate() {
@@ -236,7 +248,10 @@ fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
         // A slider move that would put the head behind a wall is not taken.
         let _ = state.set_head_position(head);
     }
-    ui.add(Slider::new(&mut state.head_yaw_degrees, -180.0..=180.0).text("head yaw ° (tracked)"));
+    ui.add(
+        Slider::new(&mut state.settings.head.yaw_degrees, -180.0..=180.0)
+            .text("head yaw ° (tracked)"),
+    );
     ui.label("CAVE size (walls move live, m)");
     let mut size = state.cave_size;
     let base = state.base_cave_size();
@@ -286,11 +301,12 @@ fn tracking_status(info: &TrackingInfo) -> Option<(egui::Color32, String)> {
 }
 
 fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
-    ui.checkbox(&mut state.tracking_on, "Use OSC tracking");
+    let settings = &mut state.settings;
+    ui.checkbox(&mut settings.tracking.enabled, "Use OSC tracking");
     if let Some(error) = &info.error {
         ui.colored_label(egui::Color32::LIGHT_RED, error);
     }
-    if state.tracking_on
+    if settings.tracking.enabled
         && let (Some(address), Some((colour, text))) = (info.listening, tracking_status(info))
     {
         ui.label(format!("listening on {address}"));
@@ -307,9 +323,9 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
             c.received, c.accepted, c.ignored, c.malformed, c.non_finite, c.refused, s.clamped
         ));
     }
-    ui.checkbox(&mut state.tracking_filter_on, "One Euro filter");
-    ui.add_enabled_ui(state.tracking_filter_on, |ui| {
-        let f = &mut state.tracking_filter;
+    let f = &mut settings.tracking.filter;
+    ui.checkbox(&mut f.enabled, "One Euro filter");
+    ui.add_enabled_ui(f.enabled, |ui| {
         ui.add(
             Slider::new(&mut f.min_cutoff_hz, 0.01..=20.0)
                 .logarithmic(true)
@@ -341,13 +357,13 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
     combo(
         ui,
         "Sticks drive",
-        &mut state.gamepad_mode,
+        &mut settings.gamepad.mode,
         &GamepadMode::ALL,
         GamepadMode::name,
     );
     ui.add(
         Slider::new(
-            &mut state.navigation_speed,
+            &mut settings.app.navigation_speed,
             super::state::MIN_NAVIGATION_SPEED..=super::state::MAX_NAVIGATION_SPEED,
         )
         .logarithmic(true)
@@ -359,32 +375,34 @@ fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     let format_combo = |ui: &mut Ui, label: &str, format: &mut StereoFormat| {
         combo(ui, label, format, &StereoFormat::ALL, StereoFormat::name);
     };
+    let s = &mut state.settings;
     if info.cave_mode {
-        let names: Vec<String> = state.cave().walls.iter().map(|w| w.name.clone()).collect();
-        for (name, format) in names.iter().zip(state.wall_outputs.iter_mut()) {
-            format_combo(ui, &format!("output {name}"), format);
+        let default = s.app.wall_output;
+        for wall in &mut s.walls {
+            let mut format = wall.output.unwrap_or(default);
+            format_combo(ui, &format!("output {}", wall.name), &mut format);
+            if format != wall.output.unwrap_or(default) {
+                wall.output = Some(format);
+            }
         }
     } else {
-        format_combo(ui, "Preview output", &mut state.preview_output);
+        format_combo(ui, "Preview output", &mut s.app.preview_output);
     }
     ui.checkbox(&mut state.swap_eyes, "Swap eyes");
 }
 
 /// The panorama view: what it shows and how it is drawn.
 fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    let pano = &mut state.settings.panorama;
     ui.checkbox(
-        &mut state.panorama_on,
+        &mut pano.show,
         if info.cave_mode {
             "Panorama view (operator window)"
         } else {
             "Panorama view"
         },
     );
-    // Choosing "volume" uses the configured parameters.
-    let [ioid, d, offset] = state.panorama_volume;
-    let volume = PanoStereo::Volume { ioid, d, offset };
-    let pano = &mut state.panorama;
-    ui.add_enabled_ui(state.panorama_on, |ui| {
+    ui.add_enabled_ui(pano.show, |ui| {
         combo(
             ui,
             "Projection",
@@ -393,17 +411,27 @@ fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             Projection::name,
         );
         let (max_h, max_v) = pano.projection.max_fov();
-        let mut h = pano.h_fov.to_degrees().min(max_h.to_degrees());
-        let mut v = pano.v_fov.to_degrees().min(max_v.to_degrees());
-        // Ranges that hold every value the config accepts: a slider clamps what it shows.
-        ui.add(Slider::new(&mut h, 1.0..=max_h.to_degrees()).text("horizontal FoV °"));
-        ui.add(Slider::new(&mut v, 1.0..=max_v.to_degrees()).text("vertical FoV °"));
-        pano.h_fov = h.to_radians();
-        pano.v_fov = v.to_radians();
+        let (max_h, max_v) = (max_h.to_degrees(), max_v.to_degrees());
+        // The model's ranges, narrowed to what the projection shows (a slider clamps what it
+        // shows, so a value the config accepts stays as it is until moved).
+        let h = model_range("panorama.h_fov_degrees");
+        let v = model_range("panorama.v_fov_degrees");
+        ui.add(
+            Slider::new(&mut pano.h_fov_degrees, *h.start()..=max_h.min(*h.end()))
+                .text("horizontal FoV °"),
+        );
+        ui.add(
+            Slider::new(&mut pano.v_fov_degrees, *v.start()..=max_v.min(*v.end()))
+                .text("vertical FoV °"),
+        );
         // The same direction, shown within ±180°.
-        let mut yaw = crate::pano::wrap_degrees(pano.yaw.to_degrees());
-        ui.add(Slider::new(&mut yaw, -180.0..=180.0).text("turn °"));
-        pano.yaw = yaw.to_radians();
+        let mut yaw = crate::pano::wrap_degrees(pano.yaw_degrees);
+        if ui
+            .add(Slider::new(&mut yaw, -180.0..=180.0).text("turn °"))
+            .changed()
+        {
+            pano.yaw_degrees = yaw;
+        }
         let geometric = pano.projection.geometric() && info.tessellation_supported;
         ui.horizontal(|ui| {
             ui.label("Route");
@@ -415,23 +443,16 @@ fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         if !geometric && pano.route == PanoRoute::Geometric {
             ui.label("this projection is drawn by the image route");
         }
-        ui.add_enabled_ui(pano.effective_route() == PanoRoute::Geometric, |ui| {
-            let stereos = [PanoStereo::Mono, volume, PanoStereo::Omni];
-            let mut chosen = stereos
-                .iter()
-                .position(|s| s.name() == pano.stereo.name())
-                .unwrap_or(0);
-            ComboBox::from_label("Panorama stereo")
-                .selected_text(stereos[chosen].name())
-                .show_ui(ui, |ui| {
-                    for (i, s) in stereos.iter().enumerate() {
-                        ui.selectable_value(&mut chosen, i, s.name());
-                    }
-                });
-            // Keep the volume stereo's own parameters when it stays selected.
-            if stereos[chosen].name() != pano.stereo.name() {
-                pano.stereo = stereos[chosen];
-            }
+        let drawn_geometric = pano.projection.geometric() && pano.route == PanoRoute::Geometric;
+        ui.add_enabled_ui(drawn_geometric, |ui| {
+            // Volume stereo uses the configured parameters.
+            combo(
+                ui,
+                "Panorama stereo",
+                &mut pano.stereo,
+                &PanoStereoKind::ALL,
+                PanoStereoKind::name,
+            );
         });
     });
 }

@@ -5,15 +5,15 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
 
-use crate::cave::omni::{OmniSettings, PoleMerge, WarpVariant};
+use crate::cave::omni::{OmniSettings, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode};
 use crate::config::{Config, ConfigFile};
 use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
-use crate::pano::{PanoSettings, PanoStereo};
 use crate::render::{FrameParams, RenderSettings};
-use crate::sky::{SkyMode, SkySettings};
-use crate::tess::{Criterion, MAX_DEPTH_LIMIT, TessSettings};
+use crate::setup;
+use crate::sky::SkyMode;
+use crate::tess::{Criterion, MAX_DEPTH_LIMIT};
 use crate::tracking::{HeadPose, OneEuroParams};
 
 /// The kind of tessellation criterion the panel offers; its parameter is kept separately so
@@ -36,6 +36,11 @@ impl CriterionKind {
             Self::Sphere => "sphere diameter (px)",
             Self::Error => "warp error (px)",
         }
+    }
+
+    /// Position in [`Self::ALL`].
+    fn index(self) -> usize {
+        Self::ALL.iter().position(|k| *k == self).unwrap_or(3)
     }
 
     fn of(c: Criterion) -> (Self, f32) {
@@ -108,59 +113,31 @@ pub enum Action {
     Quit,
 }
 
-/// The live settings of the application.
+/// The application's state: the live settings (the config file's model, edited by the panel,
+/// keys, buttons and trackers, and saved as it is) and what only a running application has
+/// (navigation, the moved walls, the tracked orientation, requests).
 #[derive(Debug, Clone)]
 pub struct AppState {
-    /// The config the run started from (saving writes changes over its text).
+    /// The config the run started from (derived set-up: windows, tracking, the base walls).
     pub config: Config,
-    pub mode: RenderMode,
-    pub eye_separation: f32,
-    pub head_position: Vec3,
-    /// Head yaw in degrees (tracked-stereo).
-    pub head_yaw_degrees: f32,
-    pub warp: WarpVariant,
-    pub pole_merge_on: bool,
-    pub pole_merge: PoleMerge,
-    pub tess_on: bool,
+    /// The live settings. Everything here is saved by "Save settings" and loads back as is.
+    pub settings: ConfigFile,
+    /// The panel's criterion kind and the parameter it keeps for each kind (indexed as
+    /// `CriterionKind::ALL`), so switching kinds, or tessellation off and on, keeps them.
     pub tess_kind: CriterionKind,
-    /// Parameter of each criterion kind, indexed as `CriterionKind::ALL`.
-    pub tess_values: [f32; 4],
-    pub tess_max_depth: u32,
-    pub tess_backface_cull: bool,
-    pub tess_frustum_cull: bool,
-    pub sky_mode: SkyMode,
-    pub wireframe: bool,
-    pub msaa: u32,
-    /// Width (x), height (y) and depth (z) of the walls' bounding box, metres.
-    pub cave_size: Vec3,
+    tess_values: [f32; 4],
     pub navigation: Navigation,
-    /// Output format of each wall's window (CAVE mode).
-    pub wall_outputs: Vec<StereoFormat>,
-    pub preview_output: StereoFormat,
+    /// The tracked head orientation (used by tracked-stereo while tracking is on).
+    pub tracked_orientation: Option<Quat>,
     pub swap_eyes: bool,
     pub show_help: bool,
     pub show_panel: bool,
-    /// Navigation speed, metres per second (keys and gamepad).
-    pub navigation_speed: f32,
-    /// Whether OSC head tracking moves the head.
-    pub tracking_on: bool,
-    /// Whether the One Euro filter smooths the tracked head, and its parameters.
-    pub tracking_filter_on: bool,
-    pub tracking_filter: OneEuroParams,
-    /// The tracked head orientation (used by tracked-stereo while tracking is on).
-    pub tracked_orientation: Option<Quat>,
-    /// What the gamepad's sticks drive.
-    pub gamepad_mode: GamepadMode,
-    /// The panorama view: shown or not, and its settings.
-    pub panorama_on: bool,
-    pub panorama: PanoSettings,
-    /// The volume stereo's parameters as configured (the panel's choice of "volume" uses
-    /// them).
-    pub panorama_volume: [f32; 3],
     pub quit_requested: bool,
     pub save_requested: bool,
     /// Where "save" writes.
     pub save_path: PathBuf,
+    /// Width (x), height (y) and depth (z) of the walls' bounding box, metres.
+    pub cave_size: Vec3,
     /// The walls as configured, and the reference point sizes are scaled about.
     base_cave: Cave,
     base_size: Vec3,
@@ -180,50 +157,27 @@ impl AppState {
         let base_size = max - min;
         let scale_origin = Vec3::new((min.x + max.x) / 2.0, min.y, (min.z + max.z) / 2.0);
         let (tess_kind, value) = config
-            .tess
+            .settings
+            .tessellation
             .criterion
             .map_or((CriterionKind::Error, 0.5), CriterionKind::of);
         let mut tess_values = [3.0, 8.0, 8.0, 0.5];
         if let Some(i) = CriterionKind::ALL.iter().position(|k| *k == tess_kind) {
             tess_values[i] = value;
         }
-        let save_path = default_save_path(&config.source);
         Self {
-            mode: config.mode,
-            eye_separation: config.eye_separation,
-            head_position: config.head.position,
-            head_yaw_degrees: yaw_degrees(config.head.orientation),
-            warp: config.omni.warp,
-            pole_merge_on: config.omni.pole_merge.is_some(),
-            pole_merge: config.omni.pole_merge.unwrap_or_default(),
-            tess_on: config.tess.criterion.is_some(),
+            settings: config.settings.clone(),
             tess_kind,
             tess_values,
-            tess_max_depth: config.tess.max_depth,
-            tess_backface_cull: config.tess.backface_cull,
-            tess_frustum_cull: config.tess.frustum_cull,
-            sky_mode: config.sky.mode,
-            wireframe: config.wireframe,
-            msaa: config.msaa,
-            cave_size: base_size,
             navigation: Navigation::default(),
-            wall_outputs: config.app.walls.iter().map(|w| w.output).collect(),
-            preview_output: config.app.preview_output,
+            tracked_orientation: None,
             swap_eyes: false,
             show_help: false,
             show_panel: true,
-            navigation_speed: config.app.navigation_speed,
-            tracking_on: config.tracking.enabled,
-            tracking_filter_on: config.tracking.settings.filter.is_some(),
-            tracking_filter: config.tracking.settings.filter.unwrap_or_default(),
-            tracked_orientation: None,
-            gamepad_mode: config.gamepad.mode,
-            panorama_on: config.file.panorama.show,
-            panorama: config.panorama,
-            panorama_volume: config.file.panorama.volume_ioid_d_offset,
             quit_requested: false,
             save_requested: false,
-            save_path,
+            save_path: default_save_path(&config.source),
+            cave_size: base_size,
             base_cave: config.cave.clone(),
             base_size,
             scale_origin,
@@ -254,12 +208,16 @@ impl AppState {
         let o = self.scale_origin;
         let map = |p: Vec3| o + (p - o) * scale;
         let mut cave = self.base_cave.clone();
-        for wall in &mut cave.walls {
+        for (wall, section) in cave.walls.iter_mut().zip(&mut self.settings.walls) {
             wall.lower_left = map(wall.lower_left);
             wall.lower_right = map(wall.lower_right);
             wall.upper_left = map(wall.upper_left);
+            section.lower_left = wall.lower_left.to_array();
+            section.lower_right = wall.lower_right.to_array();
+            section.upper_left = wall.upper_left.to_array();
         }
         cave.projection_centre = map(cave.projection_centre);
+        self.settings.cave.projection_centre = Some(cave.projection_centre.to_array());
         self.cave = cave;
         self.cave_size = Vec3::select(
             self.base_size.cmpgt(Vec3::splat(1e-6)),
@@ -267,7 +225,12 @@ impl AppState {
             self.base_size,
         );
         // The head was valid before; if the moved walls exclude it, it stays where it was.
-        let _ = self.set_head_position(self.head_position);
+        let _ = self.set_head_position(self.head_position());
+    }
+
+    /// Where the head is (CAVE metres).
+    pub fn head_position(&self) -> Vec3 {
+        Vec3::from(self.settings.head.position)
     }
 
     /// Where the head may be: the walls' bounding box less a margin (flat axes, as of a single
@@ -290,11 +253,15 @@ impl AppState {
     /// that is not a box) is refused with the reason, and the head stays.
     pub fn set_head_position(&mut self, p: Vec3) -> Result<(), String> {
         let (lo, hi) = self.head_bounds();
-        let p = if p.is_finite() { p } else { self.head_position };
+        let p = if p.is_finite() {
+            p
+        } else {
+            self.head_position()
+        };
         let p = p.clamp(lo, hi);
         match self.cave.head_problem(p) {
             None => {
-                self.head_position = p;
+                self.settings.head.position = p.to_array();
                 Ok(())
             }
             Some(problem) => Err(problem),
@@ -312,103 +279,86 @@ impl AppState {
 
     /// The tracker's filter parameters as the panel has them (`None`: off).
     pub fn tracking_filter(&self) -> Option<OneEuroParams> {
-        self.tracking_filter_on.then_some(self.tracking_filter)
+        self.settings.tracking_filter()
     }
 
-    /// The head's pose (the panel's yaw turns the configured orientation, keeping its pitch
-    /// and roll).
+    /// The head's pose: the tracked orientation while tracking drives it, else the settings'
+    /// yaw, pitch and roll.
     pub fn head(&self) -> Head {
-        if self.tracking_on
+        if self.settings.tracking.enabled
             && let Some(orientation) = self.tracked_orientation
         {
             return Head {
-                position: self.head_position,
+                position: self.head_position(),
                 orientation,
             };
         }
-        let base_yaw = yaw_degrees(self.config.head.orientation);
-        let turn = Quat::from_rotation_y((self.head_yaw_degrees - base_yaw).to_radians());
-        Head {
-            position: self.head_position,
-            orientation: turn * self.config.head.orientation,
-        }
+        self.settings.head()
     }
 
     /// The active tessellation criterion, if tessellation is on.
     pub fn criterion(&self) -> Option<Criterion> {
-        if !self.tess_on {
-            return None;
-        }
-        let index = CriterionKind::ALL
-            .iter()
-            .position(|k| *k == self.tess_kind)
-            .unwrap_or(3);
+        self.settings.tessellation.criterion
+    }
+
+    /// Whether adaptive tessellation is on.
+    pub fn tess_on(&self) -> bool {
+        self.settings.tessellation.criterion.is_some()
+    }
+
+    /// Switches tessellation on (with the panel's kind and parameter) or off.
+    pub fn set_tess_on(&mut self, on: bool) {
+        self.settings.tessellation.criterion = on.then(|| self.chosen_criterion());
+    }
+
+    /// The criterion of the panel's kind and parameter.
+    fn chosen_criterion(&self) -> Criterion {
         let range = self.tess_kind.range();
-        let v = self.tess_values[index].clamp(*range.start(), *range.end());
-        Some(match self.tess_kind {
+        let v = self.tess_values[self.tess_kind.index()].clamp(*range.start(), *range.end());
+        match self.tess_kind {
             CriterionKind::Uniform => Criterion::Uniform(v.round() as u32),
             CriterionKind::Edge => Criterion::Edge(v),
             CriterionKind::Sphere => Criterion::Sphere(v),
             CriterionKind::Error => Criterion::Error(v),
-        })
-    }
-
-    /// The parameter of the current criterion kind (for the panel's slider).
-    pub fn tess_value_mut(&mut self) -> &mut f32 {
-        let index = CriterionKind::ALL
-            .iter()
-            .position(|k| *k == self.tess_kind)
-            .unwrap_or(3);
-        &mut self.tess_values[index]
-    }
-
-    pub fn omni(&self) -> OmniSettings {
-        let mut merge = self.pole_merge;
-        merge.start_degrees = merge.start_degrees.clamp(0.0, 90.0);
-        merge.end_degrees = merge.end_degrees.clamp(merge.start_degrees, 90.0);
-        OmniSettings {
-            warp: self.warp,
-            pole_merge: self.pole_merge_on.then_some(merge),
         }
     }
 
-    /// Where the CAVE stands in the scene: the config's placement moved by navigation.
+    /// The parameter of the current criterion kind (for the panel's slider; apply it with
+    /// [`Self::set_tess_on`]).
+    pub fn tess_value_mut(&mut self) -> &mut f32 {
+        &mut self.tess_values[self.tess_kind.index()]
+    }
+
+    pub fn omni(&self) -> OmniSettings {
+        self.settings.omni()
+    }
+
+    /// The output format of wall `index`'s window.
+    pub fn wall_output(&self, index: usize) -> Option<StereoFormat> {
+        let wall = self.settings.walls.get(index)?;
+        Some(wall.output.unwrap_or(self.settings.app.wall_output))
+    }
+
+    /// Where the CAVE stands in the scene: the configured placement moved by navigation.
     pub fn world_from_cave(&self) -> Mat4 {
         Mat4::from_translation(self.navigation.position)
             * Mat4::from_rotation_y(self.navigation.yaw)
-            * self.config.world_from_cave
+            * self.settings.world_from_cave()
     }
 
     /// The renderer's parameters for this frame.
     pub fn frame_params(&self) -> FrameParams<'_> {
-        FrameParams {
-            cave: &self.cave,
-            head: self.head(),
-            mode: self.mode,
-            eye_separation: self.eye_separation,
-            world_from_cave: self.world_from_cave(),
-            lighting: self.config.lighting,
-            background: self.config.background,
-            omni: self.omni(),
-            tess: TessSettings {
-                criterion: self.criterion(),
-                max_depth: self.tess_max_depth.min(MAX_DEPTH_LIMIT),
-                backface_cull: self.tess_backface_cull,
-                frustum_cull: self.tess_frustum_cull,
-            },
-            sky: SkySettings {
-                mode: self.sky_mode,
-                ..self.config.sky
-            },
-        }
+        setup::frame_params_from(
+            &self.settings,
+            &self.cave,
+            self.head(),
+            self.world_from_cave(),
+        )
     }
 
     /// Settings that change pipelines or targets.
     pub fn render_settings(&self) -> RenderSettings {
-        RenderSettings {
-            msaa: self.msaa,
-            wireframe: self.wireframe,
-        }
+        setup::render_settings(&self.settings)
     }
 
     /// Moves through the scene for `dt` seconds of `input` at the configured speed.
@@ -416,7 +366,7 @@ impl AppState {
         if !(dt.is_finite() && dt > 0.0) {
             return;
         }
-        let speed = self.navigation_speed;
+        let speed = self.settings.app.navigation_speed;
         let nav = &mut self.navigation;
         nav.yaw += input.turn.clamp(-1.0, 1.0) * TURN_RATE * dt;
         let rotation = Quat::from_rotation_y(nav.yaw);
@@ -438,63 +388,54 @@ impl AppState {
 
     /// Applies a key or gamepad action.
     pub fn apply(&mut self, action: Action) {
+        fn next<T: Copy + PartialEq>(all: &[T], value: T, step: i32) -> T {
+            let n = all.len() as i32;
+            let i = all.iter().position(|v| *v == value).unwrap_or(0) as i32;
+            all[(i + step).rem_euclid(n.max(1)) as usize]
+        }
+        let s = &mut self.settings;
         match action {
-            Action::SetMode(mode) => self.mode = mode,
-            Action::ToggleTessellation => self.tess_on = !self.tess_on,
-            Action::CycleSky => {
-                let i = SkyMode::ALL.iter().position(|m| *m == self.sky_mode);
-                self.sky_mode = SkyMode::ALL[i.map_or(0, |i| (i + 1) % SkyMode::ALL.len())];
+            Action::SetMode(mode) => s.render.mode = mode,
+            Action::ToggleTessellation => {
+                let on = !self.tess_on();
+                self.set_tess_on(on);
             }
-            Action::ToggleWireframe => self.wireframe = !self.wireframe,
-            Action::TogglePoleMerge => self.pole_merge_on = !self.pole_merge_on,
-            Action::CycleWarp => {
-                let i = WarpVariant::ALL.iter().position(|w| *w == self.warp);
-                self.warp = WarpVariant::ALL[i.map_or(0, |i| (i + 1) % WarpVariant::ALL.len())];
-            }
+            Action::CycleSky => s.skybox.mode = next(&SkyMode::ALL, s.skybox.mode, 1),
+            Action::ToggleWireframe => s.render.wireframe = !s.render.wireframe,
+            Action::TogglePoleMerge => s.omnistereo.pole_merge = !s.omnistereo.pole_merge,
+            Action::CycleWarp => s.omnistereo.warp = next(&WarpVariant::ALL, s.omnistereo.warp, 1),
             Action::CycleOutput => {
-                let next = |f: StereoFormat| {
-                    let i = StereoFormat::ALL.iter().position(|g| *g == f);
-                    StereoFormat::ALL[i.map_or(0, |i| (i + 1) % StereoFormat::ALL.len())]
-                };
-                self.preview_output = next(self.preview_output);
-                for f in &mut self.wall_outputs {
-                    *f = next(*f);
+                s.app.preview_output = next(&StereoFormat::ALL, s.app.preview_output, 1);
+                let default = s.app.wall_output;
+                for wall in &mut s.walls {
+                    wall.output = Some(next(&StereoFormat::ALL, wall.output.unwrap_or(default), 1));
                 }
             }
             Action::SwapEyes => self.swap_eyes = !self.swap_eyes,
-            Action::StepMode(step) => {
-                let n = RenderMode::ALL.len() as i32;
-                let i = RenderMode::ALL
-                    .iter()
-                    .position(|m| *m == self.mode)
-                    .unwrap_or(0) as i32;
-                self.mode = RenderMode::ALL[(i + step).rem_euclid(n) as usize];
-            }
+            Action::StepMode(step) => s.render.mode = next(&RenderMode::ALL, s.render.mode, step),
             Action::ScaleNavigationSpeed(factor) => {
                 if factor.is_finite() && factor > 0.0 {
-                    self.navigation_speed = (self.navigation_speed * factor)
+                    s.app.navigation_speed = (s.app.navigation_speed * factor)
                         .clamp(MIN_NAVIGATION_SPEED, MAX_NAVIGATION_SPEED);
                 }
             }
             Action::ToggleGamepadMode => {
-                self.gamepad_mode = match self.gamepad_mode {
-                    GamepadMode::Navigate => GamepadMode::Head,
-                    GamepadMode::Head => GamepadMode::Navigate,
-                }
+                s.gamepad.mode = next(&GamepadMode::ALL, s.gamepad.mode, 1)
             }
-            Action::ToggleTracking => self.tracking_on = !self.tracking_on,
+            Action::ToggleTracking => s.tracking.enabled = !s.tracking.enabled,
             Action::EyeSeparation(delta) => {
-                self.eye_separation = (self.eye_separation + delta).clamp(0.0, MAX_EYE_SEPARATION)
+                s.cave.eye_separation =
+                    (s.cave.eye_separation + delta).clamp(0.0, MAX_EYE_SEPARATION)
             }
             Action::MoveHead(delta) => {
                 // A step behind a wall is not taken.
-                let _ = self.set_head_position(self.head_position + delta);
+                let _ = self.set_head_position(self.head_position() + delta);
             }
             Action::ResetView => {
                 self.navigation = Navigation::default();
-                self.navigation_speed = self.config.app.navigation_speed;
+                s.app.navigation_speed = self.config.settings.app.navigation_speed;
                 // The configured head was validated at load.
-                let _ = self.set_head_position(self.config.head.position);
+                let _ = self.set_head_position(Vec3::from(self.config.settings.head.position));
             }
             Action::ToggleHelp => self.show_help = !self.show_help,
             Action::TogglePanel => self.show_panel = !self.show_panel,
@@ -503,58 +444,10 @@ impl AppState {
         }
     }
 
-    /// The config file with the current settings written over the loaded one.
+    /// The config file of the current settings, to be written at `target` (relative asset
+    /// paths are rewritten when `target` is in another folder than the loaded config).
     pub fn to_config_file(&self, target: &Path) -> ConfigFile {
-        let mut file = self.config.file.clone();
-        file.cave.eye_separation = self.eye_separation;
-        file.cave.projection_centre = Some(self.cave.projection_centre.to_array());
-        file.head.position = self.head_position.to_array();
-        file.head.yaw_degrees = self.head_yaw_degrees;
-        file.render.mode = self.mode;
-        file.render.msaa = self.msaa;
-        file.render.wireframe = self.wireframe;
-        file.omnistereo.warp = self.warp;
-        file.omnistereo.pole_merge = self.pole_merge_on;
-        let omni = self.omni();
-        let merge = omni.pole_merge.unwrap_or(self.pole_merge);
-        file.omnistereo.pole_merge_start_degrees = merge.start_degrees;
-        file.omnistereo.pole_merge_end_degrees = merge.end_degrees;
-        file.tessellation.criterion = self.criterion();
-        file.tessellation.max_depth = self.tess_max_depth;
-        file.tessellation.backface_cull = self.tess_backface_cull;
-        file.tessellation.frustum_cull = self.tess_frustum_cull;
-        file.skybox.mode = self.sky_mode;
-        file.app.preview_output = self.preview_output;
-        file.app.navigation_speed = self.navigation_speed;
-        file.tracking.enabled = self.tracking_on;
-        file.tracking.filter.enabled = self.tracking_filter_on;
-        file.tracking.filter.min_cutoff_hz = self.tracking_filter.min_cutoff_hz;
-        file.tracking.filter.beta = self.tracking_filter.beta;
-        file.tracking.filter.derivative_cutoff_hz = self.tracking_filter.derivative_cutoff_hz;
-        file.gamepad.mode = self.gamepad_mode;
-        let pano = &self.panorama;
-        file.panorama.show = self.panorama_on;
-        file.panorama.projection = pano.projection;
-        file.panorama.h_fov_degrees = pano.h_fov.to_degrees();
-        file.panorama.v_fov_degrees = pano.v_fov.to_degrees();
-        file.panorama.route = pano.route;
-        file.panorama.stereo = pano.stereo.kind();
-        if let PanoStereo::Volume { ioid, d, offset } = pano.stereo {
-            file.panorama.volume_ioid_d_offset = [ioid, d, offset];
-        }
-        file.panorama.yaw_degrees = pano.yaw.to_degrees();
-        for ((section, wall), output) in file
-            .walls
-            .iter_mut()
-            .zip(&self.cave.walls)
-            .zip(&self.wall_outputs)
-        {
-            section.lower_left = wall.lower_left.to_array();
-            section.lower_right = wall.lower_right.to_array();
-            section.upper_left = wall.upper_left.to_array();
-            section.output = Some(*output);
-        }
-        // Relative paths were relative to the loaded file; keep them valid from the new one.
+        let mut file = self.settings.clone();
         let source_dir = self.config.source.parent().unwrap_or(Path::new("."));
         let target_dir = target.parent().unwrap_or(Path::new("."));
         if !same_dir(source_dir, target_dir) {
@@ -636,10 +529,4 @@ fn default_save_path(source: &Path) -> PathBuf {
         .file_stem()
         .map_or_else(|| "omnicave".into(), |s| s.to_string_lossy().into_owned());
     source.with_file_name(format!("{stem}.saved.toml"))
-}
-
-fn yaw_degrees(q: Quat) -> f32 {
-    let forward = q * Vec3::NEG_Z;
-    // + 0.0 turns −0 into 0 for display.
-    (-forward.x).atan2(-forward.z).to_degrees() + 0.0
 }

@@ -190,9 +190,9 @@ impl OutputWindow {
         }
         // A plain-format surface stores sRGB values as they are; an sRGB one wants linear.
         let background = if format.is_srgb() {
-            crate::render::srgb_to_linear_color(config.background)
+            crate::render::srgb_to_linear_color(config.settings.render.background)
         } else {
-            let [r, g, b] = config.background.map(f64::from);
+            let [r, g, b] = config.settings.render.background.map(f64::from);
             wgpu::Color { r, g, b, a: 1.0 }
         };
         tracing::info!(
@@ -305,7 +305,8 @@ impl OutputWindow {
         }
         let walls = &state.cave().walls;
         self.ensure_bindings(gpu, renderer, present, walls.len());
-        let show_pano = state.panorama_on && matches!(self.role, Role::Preview | Role::Operator);
+        let show_pano =
+            state.settings.panorama.show && matches!(self.role, Role::Preview | Role::Operator);
         if show_pano {
             self.ensure_pano_binding(gpu, renderer, present);
         }
@@ -365,7 +366,7 @@ impl OutputWindow {
         match self.role {
             Role::Wall(i) => {
                 if let (Some(binding), Some(&format)) =
-                    (self.bindings.first(), state.wall_outputs.get(i))
+                    (self.bindings.first(), state.wall_output(i).as_ref())
                 {
                     tiles.push(Tile {
                         binding,
@@ -385,8 +386,8 @@ impl OutputWindow {
                     let below = [x, y + 0.5 * ah, aw, 0.5 * ah];
                     tiles.push(Tile {
                         binding,
-                        params: params(state.preview_output),
-                        rect: clamp_rect(fit(below, state.panorama.size), [w, h]),
+                        params: params(state.settings.app.preview_output),
+                        rect: clamp_rect(fit(below, state.settings.panorama.size), [w, h]),
                     });
                     area = [x, y, aw, 0.5 * ah];
                 }
@@ -394,7 +395,7 @@ impl OutputWindow {
                 for (binding, rect) in self.bindings.iter().zip(unfolded_layout(&sizes, area)) {
                     tiles.push(Tile {
                         binding,
-                        params: params(state.preview_output),
+                        params: params(state.settings.app.preview_output),
                         rect: clamp_rect(rect, [w, h]),
                     });
                 }
@@ -407,8 +408,8 @@ impl OutputWindow {
                         .unwrap_or([0.0, 0.0, w as f32, h as f32]);
                     tiles.push(Tile {
                         binding,
-                        params: params(state.preview_output),
-                        rect: clamp_rect(fit(area, state.panorama.size), [w, h]),
+                        params: params(state.settings.app.preview_output),
+                        rect: clamp_rect(fit(area, state.settings.panorama.size), [w, h]),
                     });
                 }
             }
@@ -567,7 +568,7 @@ impl EguiHost {
                     }
                     central = Some(ui.available_rect_before_wrap());
                 }
-                Role::Operator if state.panorama_on => {
+                Role::Operator if state.settings.panorama.show => {
                     // The panel docked, the operator's overview of the panorama beside it.
                     egui::Panel::left("controls")
                         .default_size(340.0)

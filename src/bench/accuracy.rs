@@ -47,8 +47,8 @@ pub fn accuracy(
 ) -> Accuracy {
     let cave = &config.cave;
     let head = Head::at(head);
-    let ipd = config.eye_separation;
-    let omni = config.omni;
+    let ipd = config.settings.cave.eye_separation;
+    let omni = config.settings.omni();
     let ideal_views = view_setups(cave, &head, RenderMode::OmniOffAxis, ipd);
     let flags = double_sided_flags(scene);
     let settings = if method.mode.is_omni() {

@@ -17,9 +17,9 @@ use accuracy::Accuracy;
 
 use crate::cave::{Head, RenderMode};
 use crate::config::{Config, ConfigError};
-use crate::headless::frame_params;
 use crate::render::{Gpu, RenderError, RenderSettings, Renderer, WallImages};
 use crate::scene::{Scene, SceneError, load_gltf};
+use crate::setup::frame_params;
 use crate::sky::{CubeMap, SkyError, SkyMode, load_sky};
 use crate::tess::{Criterion, TessSettings};
 
@@ -222,7 +222,7 @@ pub struct BenchReport {
 /// bounding box (front = −z), and skipped with a warning where that is behind a wall.
 pub fn heads(config: &Config, quick: bool) -> Vec<(String, Vec3)> {
     let (min, max) = crate::cave::Cave::bounding_box(&config.cave.walls);
-    let h = config.head.position;
+    let h = config.settings.head().position;
     let size = max - min;
     let candidates = [
         ("centred", h),
@@ -257,15 +257,15 @@ pub fn heads(config: &Config, quick: bool) -> Vec<(String, Vec3)> {
 /// about the config's head by 90° to the left and by 180° (the scene seen in other
 /// directions, as a user navigating would). `--quick`: `start` and `turned 180°`.
 pub fn viewpoints(config: &Config, quick: bool) -> Vec<(String, Mat4)> {
-    let h = config.head.position;
+    let h = config.settings.head().position;
     let turned = |degrees: f32| {
-        config.world_from_cave
+        config.settings.world_from_cave()
             * Mat4::from_translation(h)
             * Mat4::from_rotation_y(degrees.to_radians())
             * Mat4::from_translation(-h)
     };
     let all = [
-        ("start", config.world_from_cave),
+        ("start", config.settings.world_from_cave()),
         ("turned 90° left", turned(90.0)),
         ("turned 180°", turned(180.0)),
     ];
@@ -482,7 +482,7 @@ fn measure(
         gpu,
         &config.cave,
         RenderSettings {
-            msaa: config.msaa,
+            msaa: config.settings.render.msaa,
             wireframe: false,
         },
     )?;
@@ -713,7 +713,7 @@ fn write_outputs(
         machine(),
         options.config.display(),
         walls.join(", "),
-        config.msaa,
+        config.settings.render.msaa,
         options.config.display(),
         options
             .size
@@ -789,7 +789,7 @@ fn write_outputs(
                 "walls {} · MSAA ×{} · median frame time and worst p99 error over {} \
                  viewpoint/head case(s)",
                 walls.join(", "),
-                config.msaa,
+                config.settings.render.msaa,
                 first.cases
             ),
         );
@@ -840,7 +840,7 @@ pub fn run_stability(
         tracing::info!("stability sweep: {name}");
         results.push((
             name,
-            stability::sweep(&config.cave, config.eye_separation, settings),
+            stability::sweep(&config.cave, config.settings.cave.eye_separation, settings),
         ));
     }
     let rendered = run_rendered_sweep(options, &config, progress)?;
@@ -889,7 +889,7 @@ pub fn run_stability(
          --config {}`\n\n",
         config_path.display(),
         config.cave.walls.len(),
-        config.eye_separation,
+        config.settings.cave.eye_separation,
         config_path.display()
     );
     md.push_str(&stability::markdown(&results));
@@ -1009,7 +1009,7 @@ fn run_rendered_sweep(
             r.motion = r.motion.merge(stability::motion(
                 &config.cave,
                 &scene,
-                config.eye_separation,
+                config.settings.cave.eye_separation,
                 method,
                 head,
                 step,

@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 
 use super::{BenchError, percentile};
 use crate::config::Config;
-use crate::headless::frame_params;
 use crate::output;
 use crate::pano::raycast::{Comparison, compare, flat_reference};
 use crate::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
 use crate::render::{Gpu, RenderSettings, Renderer};
 use crate::scene::Scene;
+use crate::setup::frame_params;
 use crate::tess::{Criterion, TessSettings};
 
 /// The ray caster's colour at each pixel (`None`: nothing hit).
@@ -123,7 +123,7 @@ pub fn run_panorama(
     let methods = pano_methods(quick);
     let mut rows = Vec::new();
     let mut files = Vec::new();
-    let head = config.head.position;
+    let head = config.settings.head().position;
     for (scene_name, scene) in scenes {
         // The reference: the ray caster on the scene in flat colours, once per projection
         // (mono, full sphere, from the head).
@@ -132,7 +132,7 @@ pub fn run_panorama(
             let pano = settings(method, size);
             let tess = TessSettings {
                 criterion: method.criterion,
-                ..config.tess
+                ..config.settings.tess()
             };
             let mut renderer = Renderer::new(
                 gpu,
@@ -188,7 +188,7 @@ pub fn run_panorama(
             if !references.iter().any(|(p, _, _)| *p == method.projection) {
                 let (flat, reference) = flat_reference(
                     scene,
-                    config.world_from_cave.inverse(),
+                    config.settings.world_from_cave().inverse(),
                     &pano,
                     head,
                     config.cave.near,
@@ -206,6 +206,8 @@ pub fn run_panorama(
             let [image, _] = renderer.read_panorama()?;
             let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();
             let bg = config
+                .settings
+                .render
                 .background
                 .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
             let comparison = compare(&pixels, reference, size[0] as usize, bg);

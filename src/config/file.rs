@@ -23,6 +23,9 @@ use crate::tracking::{
     DEFAULT_OSC_PORT, OneEuroParams, OscMapping, QuaternionOrder, TrackingSettings,
 };
 
+/// Largest accepted wall image side; beyond any projector and wgpu's default texture limit.
+pub const MAX_WALL_PIXELS: u32 = 8192;
+
 /// The whole configuration file, as written.
 #[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
@@ -49,8 +52,10 @@ pub struct ConfigFile {
 #[serde(default, deny_unknown_fields)]
 pub struct CaveSection {
     /// Interpupillary distance in metres (0 to 0.5).
+    #[schemars(range(min = 0.0, max = 0.5))]
     pub eye_separation: f32,
     /// Near clipping distance, metres.
+    #[schemars(range(min = 1e-4, max = 10.0))]
     pub near: f32,
     /// Far clipping distance, metres (at least ten times `near`).
     pub far: f32,
@@ -81,8 +86,10 @@ pub struct OmnistereoSection {
     /// Fade the eye separation to zero near the vertical axis through the head.
     pub pole_merge: bool,
     /// Elevation where the fade starts, degrees (0 to 90).
+    #[schemars(range(min = 0.0, max = 90.0))]
     pub pole_merge_start_degrees: f32,
     /// Elevation where the eye separation reaches zero, degrees (start to 90).
+    #[schemars(range(min = 0.0, max = 90.0))]
     pub pole_merge_end_degrees: f32,
 }
 
@@ -107,6 +114,7 @@ pub struct TessellationSection {
     #[schemars(with = "String")]
     pub criterion: Option<Criterion>,
     /// Deepest subdivision (0 to 16 levels; 2^depth segments per edge at most).
+    #[schemars(range(min = 0, max = crate::tess::MAX_DEPTH_LIMIT))]
     pub max_depth: u32,
     /// Cull back faces before splitting.
     pub backface_cull: bool,
@@ -155,8 +163,10 @@ pub struct SkyboxSection {
     /// How the sky is drawn: `auto` follows the render mode.
     pub mode: SkyMode,
     /// Omni-quad mesh density: one slice per this many pixels (1 to 4096).
+    #[schemars(range(min = 1.0, max = 4096.0))]
     pub pixels_per_slice: f32,
     /// Multiplier on the sky's linear colour.
+    #[schemars(range(min = 0.0, max = 1e4))]
     pub exposure: f32,
 }
 
@@ -194,6 +204,7 @@ pub struct TrackingSection {
     /// The rigid body id that is the head, in the NatNet form.
     pub natnet_rigid_body: i64,
     /// No packet for this long: "tracking lost", the head holds its last pose.
+    #[schemars(range(min = 0.01, max = 60.0))]
     pub timeout_seconds: f32,
     pub calibration: CalibrationSection,
     pub filter: FilterSection,
@@ -227,8 +238,10 @@ pub struct CalibrationSection {
     /// tracker, ["x", "y", "-z"] for a left-handed y-up one.
     pub axes: [String; 3],
     /// Tracker units to metres (0.001 for millimetres).
+    #[schemars(range(min = 1e-6, max = 1e6))]
     pub scale: f32,
     /// Yaw, pitch, roll in degrees, applied after the axis remap.
+    #[schemars(inner(range(min = -360.0, max = 360.0)))]
     pub rotation_degrees: [f32; 3],
     /// Where the tracker's origin is in CAVE space, metres.
     pub offset: [f32; 3],
@@ -251,10 +264,13 @@ impl Default for CalibrationSection {
 pub struct FilterSection {
     pub enabled: bool,
     /// Cutoff at rest, Hz: lower is smoother and lags more.
+    #[schemars(range(min = 1e-3, max = 1e3))]
     pub min_cutoff_hz: f32,
     /// How fast the cutoff rises with speed: higher lags less when moving.
+    #[schemars(range(min = 0.0, max = 1e3))]
     pub beta: f32,
     /// Cutoff of the speed estimate, Hz.
+    #[schemars(range(min = 1e-3, max = 1e3))]
     pub derivative_cutoff_hz: f32,
 }
 
@@ -278,10 +294,13 @@ pub struct GamepadSection {
     /// `navigate` (move through the scene) or `head` (move the head in the CAVE).
     pub mode: GamepadMode,
     /// Radial stick dead zone, 0..1.
+    #[schemars(range(min = 0.0, max = 0.9))]
     pub dead_zone: f32,
     /// Trigger dead zone, 0..1.
+    #[schemars(range(min = 0.0, max = 0.9))]
     pub trigger_dead_zone: f32,
     /// Head speed at full stick (head mode), metres per second.
+    #[schemars(range(min = 0.0, max = 10.0))]
     pub head_speed: f32,
     /// Button (Xbox label) → action, over the default map; "none" unbinds a button.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
@@ -308,8 +327,11 @@ impl Default for GamepadSection {
 pub struct HeadSection {
     /// CAVE metres.
     pub position: [f32; 3],
+    #[schemars(range(min = -360.0, max = 360.0))]
     pub yaw_degrees: f32,
+    #[schemars(range(min = -360.0, max = 360.0))]
     pub pitch_degrees: f32,
+    #[schemars(range(min = -360.0, max = 360.0))]
     pub roll_degrees: f32,
 }
 
@@ -361,7 +383,9 @@ pub struct SceneSection {
 #[serde(default, deny_unknown_fields)]
 pub struct PlacementSection {
     pub translation: [f32; 3],
+    #[schemars(range(min = -360.0, max = 360.0))]
     pub yaw_degrees: f32,
+    #[schemars(range(min = 1e-3, max = 1e3))]
     pub scale: f32,
 }
 
@@ -401,6 +425,7 @@ pub struct DirectionalLightSection {
     /// Direction the light travels, in scene (world) space.
     pub direction: [f32; 3],
     pub color: [f32; 3],
+    #[schemars(range(min = 0.0, max = 100.0))]
     pub intensity: f32,
 }
 
@@ -420,8 +445,10 @@ pub struct PointLightSection {
     /// Position in scene (world) space.
     pub position: [f32; 3],
     pub color: [f32; 3],
+    #[schemars(range(min = 0.0, max = 100.0))]
     pub intensity: f32,
     /// Distance (metres) at which the light has faded to zero.
+    #[schemars(range(min = 1e-3, max = 1e6))]
     pub range: f32,
 }
 
@@ -446,6 +473,7 @@ pub struct WallSection {
     pub lower_right: [f32; 3],
     pub upper_left: [f32; 3],
     /// Pixels (width, height).
+    #[schemars(inner(range(min = 1, max = MAX_WALL_PIXELS)))]
     pub resolution: [u32; 2],
     /// The monitor this wall's window goes fullscreen on (CAVE mode): an index into the
     /// system's monitor list or a monitor name. Missing monitor: `window_position`/`size`.
@@ -472,8 +500,10 @@ pub struct PanoramaSection {
     pub show: bool,
     pub projection: Projection,
     /// Horizontal field of view, degrees (up to what the projection shows).
+    #[schemars(range(min = 1.0, max = 360.0))]
     pub h_fov_degrees: f32,
     /// Vertical field of view, degrees (up to what the projection shows).
+    #[schemars(range(min = 1.0, max = 360.0))]
     pub v_fov_degrees: f32,
     /// "geometric" (per-vertex projection with pre-clip; equirectangular and Hammer) or
     /// "image" (cube map and inverse projection; every projection).
@@ -485,10 +515,13 @@ pub struct PanoramaSection {
     /// normalised device units (VR'14's values).
     pub volume_ioid_d_offset: [f32; 3],
     /// Turn from the navigation direction, degrees, positive to the right.
+    #[schemars(range(min = -360.0, max = 360.0))]
     pub yaw_degrees: f32,
     /// Image pixels (width, height).
+    #[schemars(inner(range(min = 1, max = 8192)))]
     pub size: [u32; 2],
     /// Cube face pixels of the image route.
+    #[schemars(range(min = 4, max = 8192))]
     pub cube_size: u32,
 }
 
@@ -544,6 +577,7 @@ pub struct AppSection {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub window_position: Option<[i32; 2]>,
     /// Operator (or preview) window size in pixels.
+    #[schemars(inner(range(min = 1, max = MAX_WALL_PIXELS)))]
     pub window_size: [u32; 2],
     /// Default stereo output format of the wall windows.
     pub wall_output: StereoFormat,
@@ -552,6 +586,7 @@ pub struct AppSection {
     /// Wait for vertical blank (no tearing; caps the frame rate at the display's).
     pub vsync: bool,
     /// Navigation speed in the scene, metres per second (keyboard and gamepad).
+    #[schemars(range(min = 0.0, max = 1000.0))]
     pub navigation_speed: f32,
 }
 

@@ -5,6 +5,8 @@
 //! file, the line, the field and the offending value, so a lab engineer can fix a config
 //! without reading code.
 
+mod bounds;
+mod convert;
 mod file;
 pub mod schema;
 mod spans;
@@ -12,18 +14,12 @@ mod validate;
 
 use std::path::{Path, PathBuf};
 
-use glam::Mat4;
-
-use crate::cave::omni::OmniSettings;
-use crate::cave::{Cave, Head, RenderMode};
+use crate::cave::Cave;
 use crate::gamepad::GamepadSettings;
 use crate::output::formats::StereoFormat;
-use crate::pano::PanoSettings;
-use crate::scene::Lighting;
-use crate::sky::SkySettings;
-use crate::tess::TessSettings;
 use crate::tracking::{ReceiverSettings, TrackingSettings};
 
+pub use bounds::{Bounds, bounds};
 pub use file::*;
 
 /// Everything that can be wrong with a config file.
@@ -93,37 +89,25 @@ pub struct TrackingConfig {
     pub settings: TrackingSettings,
 }
 
-/// A validated configuration, ready to use.
+/// A validated configuration, ready to use: the settings model as loaded, and what is derived
+/// from it once (the walls' geometry, resolved paths, the application's windows, tracking and
+/// gamepad set-up). Every other setting is read from `settings` (see `convert.rs`).
 #[derive(Debug, Clone)]
 pub struct Config {
     /// The file it came from (for messages and relative paths).
     pub source: PathBuf,
     pub cave: Cave,
-    pub head: Head,
-    pub eye_separation: f32,
-    pub mode: RenderMode,
-    pub msaa: u32,
-    pub wireframe: bool,
-    /// Clear colour, sRGB.
-    pub background: [f32; 3],
     /// Scene file, already resolved against the config's folder.
     pub scene_path: Option<PathBuf>,
-    pub world_from_cave: Mat4,
-    pub lighting: Lighting,
-    pub omni: OmniSettings,
-    pub tess: TessSettings,
     /// Sky file, already resolved against the config's folder (`None`: no sky).
     pub sky_path: Option<PathBuf>,
-    pub sky: SkySettings,
     /// Windows, panel and output formats of the interactive application.
     pub app: AppConfig,
     /// OSC head tracking.
     pub tracking: TrackingConfig,
     pub gamepad: GamepadSettings,
-    /// The panorama view.
-    pub panorama: PanoSettings,
-    /// The file as written (to save changed settings back without losing the rest).
-    pub file: ConfigFile,
+    /// The settings model as validated (what "Save settings" starts from).
+    pub settings: ConfigFile,
 }
 
 impl Config {
@@ -155,6 +139,8 @@ impl Config {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cave::RenderMode;
+    use crate::cave::omni::OmniSettings;
 
     const GOOD: &str = r#"
 [[wall]]
@@ -176,14 +162,14 @@ resolution = [1280, 720]
     fn minimal_config_gets_defaults() {
         let cfg = Config::from_toml(GOOD, Path::new("x/test.toml")).expect("valid");
         assert_eq!(cfg.cave.walls.len(), 1);
-        assert_eq!(cfg.mode, RenderMode::Stereo);
-        assert!((cfg.eye_separation - 0.064).abs() < 1e-7);
+        assert_eq!(cfg.settings.render.mode, RenderMode::Stereo);
+        assert!((cfg.settings.cave.eye_separation - 0.064).abs() < 1e-7);
     }
 
     #[test]
     fn omnistereo_defaults_match_the_library_defaults() {
         let cfg = Config::from_toml(GOOD, Path::new("test.toml")).expect("valid");
-        assert_eq!(cfg.omni, OmniSettings::default());
+        assert_eq!(cfg.settings.omni(), OmniSettings::default());
     }
 
     #[test]

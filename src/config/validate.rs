@@ -5,18 +5,14 @@ use std::net::{IpAddr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use glam::{Mat4, Quat, Vec3};
+use glam::Vec3;
 
 use super::file::*;
 use super::spans;
 use super::{AppConfig, Config, ConfigError, PanelPlacement, TrackingConfig, WallWindow};
-use crate::cave::omni::{OmniSettings, PoleMerge};
-use crate::cave::{Cave, Head, Wall, left_of};
+use crate::cave::{Cave, Wall, left_of};
 use crate::gamepad::{GamepadSettings, button_map};
-use crate::pano::{PanoRoute, PanoSettings, PanoStereo};
-use crate::scene::Lighting;
-use crate::sky::SkySettings;
-use crate::tess::{MAX_DEPTH_LIMIT, TessSettings};
+use crate::pano::{PanoRoute, PanoStereo};
 use crate::tracking::{Calibration, OneEuroParams, OscMapping, ReceiverSettings, TrackingSettings};
 
 /// Builds errors that name the file, the field's line (where the text is known) and value.
@@ -27,6 +23,10 @@ struct Checker<'a> {
 
 impl Checker<'_> {
     fn fail(&self, field: &str, value: impl std::fmt::Debug, reason: &str) -> ConfigError {
+        self.fail_text(field, format!("{value:?}"), reason)
+    }
+
+    fn fail_text(&self, field: &str, value: String, reason: &str) -> ConfigError {
         ConfigError::Invalid {
             path: self.path.to_owned(),
             line: self
@@ -35,7 +35,7 @@ impl Checker<'_> {
                 .map(|line| format!(", line {line}"))
                 .unwrap_or_default(),
             field: field.to_owned(),
-            value: format!("{value:?}"),
+            value,
             reason: reason.to_owned(),
         }
     }
@@ -65,9 +65,6 @@ impl Checker<'_> {
     }
 }
 
-/// Largest accepted wall image side; beyond any projector and wgpu's default texture limit.
-const MAX_WALL_PIXELS: u32 = 8192;
-
 impl ConfigFile {
     /// Checks every field and builds the ready-to-use config (errors name no line).
     pub fn validate(&self, path: &Path) -> Result<Config, ConfigError> {
@@ -81,6 +78,8 @@ impl ConfigFile {
         text: Option<&str>,
     ) -> Result<Config, ConfigError> {
         let ck = Checker { path, text };
+        // Every range the model declares, for every setting at once.
+        super::bounds::check(self).map_err(|e| ck.fail_text(&e.path, e.value, &e.reason))?;
 
         if self.walls.is_empty() {
             return Err(ck.fail("wall", "[]", "at least one [[wall]] is required"));
@@ -91,8 +90,7 @@ impl ConfigFile {
         }
 
         let c = &self.cave;
-        let eye_separation = ck.range("cave.eye_separation", c.eye_separation, 0.0, 0.5)?;
-        let near = ck.range("cave.near", c.near, 1e-4, 10.0)?;
+        let near = c.near;
         let far = c.far;
         if !(far.is_finite() && far > near * 10.0 && far <= 1e7) {
             return Err(ck.fail(
@@ -129,40 +127,14 @@ impl ConfigFile {
         }
 
         let o = &self.omnistereo;
-        let start = ck.range(
-            "omnistereo.pole_merge_start_degrees",
-            o.pole_merge_start_degrees,
-            0.0,
-            90.0,
-        )?;
-        let end = ck.range(
+        let start = o.pole_merge_start_degrees;
+        // Cross-field: the fade ends after it starts (each is 0..90 by the model).
+        ck.range(
             "omnistereo.pole_merge_end_degrees",
             o.pole_merge_end_degrees,
             start,
             90.0,
         )?;
-        let omni = OmniSettings {
-            warp: o.warp,
-            pole_merge: o.pole_merge.then_some(PoleMerge {
-                start_degrees: start,
-                end_degrees: end,
-            }),
-        };
-
-        let t = &self.tessellation;
-        if t.max_depth > MAX_DEPTH_LIMIT {
-            return Err(ck.fail(
-                "tessellation.max_depth",
-                t.max_depth,
-                &format!("must be at most {MAX_DEPTH_LIMIT}"),
-            ));
-        }
-        let tess = TessSettings {
-            criterion: t.criterion,
-            max_depth: t.max_depth,
-            backface_cull: t.backface_cull,
-            frustum_cull: t.frustum_cull,
-        };
 
         let h = &self.head;
         let head_pos = ck.finite3("head.position", h.position)?;
@@ -176,34 +148,16 @@ impl ConfigFile {
         if let Some(problem) = cave_for_check.head_problem(head_pos) {
             return Err(ck.fail("head.position", h.position, &problem));
         }
-        for (field, v) in [
-            ("head.yaw_degrees", h.yaw_degrees),
-            ("head.pitch_degrees", h.pitch_degrees),
-            ("head.roll_degrees", h.roll_degrees),
-        ] {
-            ck.range(field, v, -360.0, 360.0)?;
-        }
 
         let r = &self.render;
         if !matches!(r.msaa, 1 | 4) {
             return Err(ck.fail("render.msaa", r.msaa, "must be 1 (off) or 4"));
         }
-        let background = ck.colour("render.background", r.background, 1.0)?;
-
-        let p = &self.scene.world_from_cave;
-        let translation = ck.finite3("scene.world_from_cave.translation", p.translation)?;
-        let yaw = ck.range(
-            "scene.world_from_cave.yaw_degrees",
-            p.yaw_degrees,
-            -360.0,
-            360.0,
+        ck.colour("render.background", r.background, 1.0)?;
+        ck.finite3(
+            "scene.world_from_cave.translation",
+            self.scene.world_from_cave.translation,
         )?;
-        let scale = ck.range("scene.world_from_cave.scale", p.scale, 1e-3, 1e3)?;
-        let world_from_cave = Mat4::from_scale_rotation_translation(
-            Vec3::splat(scale),
-            Quat::from_rotation_y(yaw.to_radians()),
-            translation,
-        );
 
         let l = &self.lighting;
         ck.colour("lighting.ambient", l.ambient, 10.0)?;
@@ -216,16 +170,8 @@ impl ConfigFile {
             ));
         }
         ck.colour("lighting.directional.color", l.directional.color, 10.0)?;
-        ck.range(
-            "lighting.directional.intensity",
-            l.directional.intensity,
-            0.0,
-            100.0,
-        )?;
         ck.finite3("lighting.point.position", l.point.position)?;
         ck.colour("lighting.point.color", l.point.color, 10.0)?;
-        ck.range("lighting.point.intensity", l.point.intensity, 0.0, 100.0)?;
-        ck.range("lighting.point.range", l.point.range, 1e-3, 1e6)?;
 
         let resolve = |p: &PathBuf| {
             if p.is_absolute() {
@@ -236,51 +182,23 @@ impl ConfigFile {
         };
         let scene_path = self.scene.path.as_ref().map(resolve);
 
-        let k = &self.skybox;
-        let sky = SkySettings {
-            mode: k.mode,
-            pixels_per_slice: ck.range(
-                "skybox.pixels_per_slice",
-                k.pixels_per_slice,
-                1.0,
-                4096.0,
-            )?,
-            exposure: ck.range("skybox.exposure", k.exposure, 0.0, 1e4)?,
-        };
-        let sky_path = k
+        let sky_path = self
+            .skybox
             .file
             .as_ref()
             .filter(|p| p.as_os_str() != "none")
             .map(resolve);
 
+        self.panorama.validate(&ck)?;
         Ok(Config {
             source: path.to_owned(),
             cave: cave_for_check,
-            head: Head {
-                position: head_pos,
-                orientation: Head::orientation_from_degrees(
-                    h.yaw_degrees,
-                    h.pitch_degrees,
-                    h.roll_degrees,
-                ),
-            },
-            eye_separation,
-            mode: r.mode,
-            msaa: r.msaa,
-            wireframe: r.wireframe,
-            background: background.to_array(),
             scene_path,
-            world_from_cave,
-            lighting: l.to_lighting(),
-            omni,
-            tess,
             sky_path,
-            sky,
             app: self.validate_app(&ck)?,
             tracking: self.validate_tracking(&ck)?,
             gamepad: self.validate_gamepad(&ck)?,
-            panorama: self.panorama.validate(&ck)?,
-            file: self.clone(),
+            settings: self.clone(),
         })
     }
 
@@ -318,28 +236,20 @@ impl ConfigFile {
                 ));
             }
         }
-        let timeout = ck.range("tracking.timeout_seconds", t.timeout_seconds, 0.01, 60.0)?;
+        let timeout = t.timeout_seconds;
 
         let c = &t.calibration;
         let remap = Calibration::remap_from_axes(&c.axes)
             .map_err(|e| ck.fail("tracking.calibration.axes", &c.axes, &e.to_string()))?;
-        let scale = ck.range("tracking.calibration.scale", c.scale, 1e-6, 1e6)?;
+        let scale = c.scale;
         let [yaw, pitch, roll] = c.rotation_degrees;
-        for v in c.rotation_degrees {
-            ck.range("tracking.calibration.rotation_degrees", v, -360.0, 360.0)?;
-        }
         let offset = ck.finite3("tracking.calibration.offset", c.offset)?;
 
         let f = &t.filter;
         let params = OneEuroParams {
-            min_cutoff_hz: ck.range("tracking.filter.min_cutoff_hz", f.min_cutoff_hz, 1e-3, 1e3)?,
-            beta: ck.range("tracking.filter.beta", f.beta, 0.0, 1e3)?,
-            derivative_cutoff_hz: ck.range(
-                "tracking.filter.derivative_cutoff_hz",
-                f.derivative_cutoff_hz,
-                1e-3,
-                1e3,
-            )?,
+            min_cutoff_hz: f.min_cutoff_hz,
+            beta: f.beta,
+            derivative_cutoff_hz: f.derivative_cutoff_hz,
         };
         Ok(TrackingConfig {
             enabled: t.enabled,
@@ -359,7 +269,7 @@ impl ConfigFile {
                 calibration: Calibration {
                     remap,
                     scale,
-                    rotation: Head::orientation_from_degrees(yaw, pitch, roll),
+                    rotation: crate::cave::Head::orientation_from_degrees(yaw, pitch, roll),
                     offset,
                 },
                 filter: f.enabled.then_some(params),
@@ -389,14 +299,9 @@ impl ConfigFile {
         Ok(GamepadSettings {
             enabled: g.enabled,
             mode: g.mode,
-            dead_zone: ck.range("gamepad.dead_zone", g.dead_zone, 0.0, 0.9)?,
-            trigger_dead_zone: ck.range(
-                "gamepad.trigger_dead_zone",
-                g.trigger_dead_zone,
-                0.0,
-                0.9,
-            )?,
-            head_speed: ck.range("gamepad.head_speed", g.head_speed, 0.0, 10.0)?,
+            dead_zone: g.dead_zone,
+            trigger_dead_zone: g.trigger_dead_zone,
+            head_speed: g.head_speed,
             buttons,
         })
     }
@@ -424,25 +329,9 @@ impl ConfigFile {
                 }
             },
         };
-        let size_ok = |s: [u32; 2]| s.iter().all(|&v| (1..=MAX_WALL_PIXELS).contains(&v));
-        if !size_ok(a.window_size) {
-            return Err(ck.fail(
-                "app.window_size",
-                a.window_size,
-                &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
-            ));
-        }
-        let navigation_speed = ck.range("app.navigation_speed", a.navigation_speed, 0.0, 1000.0)?;
         let mut walls = Vec::with_capacity(self.walls.len());
-        for (i, w) in self.walls.iter().enumerate() {
+        for w in &self.walls {
             let size = w.window_size.unwrap_or(w.resolution);
-            if !size_ok(size) {
-                return Err(ck.fail(
-                    &format!("wall[{i}].window_size"),
-                    size,
-                    &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
-                ));
-            }
             let output = w.output.unwrap_or(a.wall_output);
             walls.push(WallWindow {
                 monitor: w.monitor.clone(),
@@ -458,7 +347,7 @@ impl ConfigFile {
             window_size: a.window_size,
             preview_output: a.preview_output,
             vsync: a.vsync,
-            navigation_speed,
+            navigation_speed: a.navigation_speed,
             walls,
         })
     }
@@ -521,14 +410,6 @@ fn validate_wall(
             ),
         ));
     }
-    let [pw, ph] = w.resolution;
-    if pw == 0 || ph == 0 || pw > MAX_WALL_PIXELS || ph > MAX_WALL_PIXELS {
-        return Err(ck.fail(
-            &field("resolution"),
-            w.resolution,
-            &format!("width and height must be 1..={MAX_WALL_PIXELS} pixels"),
-        ));
-    }
     Ok(Wall {
         name: w.name.clone(),
         lower_left: ll,
@@ -539,7 +420,7 @@ fn validate_wall(
 }
 
 impl PanoramaSection {
-    fn validate(&self, ck: &Checker<'_>) -> Result<PanoSettings, ConfigError> {
+    fn validate(&self, ck: &Checker<'_>) -> Result<(), ConfigError> {
         let (projection, route) = (self.projection, self.route);
         let [ioid, d, offset] = self.volume_ioid_d_offset;
         let volume_valid = (0.0..=2.0).contains(&ioid)
@@ -555,30 +436,18 @@ impl PanoramaSection {
         }
         let stereo = PanoStereo::of_kind(self.stereo, [ioid, d, offset]);
         let (max_h, max_v) = projection.max_fov();
-        let h = ck.range(
+        ck.range(
             "panorama.h_fov_degrees",
             self.h_fov_degrees,
             1.0,
             max_h.to_degrees().round(),
         )?;
-        let v = ck.range(
+        ck.range(
             "panorama.v_fov_degrees",
             self.v_fov_degrees,
             1.0,
             max_v.to_degrees().round(),
         )?;
-        let yaw = ck.range("panorama.yaw_degrees", self.yaw_degrees, -360.0, 360.0)?;
-        let [w, h_px] = self.size;
-        if !(1..=8192).contains(&w) || !(1..=8192).contains(&h_px) {
-            return Err(ck.fail("panorama.size", self.size, "must be 1 to 8192 pixels each"));
-        }
-        if !(4..=8192).contains(&self.cube_size) {
-            return Err(ck.fail(
-                "panorama.cube_size",
-                self.cube_size,
-                "must be 4 to 8192 pixels",
-            ));
-        }
         if route == PanoRoute::Geometric && !projection.geometric() {
             tracing::warn!(
                 "{}: panorama.route = \"geometric\" draws equirectangular and hammer only; \
@@ -594,35 +463,6 @@ impl PanoramaSection {
                 stereo.name()
             );
         }
-        Ok(PanoSettings {
-            projection,
-            h_fov: h.to_radians(),
-            v_fov: v.to_radians(),
-            route,
-            stereo,
-            yaw: yaw.to_radians(),
-            size: self.size,
-            cube_size: self.cube_size,
-        })
-    }
-}
-
-impl Default for Lighting {
-    /// The config's default lights.
-    fn default() -> Self {
-        LightingSection::default().to_lighting()
-    }
-}
-
-impl LightingSection {
-    fn to_lighting(&self) -> Lighting {
-        Lighting {
-            ambient: Vec3::from(self.ambient),
-            sun_direction: Vec3::from(self.directional.direction).normalize_or(Vec3::NEG_Y),
-            sun_color: Vec3::from(self.directional.color) * self.directional.intensity,
-            point_position: Vec3::from(self.point.position),
-            point_color: Vec3::from(self.point.color) * self.point.intensity,
-            point_range: self.point.range,
-        }
+        Ok(())
     }
 }

@@ -1,0 +1,124 @@
+//! The settings model turned into the domain's types: the head, the omnistereo, tessellation,
+//! sky and panorama settings, the CAVE's placement in the scene and the lights. Validation,
+//! the application and the render command all build them here, so each is built once.
+
+use glam::{Mat4, Quat, Vec3};
+
+use super::file::{ConfigFile, LightingSection};
+use crate::cave::Head;
+use crate::cave::omni::{OmniSettings, PoleMerge};
+use crate::pano::{PanoSettings, PanoStereo};
+use crate::scene::Lighting;
+use crate::sky::SkySettings;
+use crate::tess::{MAX_DEPTH_LIMIT, TessSettings};
+use crate::tracking::OneEuroParams;
+
+impl ConfigFile {
+    /// The head's pose (`[head]`: position and yaw, pitch, roll).
+    pub fn head(&self) -> Head {
+        let h = &self.head;
+        Head {
+            position: Vec3::from(h.position),
+            orientation: Head::orientation_from_degrees(
+                h.yaw_degrees,
+                h.pitch_degrees,
+                h.roll_degrees,
+            ),
+        }
+    }
+
+    /// The omnistereo warp and pole merge (`[omnistereo]`; the merge's end is kept at or
+    /// after its start).
+    pub fn omni(&self) -> OmniSettings {
+        let o = &self.omnistereo;
+        let start = o.pole_merge_start_degrees.clamp(0.0, 90.0);
+        OmniSettings {
+            warp: o.warp,
+            pole_merge: o.pole_merge.then_some(PoleMerge {
+                start_degrees: start,
+                end_degrees: o.pole_merge_end_degrees.clamp(start, 90.0),
+            }),
+        }
+    }
+
+    /// Adaptive tessellation (`[tessellation]`).
+    pub fn tess(&self) -> TessSettings {
+        let t = &self.tessellation;
+        TessSettings {
+            criterion: t.criterion,
+            max_depth: t.max_depth.min(MAX_DEPTH_LIMIT),
+            backface_cull: t.backface_cull,
+            frustum_cull: t.frustum_cull,
+        }
+    }
+
+    /// The sky's mode and parameters (`[skybox]`).
+    pub fn sky(&self) -> SkySettings {
+        let k = &self.skybox;
+        SkySettings {
+            mode: k.mode,
+            pixels_per_slice: k.pixels_per_slice,
+            exposure: k.exposure,
+        }
+    }
+
+    /// The panorama view (`[panorama]`, angles in radians).
+    pub fn pano(&self) -> PanoSettings {
+        let p = &self.panorama;
+        PanoSettings {
+            projection: p.projection,
+            h_fov: p.h_fov_degrees.to_radians(),
+            v_fov: p.v_fov_degrees.to_radians(),
+            route: p.route,
+            stereo: PanoStereo::of_kind(p.stereo, p.volume_ioid_d_offset),
+            yaw: p.yaw_degrees.to_radians(),
+            size: p.size,
+            cube_size: p.cube_size,
+        }
+    }
+
+    /// Where the CAVE stands in the scene (`[scene.world_from_cave]`).
+    pub fn world_from_cave(&self) -> Mat4 {
+        let p = &self.scene.world_from_cave;
+        Mat4::from_scale_rotation_translation(
+            Vec3::splat(p.scale),
+            Quat::from_rotation_y(p.yaw_degrees.to_radians()),
+            Vec3::from(p.translation),
+        )
+    }
+
+    /// The lights (`[lighting]`, scene space).
+    pub fn lighting(&self) -> Lighting {
+        self.lighting.to_lighting()
+    }
+
+    /// The tracker's One Euro filter (`None`: off).
+    pub fn tracking_filter(&self) -> Option<OneEuroParams> {
+        let f = &self.tracking.filter;
+        f.enabled.then_some(OneEuroParams {
+            min_cutoff_hz: f.min_cutoff_hz,
+            beta: f.beta,
+            derivative_cutoff_hz: f.derivative_cutoff_hz,
+        })
+    }
+}
+
+impl LightingSection {
+    fn to_lighting(&self) -> Lighting {
+        Lighting {
+            ambient: Vec3::from(self.ambient),
+            sun_direction: Vec3::from(self.directional.direction).normalize_or(Vec3::NEG_Y),
+            sun_color: Vec3::from(self.directional.color) * self.directional.intensity,
+            point_position: Vec3::from(self.point.position),
+            point_color: Vec3::from(self.point.color) * self.point.intensity,
+            point_range: self.point.range,
+        }
+    }
+}
+
+impl Default for Lighting {
+    /// The config's default lights.
+    fn default() -> Self {
+        LightingSection::default().to_lighting()
+    }
+}

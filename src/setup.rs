@@ -1,0 +1,186 @@
+//! What the render command, the application and the bench share: the renderer for a config
+//! with its scene and sky, and the per-frame parameters the settings describe (built here
+//! once, for every caller).
+
+use glam::Mat4;
+
+use crate::cave::{Cave, Head};
+use crate::config::{Config, ConfigFile};
+use crate::render::gpu::Gpu;
+use crate::render::{FrameParams, RenderError, RenderSettings, Renderer, WallImages};
+use crate::scene::Scene;
+use crate::sky::{CubeMap, load_sky};
+
+/// The per-frame parameters `settings` describe, for the walls `cave` and `head` where they
+/// are now (the application moves both) and the CAVE placed in the scene by `world_from_cave`
+/// (navigation moves it).
+pub fn frame_params_from<'a>(
+    settings: &ConfigFile,
+    cave: &'a Cave,
+    head: Head,
+    world_from_cave: Mat4,
+) -> FrameParams<'a> {
+    FrameParams {
+        cave,
+        head,
+        mode: settings.render.mode,
+        eye_separation: settings.cave.eye_separation,
+        world_from_cave,
+        lighting: settings.lighting(),
+        background: settings.render.background,
+        omni: settings.omni(),
+        tess: settings.tess(),
+        sky: settings.sky(),
+    }
+}
+
+/// The frame parameters a config describes, as loaded.
+pub fn frame_params(config: &Config) -> FrameParams<'_> {
+    let settings = &config.settings;
+    frame_params_from(
+        settings,
+        &config.cave,
+        settings.head(),
+        settings.world_from_cave(),
+    )
+}
+
+/// The settings that change pipelines or targets.
+pub fn render_settings(settings: &ConfigFile) -> RenderSettings {
+    RenderSettings {
+        msaa: settings.render.msaa,
+        wireframe: settings.render.wireframe,
+    }
+}
+
+/// Loads the config's sky, if it names one. A missing or malformed sky file is logged as an
+/// error naming the file, and the scene renders without a sky.
+pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
+    let path = config.sky_path.as_ref()?;
+    match load_sky(path) {
+        Ok(cube) => {
+            tracing::info!(
+                "sky {}: {}×{} per face, {} mip levels{}",
+                path.display(),
+                cube.size(),
+                cube.size(),
+                cube.levels.len(),
+                if cube.is_hdr() { ", HDR" } else { "" }
+            );
+            Some(cube)
+        }
+        Err(e) => {
+            tracing::error!("{e}; rendering without a sky");
+            None
+        }
+    }
+}
+
+/// A renderer for `config` holding `scene` and `sky` (a sky the device cannot hold is reported
+/// and left out).
+fn renderer_for(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+    wireframe: bool,
+) -> Result<Renderer, RenderError> {
+    let mut renderer = Renderer::new(
+        gpu,
+        &config.cave,
+        RenderSettings {
+            wireframe,
+            ..render_settings(&config.settings)
+        },
+    )?;
+    renderer.set_scene(scene);
+    if let Err(e) = renderer.set_sky(sky) {
+        tracing::error!("{e}; rendering without a sky");
+    }
+    Ok(renderer)
+}
+
+/// Renders one frame of `scene` (and `sky`, if any) as configured; returns the renderer holding
+/// the frame (to read or compose its images).
+pub fn render_frame(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+) -> Result<Renderer, RenderError> {
+    let mut renderer = renderer_for(gpu, config, scene, sky, config.settings.render.wireframe)?;
+    renderer.render(&frame_params(config))?;
+    for (view, stats) in renderer
+        .last_views()
+        .iter()
+        .zip(renderer.read_tess_stats()?)
+    {
+        tracing::info!(
+            "tessellation {} {}: {} input, {} back-face culled, {} frustum culled, {} emitted{}",
+            config.cave.walls[view.wall].name,
+            view.eye.map_or("mono", |e| e.name()),
+            stats.input,
+            stats.culled_backface,
+            stats.culled_frustum,
+            stats.emitted,
+            if stats.overflowed {
+                " (budget exceeded: less refined than asked)"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(renderer)
+}
+
+/// Renders one frame as [`render_frame`] and returns every wall's eye images.
+pub fn render_images(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+) -> Result<Vec<WallImages>, RenderError> {
+    render_frame(gpu, config, scene, sky)?.read_images()
+}
+
+/// Renders the panorama view of a config and scene (its `[panorama]` settings, and `sky`
+/// behind it if any) and returns the renderer holding it.
+pub fn render_panorama(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+) -> Result<Renderer, RenderError> {
+    let mut renderer = renderer_for(gpu, config, scene, sky, false)?;
+    let pano = &config.settings.pano();
+    renderer.render_panorama(&frame_params(config), pano)?;
+    let fitted = pano.fitted();
+    tracing::info!(
+        "panorama: {} {:.0}°×{:.0}°, {} route, {}, {}×{} px",
+        fitted.projection.name(),
+        fitted.fov().x.to_degrees(),
+        fitted.fov().y.to_degrees(),
+        pano.effective_route().name(),
+        if pano.effective_route() == crate::pano::PanoRoute::Geometric {
+            pano.stereo.name()
+        } else {
+            "mono"
+        },
+        pano.size[0],
+        pano.size[1]
+    );
+    for stats in renderer.read_panorama_tess_stats()? {
+        tracing::info!(
+            "panorama tessellation: {} input, {} back-face culled, {} emitted{}",
+            stats.input,
+            stats.culled_backface,
+            stats.emitted,
+            if stats.overflowed {
+                " (budget exceeded: less refined than asked)"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(renderer)
+}
