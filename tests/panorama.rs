@@ -763,3 +763,55 @@ fn the_sky_shows_behind_the_panorama_where_its_beacons_are() {
         }
     }
 }
+
+#[test]
+fn walls_and_panorama_keep_their_own_frame_data_in_any_order() {
+    // Each has its own uniforms and tessellation output: rendering the panorama between the
+    // walls' frame and reading the walls back (images and tessellation counts) changes
+    // nothing, and the panorama's counts describe its own eyes.
+    let cave = cave();
+    let scene = load_gltf(&repo_path("assets/living-room.glb")).expect("living room");
+    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+    renderer.set_scene(&scene);
+    let tess = TessSettings {
+        criterion: Some(Criterion::Error(1.0)),
+        ..TessSettings::default()
+    };
+    let frame = test_frame(
+        &cave,
+        Head::at(HEAD),
+        RenderMode::OmniOffAxis,
+        OmniSettings::default(),
+        tess,
+    );
+    renderer.render(&frame).expect("walls");
+    let walls_alone = renderer.read_images().expect("read back");
+    let stats_alone = renderer.read_tess_stats().expect("stats");
+    assert_eq!(stats_alone.len(), cave.walls.len() * 2);
+
+    let mut pano = settings(
+        Projection::Equirectangular,
+        PanoRoute::Geometric,
+        [360.0, 180.0],
+    );
+    pano.size = [128, 64];
+    pano.stereo = PanoStereo::Omni;
+    renderer.render_panorama(&frame, &pano).expect("panorama");
+    let pano_stats = renderer.read_panorama_tess_stats().expect("panorama stats");
+    assert_eq!(pano_stats.len(), 2, "one per panorama eye");
+    assert_eq!(renderer.read_tess_stats().expect("stats"), stats_alone);
+    let walls_after = renderer.read_images().expect("read back");
+    for (a, b) in walls_alone.iter().zip(&walls_after) {
+        assert!(a.left == b.left && a.right == b.right, "{} changed", a.wall);
+    }
+    // And the other order: the walls' frame leaves the panorama's counts as they were.
+    renderer.render(&frame).expect("walls again");
+    assert_eq!(
+        renderer.read_panorama_tess_stats().expect("panorama stats"),
+        pano_stats
+    );
+}
+
+fn repo_path(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}

@@ -9,6 +9,7 @@ pub mod sky_pass;
 pub mod targets;
 pub mod tessellator;
 pub mod uniforms;
+pub mod view_set;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -20,8 +21,9 @@ pub use gpu::Gpu;
 use scene_pass::{SceneGpu, ScenePass};
 use sky_pass::{SkyFrame, SkyPass};
 use targets::WallTargets;
-use tessellator::{TessBuffers, TessUniforms, Tessellator};
+use tessellator::{TessUniforms, Tessellator};
 use uniforms::{FrameUniforms, ViewUniforms};
+use view_set::ViewSet;
 
 use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
@@ -124,11 +126,12 @@ pub struct Renderer {
     sky_pass: SkyPass,
     /// `None` when the device cannot run it (too few storage buffers per stage).
     tessellator: Option<Tessellator>,
-    /// Created on the first tessellated frame of a scene (they are large).
-    tess_buffers: Option<(TessBuffers, u64)>,
+    /// Output budget of the tessellator, triangles per view.
     tess_capacity: u32,
-    /// Whether the last frame was tessellated (and with how many views).
-    last_tessellated: bool,
+    /// The walls' eyes: their uniforms and tessellation output.
+    walls: ViewSet,
+    /// The panorama's eyes or cube faces: their own uniforms and tessellation output.
+    pano_set: ViewSet,
     targets: Vec<WallTargets>,
     wall_names: Vec<String>,
     last_views: Vec<ViewSetup>,
@@ -143,8 +146,6 @@ pub struct Renderer {
     pano: panorama::PanoPass,
     /// Eye images in the last panorama (1 mono, 2 stereo).
     pano_views: usize,
-    /// Whether the last panorama went through the tessellator (geometric route).
-    pano_tessellated: bool,
 }
 
 /// Two timestamps around a frame's GPU work, resolved into a buffer the CPU can map.
@@ -198,8 +199,20 @@ impl Renderer {
         let scene_pass = ScenePass::new(
             &gpu.device,
             settings.msaa,
-            cave.walls.len() * 2,
             tessellator.as_ref().map(|t| &t.draw_layout),
+        );
+        let walls = ViewSet::new(
+            &gpu.device,
+            scene_pass.frame_layout(),
+            cave.walls.len() * 2,
+            "Renderer::walls",
+        );
+        // Six cube faces (image route) or two eyes (geometric route).
+        let pano_set = ViewSet::new(
+            &gpu.device,
+            scene_pass.frame_layout(),
+            6,
+            "Renderer::panorama",
         );
         let sky_pass = SkyPass::new(&gpu.device, settings.msaa, cave.walls.len() * 2);
         let pano = panorama::PanoPass::new(&gpu.device, sky_pass.cube_layout(), settings.msaa);
@@ -211,9 +224,9 @@ impl Renderer {
             scene: None,
             sky_pass,
             tessellator,
-            tess_buffers: None,
             tess_capacity: tessellator::DEFAULT_CAPACITY,
-            last_tessellated: false,
+            walls,
+            pano_set,
             targets: Vec::new(),
             wall_names: Vec::new(),
             last_views: Vec::new(),
@@ -223,7 +236,6 @@ impl Renderer {
             targets_generation: 0,
             pano,
             pano_views: 0,
-            pano_tessellated: false,
         };
         renderer.sync_walls(cave);
         Ok(renderer)
@@ -235,7 +247,8 @@ impl Renderer {
             self.scene_pass
                 .upload_scene(&self.device, &self.queue, scene),
         );
-        self.tess_buffers = None;
+        self.walls.drop_tessellation();
+        self.pano_set.drop_tessellation();
     }
 
     /// Times every following frame on the GPU (for the benchmark: reading the time back
@@ -382,40 +395,8 @@ impl Renderer {
             );
         }
         self.tess_capacity = capacity.clamp(1, max);
-        self.tess_buffers = None;
-    }
-
-    /// Makes sure the tessellation buffers exist and match the scene and view buffer.
-    fn ensure_tess_buffers(&mut self) -> Result<(), RenderError> {
-        let generation = self.scene_pass.view_buffer_generation;
-        if self
-            .tess_buffers
-            .as_ref()
-            .is_some_and(|(_, g)| *g == generation)
-        {
-            return Ok(());
-        }
-        let Some(scene) = &self.scene else {
-            return Ok(());
-        };
-        let Some(tessellator) = &self.tessellator else {
-            return Ok(());
-        };
-        let (frame_buffer, view_buffer) = self.scene_pass.uniform_buffers();
-        let buffers = tessellator.buffers(
-            &self.device,
-            frame_buffer,
-            view_buffer,
-            std::mem::size_of::<ViewUniforms>() as u64,
-            &scene.vertex_buffer,
-            &scene.index_buffer,
-            &scene.tri_info,
-            scene.draw_count(),
-            self.tess_capacity,
-            self.scene_pass.view_capacity(),
-        )?;
-        self.tess_buffers = Some((buffers, generation));
-        Ok(())
+        self.walls.drop_tessellation();
+        self.pano_set.drop_tessellation();
     }
 
     /// Changes MSAA or wireframe; rebuilds pipelines and targets only when MSAA changes.
@@ -445,8 +426,11 @@ impl Renderer {
 
     /// Makes the targets match the walls' names and pixel sizes (only changed walls are rebuilt).
     fn sync_walls(&mut self, cave: &Cave) {
-        self.scene_pass
-            .ensure_view_capacity(&self.device, cave.walls.len() * 2);
+        self.walls.ensure_capacity(
+            &self.device,
+            self.scene_pass.frame_layout(),
+            cave.walls.len() * 2,
+        );
         self.targets.truncate(cave.walls.len());
         self.wall_names.truncate(cave.walls.len());
         for (i, wall) in cave.walls.iter().enumerate() {
@@ -480,21 +464,22 @@ impl Renderer {
         self.sync_walls(frame.cave);
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
-        if tessellate {
-            self.ensure_tess_buffers()?;
-        }
         let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
         let frame_uniforms = FrameUniforms::new(
             frame.world_from_cave,
             &frame.lighting,
             frame.mode.is_omni().then_some(frame.omni),
         );
-        self.scene_pass.write_uniforms(
+        self.walls.write_uniforms(
             &self.queue,
             &frame_uniforms,
             views.iter().map(ViewUniforms::from),
         );
-        if let (true, Some((buffers, _))) = (tessellate, self.tess_buffers.as_mut()) {
+        if let (true, Some(scene), Some(tessellator)) = (tessellate, &self.scene, &self.tessellator)
+        {
+            let buffers =
+                self.walls
+                    .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
             buffers.write_uniforms(
                 &self.queue,
                 views.iter().map(|v| {
@@ -541,12 +526,10 @@ impl Renderer {
         if let Some(timer) = &self.timer {
             encoder.write_timestamp(&timer.queries, 0);
         }
+        self.walls
+            .set_tessellated_views(if tessellate { views.len() } else { 0 });
         for (index, view) in views.iter().enumerate() {
-            let tess = self
-                .tess_buffers
-                .as_ref()
-                .map(|(b, _)| b)
-                .filter(|_| tessellate);
+            let tess = self.walls.tessellated();
             if let (Some(buffers), Some(tessellator)) = (tess, &self.tessellator) {
                 buffers.encode(tessellator, &mut encoder, index, rounds);
             }
@@ -561,10 +544,19 @@ impl Renderer {
             );
             match (&self.scene, tess) {
                 (Some(scene), Some(buffers)) => {
-                    self.scene_pass
-                        .draw_tessellated(&mut pass, scene, buffers, index, wireframe);
+                    self.scene_pass.draw_tessellated(
+                        &mut pass,
+                        scene,
+                        &self.walls,
+                        buffers,
+                        index,
+                        wireframe,
+                    );
                 }
-                (Some(scene), None) => self.scene_pass.draw(&mut pass, scene, index, wireframe),
+                (Some(scene), None) => {
+                    self.scene_pass
+                        .draw(&mut pass, scene, &self.walls, index, wireframe)
+                }
                 (None, _) => {}
             }
             self.sky_pass.draw(&mut pass, index, view.wall);
@@ -602,9 +594,6 @@ impl Renderer {
             triangles_submitted: triangles * views.len(),
         };
         self.last_views = views;
-        self.last_tessellated = tessellate;
-        // The tessellator's statistics now describe the walls.
-        self.pano_tessellated = false;
         Ok(stats)
     }
 
@@ -627,7 +616,6 @@ impl Renderer {
         }
         self.pano
             .ensure_targets(&self.device, pano.size, self.settings.msaa);
-        self.scene_pass.ensure_view_capacity(&self.device, 6);
         let head = frame.head.position;
         let (near, far) = (frame.cave.near, frame.cave.far);
         let clear = srgb_to_linear_color(frame.background);
@@ -672,21 +660,21 @@ impl Renderer {
                     // A plain perspective view: no omnistereo, no panorama fields.
                     ..bytemuck::Zeroable::zeroed()
                 });
-                self.scene_pass
+                self.pano_set
                     .write_uniforms(&self.queue, &frame_uniforms, faces);
-                let (scene_pass, scene) = (&self.scene_pass, &self.scene);
+                self.pano_set.set_tessellated_views(0);
+                let (scene_pass, scene, faces) = (&self.scene_pass, &self.scene, &self.pano_set);
                 // Alpha 0 where the faces show nothing: the look-up puts the sky there.
                 let face_clear = wgpu::Color { a: 0.0, ..clear };
                 self.pano
                     .encode_faces(&mut encoder, face_clear, |pass, face| {
                         if let Some(scene) = scene {
-                            scene_pass.draw(pass, scene, face, false);
+                            scene_pass.draw(pass, scene, faces, face, false);
                         }
                     });
                 let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);
                 self.pano.encode_resolve(&mut encoder, sky);
                 self.pano_views = 1;
-                self.pano_tessellated = false;
             }
             PanoRoute::Geometric => {
                 let eyes: &[Option<Eye>] = if pano.stereo.is_stereo() {
@@ -712,18 +700,21 @@ impl Renderer {
                         msaa,
                     )
                 });
-                self.scene_pass
+                self.pano_set
                     .write_uniforms(&self.queue, &frame_uniforms, views);
-                if self.scene.is_some() {
-                    self.ensure_tess_buffers()?;
-                }
                 let pixels_per_radian = w as f32 / pano.fitted().fov().x;
                 let radius = if omni {
                     0.5 * frame.eye_separation
                 } else {
                     0.0
                 };
-                if let Some((buffers, _)) = self.tess_buffers.as_mut() {
+                if let (Some(scene), Some(tessellator)) = (&self.scene, &self.tessellator) {
+                    let buffers = self.pano_set.tessellation(
+                        &self.device,
+                        tessellator,
+                        scene,
+                        self.tess_capacity,
+                    )?;
                     buffers.write_uniforms(
                         &self.queue,
                         eyes.iter().map(|_| {
@@ -739,9 +730,11 @@ impl Renderer {
                 }
                 let rounds = tessellator::rounds(&frame.tess);
                 let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);
+                self.pano_set
+                    .set_tessellated_views(if self.scene.is_some() { eyes.len() } else { 0 });
                 for index in 0..eyes.len() {
-                    let (Some(scene), Some((buffers, _)), Some(tessellator)) =
-                        (&self.scene, &self.tess_buffers, &self.tessellator)
+                    let (Some(scene), Some(buffers), Some(tessellator)) =
+                        (&self.scene, self.pano_set.tessellated(), &self.tessellator)
                     else {
                         // No scene: the sky alone (or the clear colour).
                         if let (Some(mut pass), Some(sky)) =
@@ -753,15 +746,19 @@ impl Renderer {
                     };
                     buffers.encode(tessellator, &mut encoder, index, rounds);
                     if let Some(mut pass) = self.pano.begin_eye_pass(&mut encoder, index, clear) {
-                        self.scene_pass
-                            .draw_panorama(&mut pass, scene, buffers, index);
+                        self.scene_pass.draw_panorama(
+                            &mut pass,
+                            scene,
+                            &self.pano_set,
+                            buffers,
+                            index,
+                        );
                         if let Some(sky) = sky {
                             self.pano.draw_sky(&mut pass, sky);
                         }
                     }
                 }
                 self.pano_views = eyes.len();
-                self.pano_tessellated = self.scene.is_some();
             }
         }
         if let Some(timer) = &self.timer {
@@ -769,8 +766,6 @@ impl Renderer {
             encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
         }
         self.queue.submit([encoder.finish()]);
-        // The wall frame's statistics no longer describe the tessellator's buffers.
-        self.last_tessellated = false;
         Ok(())
     }
 
@@ -822,36 +817,22 @@ impl Renderer {
 
     /// Tessellation statistics of the last panorama's eyes (geometric route; blocking read).
     pub fn read_panorama_tess_stats(&self) -> Result<Vec<TessStats>, RenderError> {
-        match (&self.tess_buffers, &self.scene) {
-            (Some((buffers, _)), Some(scene)) if self.pano_tessellated => buffers.read_stats(
-                &self.device,
-                &self.queue,
-                self.pano_views,
-                scene.triangle_count as u32,
-            ),
-            _ => Ok(Vec::new()),
-        }
+        self.pano_set
+            .read_tess_stats(&self.device, &self.queue, self.scene.as_ref())
     }
 
     /// Tessellation statistics of the last frame, one per view in `last_views()` order
     /// (blocking read; for the CLI and tests). Empty when the frame was not tessellated.
     pub fn read_tess_stats(&self) -> Result<Vec<TessStats>, RenderError> {
-        match (&self.tess_buffers, &self.scene, self.last_tessellated) {
-            (Some((buffers, _)), Some(scene), true) => buffers.read_stats(
-                &self.device,
-                &self.queue,
-                self.last_views.len(),
-                scene.triangle_count as u32,
-            ),
-            _ => Ok(Vec::new()),
-        }
+        self.walls
+            .read_tess_stats(&self.device, &self.queue, self.scene.as_ref())
     }
 
     /// The output triangles of the last view of the last tessellated frame (tests).
     pub fn read_tess_entries(&self) -> Result<Vec<tessellator::GpuTessEntry>, RenderError> {
         let stats = self.read_tess_stats()?;
-        match (&self.tess_buffers, stats.last()) {
-            (Some((buffers, _)), Some(last)) => {
+        match (self.walls.tessellated(), stats.last()) {
+            (Some(buffers), Some(last)) => {
                 buffers.read_entries(&self.device, &self.queue, last.emitted)
             }
             _ => Ok(Vec::new()),

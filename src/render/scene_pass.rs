@@ -8,7 +8,8 @@ use wgpu::util::DeviceExt;
 
 use super::shaders;
 use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
-use super::uniforms::{FrameUniforms, MaterialUniforms, UNIFORM_STRIDE, ViewUniforms};
+use super::uniforms::{MaterialUniforms, UNIFORM_STRIDE};
+use super::view_set::ViewSet;
 use crate::scene::{Scene, Texture, Wrap};
 
 /// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl.
@@ -53,17 +54,10 @@ pub struct ScenePass {
     tess_pipeline_layout: Option<wgpu::PipelineLayout>,
     shader: wgpu::ShaderModule,
     /// Bumped whenever the view buffer is replaced (bind groups built on it must follow).
-    pub view_buffer_generation: u64,
     pipelines: HashMap<PipelineKey, wgpu::RenderPipeline>,
     /// Pipelines built so far (switching settings must not build any).
     pub(crate) pipelines_built: u64,
     msaa: u32,
-    frame_buffer: wgpu::Buffer,
-    view_buffer: wgpu::Buffer,
-    view_capacity: usize,
-    frame_bind_group: wgpu::BindGroup,
-    /// Reused every frame to stage view uniforms (no per-frame allocation).
-    view_staging: Vec<u8>,
 }
 
 /// A scene uploaded to the GPU.
@@ -100,7 +94,6 @@ impl ScenePass {
     pub fn new(
         device: &wgpu::Device,
         msaa: u32,
-        view_capacity: usize,
         tess_draw_layout: Option<&wgpu::BindGroupLayout>,
     ) -> Self {
         let uniform_entry = |binding, dynamic| wgpu::BindGroupLayoutEntry {
@@ -152,65 +145,18 @@ impl ScenePass {
             })
         });
         let shader = shaders::module(device, "ScenePass::shader", shaders::SCENE);
-        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ScenePass::frame_buffer"),
-            size: std::mem::size_of::<FrameUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let (view_buffer, frame_bind_group) =
-            Self::view_resources(device, &frame_layout, &frame_buffer, view_capacity);
         let mut pass = Self {
             frame_layout,
             material_layout,
             pipeline_layout,
             tess_pipeline_layout,
             shader,
-            view_buffer_generation: 0,
             pipelines: HashMap::new(),
             pipelines_built: 0,
             msaa,
-            frame_buffer,
-            view_buffer,
-            view_capacity,
-            frame_bind_group,
-            view_staging: Vec::with_capacity(view_capacity * UNIFORM_STRIDE as usize),
         };
         pass.build_pipelines(device, msaa);
         pass
-    }
-
-    fn view_resources(
-        device: &wgpu::Device,
-        layout: &wgpu::BindGroupLayout,
-        frame_buffer: &wgpu::Buffer,
-        capacity: usize,
-    ) -> (wgpu::Buffer, wgpu::BindGroup) {
-        let view_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ScenePass::view_buffer"),
-            size: UNIFORM_STRIDE * capacity.max(1) as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ScenePass::frame_bind_group"),
-            layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &view_buffer,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(std::mem::size_of::<ViewUniforms>() as u64),
-                    }),
-                },
-            ],
-        });
-        (view_buffer, bind_group)
     }
 
     /// Builds every pipeline variant for a sample count (at start-up and when MSAA changes).
@@ -345,50 +291,9 @@ impl ScenePass {
         self.msaa
     }
 
-    /// Grows the view uniform buffer if a CAVE with more walls needs it (not per frame).
-    pub fn ensure_view_capacity(&mut self, device: &wgpu::Device, views: usize) {
-        if views <= self.view_capacity {
-            return;
-        }
-        let (buffer, bind_group) =
-            Self::view_resources(device, &self.frame_layout, &self.frame_buffer, views);
-        self.view_buffer = buffer;
-        self.frame_bind_group = bind_group;
-        self.view_capacity = views;
-        self.view_buffer_generation += 1;
-    }
-
-    /// The per-frame uniform buffers (the tessellator binds them too).
-    pub fn uniform_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
-        (&self.frame_buffer, &self.view_buffer)
-    }
-
-    pub fn view_capacity(&self) -> usize {
-        self.view_capacity
-    }
-
-    /// Uploads this frame's uniforms: one write for the frame, one for all views.
-    pub fn write_uniforms(
-        &mut self,
-        queue: &wgpu::Queue,
-        frame: &FrameUniforms,
-        views: impl Iterator<Item = ViewUniforms>,
-    ) {
-        queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(frame));
-        self.view_staging.clear();
-        for view in views.take(self.view_capacity) {
-            self.view_staging
-                .extend_from_slice(bytemuck::bytes_of(&view));
-            self.view_staging.resize(
-                self.view_staging
-                    .len()
-                    .next_multiple_of(UNIFORM_STRIDE as usize),
-                0,
-            );
-        }
-        if !self.view_staging.is_empty() {
-            queue.write_buffer(&self.view_buffer, 0, &self.view_staging);
-        }
+    /// The layout of group 0 (frame uniforms and the view), which every [`ViewSet`] binds.
+    pub fn frame_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.frame_layout
     }
 
     /// Records the draws of `scene` for view slot `view_index` into an open render pass.
@@ -396,6 +301,7 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
+        views: &ViewSet,
         view_index: usize,
         wireframe: bool,
     ) {
@@ -404,6 +310,7 @@ impl ScenePass {
         self.draw_materials(
             pass,
             scene,
+            views,
             view_index,
             wireframe,
             Variant::Plain,
@@ -423,18 +330,27 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
+        views: &ViewSet,
         tess: &super::tessellator::TessBuffers,
         view_index: usize,
         wireframe: bool,
     ) {
         pass.set_bind_group(2, &tess.draw_group, &[]);
         let variant = Variant::Tessellated;
-        self.draw_materials(pass, scene, view_index, wireframe, variant, |pass, d, _| {
-            pass.draw_indirect(
-                &tess.args,
-                super::tessellator::TessBuffers::draw_args_offset(d),
-            );
-        });
+        self.draw_materials(
+            pass,
+            scene,
+            views,
+            view_index,
+            wireframe,
+            variant,
+            |pass, d, _| {
+                pass.draw_indirect(
+                    &tess.args,
+                    super::tessellator::TessBuffers::draw_args_offset(d),
+                );
+            },
+        );
     }
 
     /// Records the panorama's geometric route for view slot `view_index`: the tessellator's
@@ -443,32 +359,43 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
+        views: &ViewSet,
         tess: &super::tessellator::TessBuffers,
         view_index: usize,
     ) {
         pass.set_bind_group(2, &tess.draw_group, &[]);
         let variant = Variant::Panorama;
-        self.draw_materials(pass, scene, view_index, false, variant, |pass, d, _| {
-            pass.draw_indirect(
-                &tess.args,
-                super::tessellator::TessBuffers::draw_args_offset(d),
-            );
-        });
+        self.draw_materials(
+            pass,
+            scene,
+            views,
+            view_index,
+            false,
+            variant,
+            |pass, d, _| {
+                pass.draw_indirect(
+                    &tess.args,
+                    super::tessellator::TessBuffers::draw_args_offset(d),
+                );
+            },
+        );
     }
 
     /// Binds the view, then for each layer (shaded, and the wireframe overlay if asked) and
     /// each draw: the pipeline variant (only when it changes), the material, and `issue`.
+    #[allow(clippy::too_many_arguments)]
     fn draw_materials(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
+        views: &ViewSet,
         view_index: usize,
         wireframe: bool,
         variant: Variant,
         issue: impl Fn(&mut wgpu::RenderPass<'_>, usize, &GpuDraw),
     ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
-        pass.set_bind_group(0, &self.frame_bind_group, &[view_offset]);
+        pass.set_bind_group(0, views.bind_group(), &[view_offset]);
         let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
         for &wire in layers {
             let mut bound: Option<PipelineKey> = None;
