@@ -8,8 +8,8 @@ use crate::output::formats::StereoFormat;
 use crate::output::{self, OutputError};
 use crate::render::present::PresentParams;
 use crate::render::{Gpu, RenderError, WallImages};
-use crate::scene::{Scene, SceneError, load_gltf};
-use crate::setup::{load_config_sky, render_frame, render_panorama};
+use crate::scene::{Scene, SceneError};
+use crate::setup::{load_config_sky, load_scene, render_frame, render_panorama};
 use crate::sky::CubeMap;
 
 /// Anything that stops a headless render.
@@ -157,19 +157,7 @@ pub fn render_to_dir(
         .clone()
         .or_else(|| config.scene_path.clone())
         .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
-    // "none": an empty scene (the sky alone).
-    let scene = if scene_path.as_os_str() == "none" {
-        Scene::default()
-    } else {
-        load_gltf(&scene_path)?
-    };
-    tracing::info!(
-        "scene {}: {} triangles, {} materials, {} textures",
-        scene_path.display(),
-        scene.triangle_count(),
-        scene.materials.len(),
-        scene.textures.len()
-    );
+    let scene = load_scene(&config.settings, &scene_path)?;
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
     if overrides.panorama {

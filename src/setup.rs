@@ -8,7 +8,9 @@ use crate::cave::{Cave, Head};
 use crate::config::{Config, ConfigFile};
 use crate::render::gpu::Gpu;
 use crate::render::{FrameParams, RenderError, RenderSettings, Renderer, WallImages};
-use crate::scene::Scene;
+use std::path::Path;
+
+use crate::scene::{Scene, SceneError, load_gltf};
 use crate::sky::{CubeMap, load_sky};
 
 /// The per-frame parameters `settings` describe, for the walls `cave` and `head` where they
@@ -53,10 +55,30 @@ pub fn render_settings(settings: &ConfigFile) -> RenderSettings {
     }
 }
 
+/// Loads the scene at `path` ("none": an empty scene, the sky alone) as the settings' `[scene]`
+/// section asks, and logs what it holds.
+pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneError> {
+    if path.as_os_str() == "none" {
+        return Ok(Scene::default());
+    }
+    let _loading = tracing::info_span!("loading scene", file = %path.display()).entered();
+    let scene = load_gltf(path)?;
+    let _ = settings;
+    tracing::info!(
+        "scene {}: {} triangles, {} materials, {} textures",
+        path.display(),
+        scene.triangle_count(),
+        scene.materials.len(),
+        scene.textures.len()
+    );
+    Ok(scene)
+}
+
 /// Loads the config's sky, if it names one. A missing or malformed sky file is logged as an
 /// error naming the file, and the scene renders without a sky.
 pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
     let path = config.sky_path.as_ref()?;
+    let _loading = tracing::info_span!("loading sky", file = %path.display()).entered();
     match load_sky(path) {
         Ok(cube) => {
             tracing::info!(

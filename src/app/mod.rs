@@ -23,8 +23,8 @@ use crate::config::{AppMode, Config, ConfigError, PanelPlacement};
 use crate::render::gpu::Gpu;
 use crate::render::present::PresentPass;
 use crate::render::{RenderError, Renderer};
-use crate::scene::{Scene, SceneError, load_gltf};
-use crate::setup::load_config_sky;
+use crate::scene::{Scene, SceneError};
+use crate::setup::{load_config_sky, load_scene};
 use crate::sky::CubeMap;
 use devices::{Gamepads, Tracking};
 use keys::HeldKeys;
@@ -90,16 +90,8 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         });
     }
     let scene = match options.scene.clone().or_else(|| config.scene_path.clone()) {
-        Some(path) if path.as_os_str() != "none" => {
-            let scene = load_gltf(&path)?;
-            tracing::info!(
-                "scene {}: {} triangles",
-                path.display(),
-                scene.triangle_count()
-            );
-            scene
-        }
-        _ => Scene::default(),
+        Some(path) => load_scene(&config.settings, &path)?,
+        None => Scene::default(),
     };
     let sky = load_config_sky(&config);
     let quit = Arc::new(AtomicBool::new(false));
@@ -550,7 +542,6 @@ fn render_views(
         state.settings.render.msaa = gfx.renderer.settings().msaa;
     }
     let stats = gfx.renderer.render(&state.frame_params())?;
-    // The walls' tessellation counts, before the panorama reuses the tessellator.
     if read_counts {
         info.tess_emitted = read_tess_counts(&gfx.renderer, state);
     }
