@@ -7,6 +7,9 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use glam::Vec3;
+use tracing_indicatif::span_ext::IndicatifSpanExt;
+use tracing_subscriber::layer::SubscriberExt;
+use tracing_subscriber::util::SubscriberInitExt;
 
 use omnicave::cave::RenderMode;
 use omnicave::cave::omni::{PoleMerge, WarpVariant};
@@ -442,12 +445,15 @@ fn parse_msaa(s: &str) -> Result<u32, String> {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
+    // Log lines go through the progress bars' layer, so they print above a bar, not inside it.
+    let bars = tracing_indicatif::IndicatifLayer::new();
+    tracing_subscriber::registry()
+        .with(
             tracing_subscriber::EnvFilter::try_from_default_env()
                 .unwrap_or_else(|_| "info,wgpu_core=warn,wgpu_hal=warn,naga=warn".into()),
         )
-        .with_writer(std::io::stderr)
+        .with(tracing_subscriber::fmt::layer().with_writer(bars.get_stderr_writer()))
+        .with(bars.with_span_field_formatter(tracing_subscriber::fmt::format::DefaultFields::new()))
         .init();
     let cli = Cli::parse();
     match run(cli) {
@@ -459,35 +465,30 @@ fn main() -> ExitCode {
     }
 }
 
-/// A progress bar on stderr while the bench runs (only on a terminal: logs stay clean).
-#[derive(Debug, Default)]
-struct ProgressBar {
-    started: Option<std::time::Instant>,
+/// A progress bar with an elapsed time and an ETA for a long job (drawn only on a terminal).
+#[derive(Debug)]
+struct Progress {
+    span: tracing::Span,
 }
 
-impl ProgressBar {
-    fn show(&mut self, done: usize, total: usize, what: &str) {
-        use std::io::{IsTerminal, Write};
-        let mut err = std::io::stderr();
-        if !err.is_terminal() {
-            return;
-        }
-        let start = *self.started.get_or_insert_with(std::time::Instant::now);
-        const WIDTH: usize = 30;
-        let filled = (done * WIDTH).checked_div(total).unwrap_or(WIDTH);
-        let elapsed = start.elapsed().as_secs();
-        let _ = write!(
-            err,
-            "\r[{}{}] {done}/{total} {}:{:02} {what:<60.60}",
-            "#".repeat(filled),
-            " ".repeat(WIDTH - filled),
-            elapsed / 60,
-            elapsed % 60
+impl Progress {
+    fn new(job: &'static str) -> Self {
+        let span = tracing::info_span!("progress", job);
+        span.pb_set_style(
+            &indicatif::ProgressStyle::with_template(
+                "{span_child_prefix}[{bar:30}] {pos}/{len} {elapsed_precise} (ETA {eta}) {wide_msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("#>-"),
         );
-        if done >= total {
-            let _ = writeln!(err);
-        }
-        let _ = err.flush();
+        span.pb_start();
+        Self { span }
+    }
+
+    fn show(&mut self, done: usize, total: usize, what: &str) {
+        self.span.pb_set_length(total as u64);
+        self.span.pb_set_position(done as u64);
+        self.span.pb_set_message(what);
     }
 }
 
@@ -551,7 +552,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Bench(args) if args.stability => {
-            let mut bar = ProgressBar::default();
+            let mut bar = Progress::new("stability sweep");
             let files = omnicave::bench::run_stability(
                 &omnicave::bench::StabilityOptions {
                     config: args.config,
@@ -568,7 +569,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Bench(args) => {
-            let mut bar = ProgressBar::default();
+            let mut bar = Progress::new("bench");
             let report = omnicave::bench::run(
                 &omnicave::bench::BenchOptions {
                     config: args.config,

@@ -350,7 +350,11 @@ fn preview_strip(window: &RgbImage, config: &Config) -> (u32, u32, u32, u32) {
 /// the window's middle row, and its rows along the middle column of those.
 fn beside_panel(window: &RgbImage, config: &Config) -> (Vec<u32>, Vec<u32>) {
     let (width, height) = window.dimensions();
-    let bg = config.settings.render.background.map(|c| (c * 255.0).round() as u8);
+    let bg = config
+        .settings
+        .render
+        .background
+        .map(|c| (c * 255.0).round() as u8);
     let is_scene = |p: &Rgb<u8>| p.0.iter().zip(bg).any(|(&a, b)| a.abs_diff(b) > 3);
     // The panel's right edge: its fill reaches the window's bottom row.
     let panel_edge = (0..width)

@@ -4,7 +4,7 @@
 
 use glam::{Mat4, Vec3};
 
-use super::Method;
+use super::methods::Method;
 use crate::cave::{Head, RenderMode, view_setups};
 use crate::config::Config;
 use crate::scene::Scene;

@@ -5,7 +5,9 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::{BenchError, percentile};
+use super::error::BenchError;
+use super::measure::percentile;
+use super::report::write_csv;
 use crate::config::Config;
 use crate::output;
 use crate::pano::raycast::{Comparison, compare, flat_reference};
@@ -228,33 +230,41 @@ pub fn run_panorama(
         }
     }
     let csv_path = out.join("panorama.csv");
-    let mut csv = String::from(
-        "scene,method,projection,route,criterion,cube_size,median_ms,p25_ms,p75_ms,timer,\
-         emitted_triangles,pixels_off_pct,off_away_from_edges_pct\n",
-    );
-    for r in &rows {
-        let _ = writeln!(
-            csv,
-            "{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4}",
-            r.scene,
-            r.method.name,
-            r.method.projection.name(),
-            r.method.route.name(),
-            r.method.criterion.map_or("none".into(), |c| c.to_string()),
-            r.method.cube_size,
-            r.median(),
-            percentile(&r.times_ms, 0.25),
-            percentile(&r.times_ms, 0.75),
-            if r.gpu_timed { "gpu" } else { "wall" },
-            r.emitted.map_or(String::new(), |e| e.to_string()),
-            r.comparison.differ_pct(),
-            r.comparison.away_pct(),
-        );
-    }
-    std::fs::write(&csv_path, csv).map_err(|source| BenchError::Write {
-        path: csv_path.clone(),
-        source,
-    })?;
+    write_csv(
+        &csv_path,
+        &[
+            "scene",
+            "method",
+            "projection",
+            "route",
+            "criterion",
+            "cube_size",
+            "median_ms",
+            "p25_ms",
+            "p75_ms",
+            "timer",
+            "emitted_triangles",
+            "pixels_off_pct",
+            "off_away_from_edges_pct",
+        ],
+        rows.iter().map(|r| {
+            vec![
+                r.scene.clone(),
+                r.method.name.clone(),
+                r.method.projection.name().to_owned(),
+                r.method.route.name().to_owned(),
+                r.method.criterion.map_or("none".into(), |c| c.to_string()),
+                r.method.cube_size.to_string(),
+                format!("{:.3}", r.median()),
+                format!("{:.3}", percentile(&r.times_ms, 0.25)),
+                format!("{:.3}", percentile(&r.times_ms, 0.75)),
+                if r.gpu_timed { "gpu" } else { "wall" }.to_owned(),
+                r.emitted.map_or(String::new(), |e| e.to_string()),
+                format!("{:.4}", r.comparison.differ_pct()),
+                format!("{:.4}", r.comparison.away_pct()),
+            ]
+        }),
+    )?;
     files.insert(0, csv_path);
     Ok((rows, files))
 }

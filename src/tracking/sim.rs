@@ -131,13 +131,34 @@ pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<Keyframe>, TrackingError
         message,
     };
     let mut frames: Vec<Keyframe> = Vec::new();
-    for (index, raw) in text.lines().enumerate() {
-        let line = index + 1;
-        let content = raw.split('#').next().unwrap_or("").trim();
-        if content.is_empty() {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    for record in reader.records() {
+        let record = record.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line() as usize);
+            fail(line, e.to_string())
+        })?;
+        let line = record.position().map_or(0, |p| p.line() as usize);
+        // A comment may also end a line.
+        let mut fields: Vec<&str> = Vec::with_capacity(record.len());
+        for field in &record {
+            let value = field.split('#').next().unwrap_or("");
+            fields.push(value.trim());
+            if field.contains('#') {
+                break;
+            }
+        }
+        while fields.last() == Some(&"") {
+            fields.pop();
+        }
+        if fields.is_empty() {
             continue;
         }
-        let fields: Vec<&str> = content.split(',').map(str::trim).collect();
+        let content = fields.join(",");
         let values: Result<Vec<f64>, _> = fields.iter().map(|f| f.parse::<f64>()).collect();
         let Ok(values) = values else {
             if frames.is_empty() && fields.first().is_some_and(|f| f.parse::<f64>().is_err()) {

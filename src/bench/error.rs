@@ -1,0 +1,30 @@
+//! What stops the benchmark.
+
+use std::path::PathBuf;
+
+use crate::config::ConfigError;
+use crate::render::RenderError;
+use crate::scene::SceneError;
+use crate::sky::SkyError;
+
+/// Anything that stops the benchmark.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Sky(#[from] SkyError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error("cannot write {path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot write the table {path}: {message}")]
+    Csv { path: PathBuf, message: String },
+    #[error("cannot draw the chart {path}: {message}")]
+    Chart { path: PathBuf, message: String },
+}

@@ -1,0 +1,221 @@
+//! Measuring one case: every method's frame times (GPU timestamps, interleaved frame by
+//! frame), its accuracy from the CPU twin, and its picture against the reference render.
+
+use std::time::Instant;
+
+use super::accuracy::{self, Accuracy};
+use super::cases::Case;
+use super::error::BenchError;
+use super::methods::{Method, Timer, reference_method};
+use crate::cave::Head;
+use crate::config::Config;
+use crate::render::{Gpu, RenderSettings, Renderer, WallImages};
+use crate::scene::Scene;
+use crate::setup::frame_params;
+use crate::sky::{CubeMap, SkyMode};
+
+/// One measured (case, method).
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub scene: String,
+    /// Where the CAVE stands in the scene (see [`viewpoints`]).
+    pub viewpoint: String,
+    pub head: String,
+    pub method: Method,
+    pub timer: Timer,
+    /// Sorted frame times (ms) of the chosen timer.
+    pub times_ms: Vec<f64>,
+    /// Median wall-clock time (ms), for reference when the GPU timer is used.
+    pub wall_median_ms: f64,
+    pub input_triangles: usize,
+    /// Triangles drawn over all views (after tessellation and culling).
+    pub drawn_triangles: usize,
+    /// Error against the omnistereo ideal and the CPU twin's counts (`None`: the sky alone).
+    pub accuracy: Option<Accuracy>,
+    /// Share of eye-image pixels (%) that differ visibly from the reference render
+    /// (`None`: the sky alone).
+    pub image_diff_pct: Option<f64>,
+}
+
+impl Row {
+    pub fn median(&self) -> f64 {
+        percentile(&self.times_ms, 0.5)
+    }
+}
+
+/// The `q` quantile of sorted values (linear interpolation).
+pub fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let pos = q.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
+    let (lo, hi) = (pos.floor() as usize, pos.ceil() as usize);
+    sorted[lo] + (pos - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn measure(
+    gpu: &Gpu,
+    config: &Config,
+    scene_name: &str,
+    scene: Option<&Scene>,
+    sky: &CubeMap,
+    case: &Case,
+    methods: &[Method],
+    frames: usize,
+) -> Result<Vec<Row>, BenchError> {
+    let mut renderer = Renderer::new(
+        gpu,
+        &config.cave,
+        RenderSettings {
+            msaa: config.settings.render.msaa,
+            wireframe: false,
+        },
+    )?;
+    if let Some(scene) = scene {
+        renderer.set_scene(scene);
+    }
+    renderer.set_sky(Some(sky))?;
+    let timer = if renderer.enable_gpu_timing(gpu) {
+        Timer::Gpu
+    } else {
+        Timer::Wall
+    };
+    let mut gpu_times = vec![Vec::with_capacity(frames); methods.len()];
+    let mut wall_times = vec![Vec::with_capacity(frames); methods.len()];
+    let mut drawn = vec![0usize; methods.len()];
+    let params = |m: &Method| {
+        let mut p = frame_params(config);
+        p.head = Head::at(case.head);
+        p.world_from_cave = case.world_from_cave;
+        p.mode = m.mode;
+        p.tess = m.tess;
+        p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
+        p
+    };
+    // One warm-up frame per method (first-use costs), then round-robin so that any drift of the
+    // machine spreads over all methods alike.
+    for (i, m) in methods.iter().enumerate() {
+        let stats = renderer.render(&params(m))?;
+        renderer.wait_idle()?;
+        let tess: usize = renderer
+            .read_tess_stats()?
+            .iter()
+            .map(|s| s.emitted as usize)
+            .sum();
+        drawn[i] = if m.tess.criterion.is_some() {
+            tess
+        } else {
+            stats.triangles_submitted
+        };
+    }
+    for _ in 0..frames {
+        for (i, m) in methods.iter().enumerate() {
+            let start = Instant::now();
+            renderer.render(&params(m))?;
+            renderer.wait_idle()?;
+            wall_times[i].push(start.elapsed().as_secs_f64() * 1e3);
+            if let Some(ms) = renderer.read_gpu_time_ms()? {
+                gpu_times[i].push(ms);
+            }
+        }
+    }
+    let input = scene.map_or(0, Scene::triangle_count);
+    // Accuracy from the CPU twin; a sky does not change the geometry, so sky methods share
+    // the accuracy of the same method without one.
+    let mut accuracies: Vec<Option<Accuracy>> = vec![None; methods.len()];
+    if let Some(scene) = scene {
+        for (i, m) in methods.iter().enumerate() {
+            let base = methods[..i]
+                .iter()
+                .position(|o| o.mode == m.mode && o.tess == m.tess)
+                .and_then(|j| accuracies[j]);
+            accuracies[i] = Some(base.unwrap_or_else(|| {
+                accuracy::accuracy(config, scene, case.head, case.world_from_cave, m)
+            }));
+        }
+    }
+    // The picture against the reference render (one read-back per method, outside the timing).
+    let mut diffs: Vec<Option<f64>> = vec![None; methods.len()];
+    if scene.is_some() {
+        renderer.render(&params(&reference_method()))?;
+        let reference = renderer.read_images()?;
+        for (i, m) in methods.iter().enumerate() {
+            let base = methods[..i]
+                .iter()
+                .position(|o| o.mode == m.mode && o.tess == m.tess)
+                .and_then(|j| diffs[j]);
+            diffs[i] = Some(match base {
+                Some(d) => d,
+                None => {
+                    // Without the sky, as the reference: the comparison is of the geometry,
+                    // and methods differing only by their sky share it.
+                    let mut p = params(m);
+                    p.sky.mode = SkyMode::Off;
+                    renderer.render(&p)?;
+                    image_difference_pct(&renderer.read_images()?, &reference)
+                }
+            });
+        }
+    }
+    Ok(methods
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let mut wall = std::mem::take(&mut wall_times[i]);
+            wall.sort_by(f64::total_cmp);
+            let mut times = std::mem::take(&mut gpu_times[i]);
+            times.sort_by(f64::total_cmp);
+            let wall_median_ms = percentile(&wall, 0.5);
+            Row {
+                scene: scene_name.to_owned(),
+                viewpoint: case.viewpoint.clone(),
+                head: case.head_name.clone(),
+                method: m.clone(),
+                timer,
+                times_ms: if timer == Timer::Gpu { times } else { wall },
+                wall_median_ms,
+                input_triangles: input,
+                drawn_triangles: drawn[i],
+                accuracy: accuracies[i],
+                image_diff_pct: diffs[i],
+            }
+        })
+        .collect())
+}
+
+/// A pixel differs visibly when a channel is off by more than this (of 255): a different
+/// surface or a shifted texture, not a shading nuance (lighting from the per-vertex eye differs
+/// by a few levels at most).
+pub const VISIBLE_DIFFERENCE: u8 = 24;
+
+/// Share (%) of pixels of `images` that differ visibly from `reference`.
+pub fn image_difference_pct(images: &[WallImages], reference: &[WallImages]) -> f64 {
+    let mut total = 0usize;
+    let mut differing = 0usize;
+    for (a, b) in images.iter().zip(reference) {
+        for (p, q) in [(&a.left, &b.left), (&a.right, &b.right)] {
+            total += p.pixels().len();
+            differing += p
+                .pixels()
+                .zip(q.pixels())
+                .filter(|(u, v)| (0..3).any(|c| u.0[c].abs_diff(v.0[c]) > VISIBLE_DIFFERENCE))
+                .count();
+        }
+    }
+    100.0 * differing as f64 / total.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_interpolate() {
+        let v = [1.0, 2.0, 3.0, 4.0];
+        assert_eq!(percentile(&v, 0.5), 2.5);
+        assert_eq!(percentile(&v, 0.0), 1.0);
+        assert_eq!(percentile(&v, 1.0), 4.0);
+        assert!(percentile(&[], 0.5).is_nan());
+    }
+}

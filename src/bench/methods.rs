@@ -1,0 +1,140 @@
+//! The rendering methods the bench compares, and the clock their times come from.
+
+use std::fmt::Write as _;
+
+use crate::cave::RenderMode;
+use crate::sky::SkyMode;
+use crate::tess::{Criterion, TessSettings};
+
+/// One way of rendering a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Method {
+    pub name: String,
+    pub mode: RenderMode,
+    pub tess: TessSettings,
+    /// `None`: no sky.
+    pub sky: Option<SkyMode>,
+}
+
+/// Parameters of each tessellation criterion the bench sweeps (a full run; `--quick` takes
+/// every other one), coarse to fine.
+/// A criterion from its parameter, and the parameters swept.
+type Sweep = (fn(f32) -> Criterion, &'static [f32]);
+
+const SWEEP: [Sweep; 4] = [
+    (Criterion::Error, &[4.0, 2.0, 1.0, 0.5, 0.25]),
+    (|px| Criterion::Edge(px), &[64.0, 32.0, 16.0, 8.0]),
+    (|px| Criterion::Sphere(px), &[64.0, 32.0, 16.0, 8.0]),
+    (|n| Criterion::Uniform(n as u32), &[1.0, 2.0, 3.0]),
+];
+
+/// The methods compared, the reference (plain off-axis stereo, no sky) first: mono, stereo,
+/// both omnistereo warps without tessellation, the off-axis warp with each criterion at
+/// several parameters, and the sky modes.
+pub fn methods(quick: bool) -> Vec<Method> {
+    let m = |mode: RenderMode, tess: TessSettings, sky: Option<SkyMode>| {
+        let mut name = mode.name().to_owned();
+        if let Some(c) = tess.criterion {
+            let _ = write!(name, " + tess {c}");
+        }
+        if let Some(s) = sky {
+            let _ = write!(name, " + sky {s}");
+        }
+        Method {
+            name,
+            mode,
+            tess,
+            sky,
+        }
+    };
+    let none = TessSettings::default();
+    let with = |c: Criterion| TessSettings {
+        criterion: Some(c),
+        ..TessSettings::default()
+    };
+    let mut out = vec![
+        m(RenderMode::Stereo, none, None),
+        m(RenderMode::Mono, none, None),
+        m(RenderMode::Stereo, none, Some(SkyMode::Offaxis)),
+        m(RenderMode::OmniOnAxis, none, None),
+        m(RenderMode::OmniOffAxis, none, None),
+        m(RenderMode::OmniOffAxis, none, Some(SkyMode::Offaxis)),
+        m(RenderMode::OmniOffAxis, none, Some(SkyMode::OmniQuad)),
+        m(RenderMode::OmniOffAxis, none, Some(SkyMode::OmniExact)),
+        m(
+            RenderMode::OmniOffAxis,
+            with(Criterion::Error(0.5)),
+            Some(SkyMode::OmniExact),
+        ),
+    ];
+    for (criterion, values) in SWEEP {
+        for (i, &v) in values.iter().enumerate() {
+            if !quick || i % 2 == 0 || v == 0.5 {
+                out.push(m(RenderMode::OmniOffAxis, with(criterion(v)), None));
+            }
+        }
+    }
+    out
+}
+
+/// The methods' family for the chart: render mode and criterion kind (a series whose points
+/// are the criterion's parameters).
+pub fn family(m: &Method) -> String {
+    match m.tess.criterion {
+        None => m.mode.name().to_owned(),
+        Some(c) => {
+            let text = c.to_string();
+            let kind = text.split(':').next().unwrap_or("");
+            format!("{} + tess {kind}", m.mode.name())
+        }
+    }
+}
+
+/// The reference render for the image comparison: the off-axis warp tessellated until the
+/// geometric error is below 0.05 px (DESIGN.md's reference), deep enough for the city's
+/// ground quad.
+pub fn reference_method() -> Method {
+    Method {
+        name: "reference: omni-offaxis + tess error:0.05, depth 10".into(),
+        mode: RenderMode::OmniOffAxis,
+        tess: TessSettings {
+            criterion: Some(Criterion::Error(0.05)),
+            max_depth: 10,
+            ..TessSettings::default()
+        },
+        sky: None,
+    }
+}
+
+/// Which clock a time came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Timer {
+    /// GPU timestamps around the frame's work.
+    Gpu,
+    /// Wall clock from the start of encoding to the GPU finishing.
+    Wall,
+}
+
+impl Timer {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Gpu => "gpu-timestamps",
+            Self::Wall => "wall-clock",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn methods_start_with_the_reference_and_cover_every_sky_mode() {
+        let m = methods(false);
+        assert_eq!(m[0].mode, RenderMode::Stereo);
+        assert!(m[0].sky.is_none() && m[0].tess.criterion.is_none());
+        for sky in [SkyMode::Offaxis, SkyMode::OmniQuad, SkyMode::OmniExact] {
+            assert!(m.iter().any(|x| x.sky == Some(sky)));
+        }
+    }
+}

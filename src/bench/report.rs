@@ -1,0 +1,564 @@
+//! The bench's reports: `results.csv`, `report.md` (frame times, sky costs, accuracy and the
+//! overhead question) and the speed-against-accuracy chart.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::accuracy::Accuracy;
+use super::chart;
+use super::error::BenchError;
+use super::measure::{Row, VISIBLE_DIFFERENCE, percentile};
+use super::methods::{Method, family};
+use super::run::BenchOptions;
+use crate::cave::RenderMode;
+use crate::config::Config;
+use crate::sky::SkyMode;
+
+/// Writes a CSV table: a header and rows of cells (quoted where a cell needs it, so a scene
+/// name with a comma stays one cell).
+pub(super) fn write_csv(
+    path: &Path,
+    header: &[&str],
+    rows: impl IntoIterator<Item = Vec<String>>,
+) -> Result<(), BenchError> {
+    let fail = |e: csv::Error| BenchError::Csv {
+        path: path.to_owned(),
+        message: e.to_string(),
+    };
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    writer.write_record(header).map_err(fail)?;
+    for row in rows {
+        writer.write_record(&row).map_err(fail)?;
+    }
+    let bytes = writer.into_inner().map_err(|e| BenchError::Csv {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    std::fs::write(path, bytes).map_err(|source| BenchError::Write {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+pub(super) fn write_file(path: &Path, text: &str) -> Result<(), BenchError> {
+    std::fs::write(path, text).map_err(|source| BenchError::Write {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// The row of the same case and render mode without a sky (for sky ratios) or the case's
+/// reference method (plain stereo).
+fn find<'a>(rows: &'a [Row], like: &Row, pred: impl Fn(&Method) -> bool) -> Option<&'a Row> {
+    rows.iter().find(|r| {
+        r.scene == like.scene
+            && r.viewpoint == like.viewpoint
+            && r.head == like.head
+            && pred(&r.method)
+    })
+}
+
+pub(super) fn write_outputs(
+    options: &BenchOptions,
+    config: &Config,
+    adapter: &str,
+    frames: usize,
+    rows: &[Row],
+) -> Result<Vec<PathBuf>, BenchError> {
+    std::fs::create_dir_all(&options.out).map_err(|source| BenchError::Write {
+        path: options.out.clone(),
+        source,
+    })?;
+    // Plain off-axis stereo of the same case; none for an empty scene, whose reference frame
+    // would be a bare clear.
+    let reference = |r: &Row| {
+        find(rows, r, |m| {
+            m.mode == RenderMode::Stereo && m.sky.is_none() && m.tess.criterion.is_none()
+        })
+        .filter(|o| o.input_triangles > 0)
+    };
+    let without_sky = |r: &Row| {
+        find(rows, r, |m| {
+            m.mode == r.method.mode && m.tess == r.method.tess && m.sky.is_none()
+        })
+    };
+
+    let header = [
+        "scene",
+        "viewpoint",
+        "head",
+        "method",
+        "mode",
+        "tessellation",
+        "sky",
+        "frames",
+        "timer",
+        "median_ms",
+        "p25_ms",
+        "p75_ms",
+        "min_ms",
+        "max_ms",
+        "wall_median_ms",
+        "input_triangles",
+        "drawn_triangles",
+        "ratio_to_stereo",
+        "ratio_to_no_sky",
+        "error_max_px",
+        "error_p99_px",
+        "error_samples",
+        "cpu_input_triangles",
+        "cpu_culled_triangles",
+        "cpu_drawn_triangles",
+        "image_diff_pct",
+        "seam_max_px",
+        "seam_p99_px",
+        "seam_crossings",
+    ];
+    let f4 = |v: f64| format!("{v:.4}");
+    let table = rows.iter().map(|r| {
+        let ratio =
+            |other: Option<&Row>| other.map_or(String::new(), |o| f4(r.median() / o.median()));
+        let mut cells = vec![
+            r.scene.clone(),
+            r.viewpoint.clone(),
+            r.head.clone(),
+            r.method.name.clone(),
+            r.method.mode.name().to_owned(),
+            r.method
+                .tess
+                .criterion
+                .map_or("none".into(), |c| c.to_string()),
+            r.method.sky.map_or("none", SkyMode::name).to_owned(),
+            r.times_ms.len().to_string(),
+            r.timer.name().to_owned(),
+            f4(r.median()),
+            f4(percentile(&r.times_ms, 0.25)),
+            f4(percentile(&r.times_ms, 0.75)),
+            f4(r.times_ms.first().copied().unwrap_or(f64::NAN)),
+            f4(r.times_ms.last().copied().unwrap_or(f64::NAN)),
+            f4(r.wall_median_ms),
+            r.input_triangles.to_string(),
+            r.drawn_triangles.to_string(),
+            ratio(reference(r)),
+            if r.method.sky.is_some() {
+                ratio(without_sky(r))
+            } else {
+                String::new()
+            },
+        ];
+        match r.accuracy {
+            Some(a) => cells.extend([
+                format!("{:.4}", a.error.max),
+                format!("{:.4}", a.error.p99),
+                a.error.samples.to_string(),
+                a.input.to_string(),
+                a.culled.to_string(),
+                a.emitted.to_string(),
+            ]),
+            None => cells.extend(std::iter::repeat_n(String::new(), 6)),
+        }
+        cells.push(
+            r.image_diff_pct
+                .map_or(String::new(), |d| format!("{d:.3}")),
+        );
+        match r.accuracy {
+            Some(a) => cells.extend([
+                format!("{:.4}", a.seam.max),
+                format!("{:.4}", a.seam.p99),
+                a.seam.samples.to_string(),
+            ]),
+            None => cells.extend(std::iter::repeat_n(String::new(), 3)),
+        }
+        cells
+    });
+    let csv_path = options.out.join("results.csv");
+    write_csv(&csv_path, &header, table)?;
+
+    let walls: Vec<String> = config
+        .cave
+        .walls
+        .iter()
+        .map(|w| format!("{} {}×{}", w.name, w.resolution[0], w.resolution[1]))
+        .collect();
+    let timer = rows.first().map_or("none", |r| r.timer.name());
+    let mut md = String::new();
+    let _ = writeln!(md, "# omnicave benchmark\n");
+    let _ = writeln!(
+        md,
+        "- adapter: {adapter}\n- machine: {}\n- CAVE: {} ({}), MSAA ×{}, both eyes\n- timer: {timer}; \
+         median of {frames} frames per method, methods interleaved frame by frame\n- command: \
+         `omnicave bench --config {}{}{}{}{}`\n",
+        machine(),
+        options.config.display(),
+        walls.join(", "),
+        config.settings.render.msaa,
+        options.config.display(),
+        options
+            .size
+            .map_or(String::new(), |[w, h]| format!(" --size {w}x{h}")),
+        options
+            .frames
+            .map_or(String::new(), |n| format!(" --frames {n}")),
+        if options.quick { " --quick" } else { "" },
+        options
+            .scenes
+            .iter()
+            .map(|s| format!(" --scene {}", s.display()))
+            .collect::<String>(),
+    );
+    let _ = writeln!(md, "## Frame time of the whole stereo frame\n");
+    let _ = writeln!(
+        md,
+        "| scene | viewpoint | head | method | median ms | p25–p75 ms | × stereo | drawn triangles |\n|---|---|---|---|---:|---:|---:|---:|"
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.2} | {:.2}–{:.2} | {} | {} |",
+            r.scene,
+            r.viewpoint,
+            r.head,
+            r.method.name,
+            r.median(),
+            percentile(&r.times_ms, 0.25),
+            percentile(&r.times_ms, 0.75),
+            reference(r).map_or("–".into(), |o| format!("{:.3}", r.median() / o.median())),
+            r.drawn_triangles,
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n## Cost of each sky mode relative to no sky (same render mode, same run)\n"
+    );
+    let _ = writeln!(
+        md,
+        "| scene | viewpoint | head | render mode | offaxis | omni-quad | omni-exact |\n|---|---|---|---|---:|---:|---:|"
+    );
+    for r in rows.iter().filter(|r| r.method.sky.is_none()) {
+        let cell = |sky: SkyMode| {
+            find(rows, r, |m| {
+                m.mode == r.method.mode && m.tess == r.method.tess && m.sky == Some(sky)
+            })
+            .map_or("–".into(), |s| format!("{:.3}", s.median() / r.median()))
+        };
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            r.scene,
+            r.viewpoint,
+            r.head,
+            r.method.name,
+            cell(SkyMode::Offaxis),
+            cell(SkyMode::OmniQuad),
+            cell(SkyMode::OmniExact),
+        );
+    }
+    let summary = summarise(rows);
+    write_accuracy_sections(&mut md, &summary);
+    let md_path = options.out.join("report.md");
+    write_file(&md_path, &md)?;
+    let mut files = vec![csv_path, md_path];
+    if let Some(first) = summary.first() {
+        let points = chart_points(first);
+        let svg = chart::svg(
+            &points,
+            &format!("Speed against accuracy: {}", first.scene),
+            &format!(
+                "walls {} · MSAA ×{} · median frame time and worst p99 error over {} \
+                 viewpoint/head case(s)",
+                walls.join(", "),
+                config.settings.render.msaa,
+                first.cases
+            ),
+        );
+        let svg_path = options.out.join("speed-vs-accuracy.svg");
+        write_file(&svg_path, &svg)?;
+        files.push(svg_path);
+        let png_path = options.out.join("speed-vs-accuracy.png");
+        let png = chart::png(&svg).map_err(|message| BenchError::Chart {
+            path: png_path.clone(),
+            message,
+        })?;
+        std::fs::write(&png_path, png).map_err(|source| BenchError::Write {
+            path: png_path.clone(),
+            source,
+        })?;
+        files.push(png_path);
+    }
+    Ok(files)
+}
+
+/// One method on one scene, over all head positions.
+#[derive(Debug, Clone)]
+pub struct MethodSummary {
+    pub method: Method,
+    /// Median over cases (viewpoint and head) of the median frame time, ms.
+    pub time_ms: f64,
+    /// Geometric mean over cases of the ratio to plain stereo.
+    pub ratio_to_stereo: Option<f64>,
+    /// Worst over cases.
+    pub error_p99: f32,
+    pub error_max: f32,
+    /// Worst over cases: largest jump of an edge at a wall seam, px.
+    pub seam_max: f32,
+    /// Worst over cases: share of pixels differing visibly from the reference render, %.
+    pub image_diff_pct: f64,
+    /// Largest over cases (CPU twin, all views).
+    pub drawn_triangles: u64,
+}
+
+/// The methods of one scene.
+#[derive(Debug, Clone)]
+pub struct SceneSummary {
+    pub scene: String,
+    /// Measured situations (viewpoint and head).
+    pub cases: usize,
+    pub methods: Vec<MethodSummary>,
+}
+
+/// Per scene with geometry, per method without a sky: frame time and accuracy over cases.
+pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
+    let mut scenes: Vec<String> = Vec::new();
+    for r in rows.iter().filter(|r| r.accuracy.is_some()) {
+        if !scenes.contains(&r.scene) {
+            scenes.push(r.scene.clone());
+        }
+    }
+    scenes
+        .into_iter()
+        .map(|scene| {
+            let of_scene: Vec<&Row> = rows.iter().filter(|r| r.scene == scene).collect();
+            let mut cases: Vec<(&str, &str)> = of_scene
+                .iter()
+                .map(|r| (r.viewpoint.as_str(), r.head.as_str()))
+                .collect();
+            cases.dedup();
+            let mut names: Vec<&Method> = Vec::new();
+            for r in &of_scene {
+                if r.method.sky.is_none() && !names.iter().any(|m| m.name == r.method.name) {
+                    names.push(&r.method);
+                }
+            }
+            let methods = names
+                .into_iter()
+                .map(|m| {
+                    let mine: Vec<&&Row> = of_scene
+                        .iter()
+                        .filter(|r| r.method.name == m.name)
+                        .collect();
+                    let mut times: Vec<f64> = mine.iter().map(|r| r.median()).collect();
+                    times.sort_by(f64::total_cmp);
+                    let ratios: Vec<f64> = mine
+                        .iter()
+                        .filter_map(|r| {
+                            let reference = of_scene.iter().find(|o| {
+                                o.head == r.head
+                                    && o.viewpoint == r.viewpoint
+                                    && o.method.mode == RenderMode::Stereo
+                                    && o.method.sky.is_none()
+                                    && o.method.tess.criterion.is_none()
+                            })?;
+                            Some(r.median() / reference.median())
+                        })
+                        .collect();
+                    let ratio = (!ratios.is_empty()).then(|| {
+                        (ratios.iter().map(|r| r.ln()).sum::<f64>() / ratios.len() as f64).exp()
+                    });
+                    let acc = |f: fn(&Accuracy) -> f32| {
+                        mine.iter()
+                            .filter_map(|r| r.accuracy.as_ref().map(f))
+                            .fold(0.0f32, f32::max)
+                    };
+                    MethodSummary {
+                        method: m.clone(),
+                        time_ms: percentile(&times, 0.5),
+                        ratio_to_stereo: ratio,
+                        error_p99: acc(|a| a.error.p99),
+                        error_max: acc(|a| a.error.max),
+                        seam_max: acc(|a| a.seam.max),
+                        image_diff_pct: mine
+                            .iter()
+                            .filter_map(|r| r.image_diff_pct)
+                            .fold(0.0, f64::max),
+                        drawn_triangles: mine
+                            .iter()
+                            .filter_map(|r| r.accuracy.map(|a| a.emitted))
+                            .max()
+                            .unwrap_or(0),
+                    }
+                })
+                .collect();
+            SceneSummary {
+                scene,
+                cases: cases.len(),
+                methods,
+            }
+        })
+        .collect()
+}
+
+/// The chart's points: one per method, grouped by family.
+pub fn chart_points(summary: &SceneSummary) -> Vec<chart::ChartPoint> {
+    summary
+        .methods
+        .iter()
+        .map(|m| chart::ChartPoint {
+            family: family(&m.method),
+            label: m
+                .method
+                .tess
+                .criterion
+                .map(|c| c.to_string().split(':').nth(1).unwrap_or("").to_owned())
+                .unwrap_or_default(),
+            time_ms: m.time_ms,
+            error_px: f64::from(m.error_p99),
+        })
+        .collect()
+}
+
+/// The error target the report answers for (px, 99th percentile).
+pub const TARGET_P99_PX: f32 = 0.5;
+
+fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
+    for s in summary {
+        let points = chart_points(s);
+        let front = chart::pareto_front(&points);
+        let _ = writeln!(
+            md,
+            "\n## Speed against accuracy: {} ({} viewpoint and head positions)\n\nError: distance in pixels \
+             between where each method draws points along the scene's edges and where the \
+             omnistereo ideal puts them (each point seen from its own eye), sampled every 4 px \
+             along every drawn edge of every wall and eye (CPU twin); p99 and max are the worst \
+             over the viewpoints and head positions. Pixels off: share of eye-image pixels differing by more \
+             than {VISIBLE_DIFFERENCE}/255 from the reference render (omni-offaxis + \
+             error:0.05 at depth 10), worst over the heads. Seam: the largest jump, along the \
+             shared edge, of a scene edge crossing from one wall's image to the next (same \
+             eye), worst over them. Time: median over them.\n",
+            s.scene, s.cases
+        );
+        let _ = writeln!(
+            md,
+            "| method | median ms | × stereo | p99 error px | max error px | seam max px | pixels off % | drawn triangles | Pareto |\n|---|---:|---:|---:|---:|---:|---:|---:|:---:|"
+        );
+        for (i, m) in s.methods.iter().enumerate() {
+            let _ = writeln!(
+                md,
+                "| {} | {:.2} | {} | {:.3} | {:.2} | {:.2} | {:.2} | {} | {} |",
+                m.method.name,
+                m.time_ms,
+                m.ratio_to_stereo.map_or("–".into(), |r| format!("{r:.3}")),
+                m.error_p99,
+                m.error_max,
+                m.seam_max,
+                m.image_diff_pct,
+                m.drawn_triangles,
+                if front.contains(&i) { "●" } else { "" }
+            );
+        }
+        // The overhead of omnistereo with tessellation at the target error.
+        let tessellated = |m: &&MethodSummary| {
+            m.method.mode.is_omni()
+                && m.method.tess.criterion.is_some()
+                && m.error_p99 <= TARGET_P99_PX
+        };
+        let best = s
+            .methods
+            .iter()
+            .filter(tessellated)
+            .min_by(|a, b| a.time_ms.total_cmp(&b.time_ms));
+        let _ = writeln!(
+            md,
+            "\n**At ≤ {TARGET_P99_PX} px p99 error** ({}): {}\n",
+            s.scene,
+            match best {
+                Some(m) => format!(
+                    "the fastest omnistereo + tessellation method is `{}`, {:.2} ms, **{} × \
+                     off-axis stereo** ({:+.0} %), drawing {} triangles.",
+                    m.method.name,
+                    m.time_ms,
+                    m.ratio_to_stereo.map_or("–".into(), |r| format!("{r:.3}")),
+                    m.ratio_to_stereo.map_or(f64::NAN, |r| (r - 1.0) * 100.0),
+                    m.drawn_triangles
+                ),
+                None => "no omnistereo + tessellation method reached it in this run.".into(),
+            }
+        );
+        let _ = writeln!(
+            md,
+            "Coarsest setting of each criterion that reaches it, and what it draws:\n\n\
+             | criterion | setting | p99 px | max px | drawn triangles | × stereo |\n\
+             |---|---|---:|---:|---:|---:|"
+        );
+        let mut kinds: Vec<String> = Vec::new();
+        for m in s
+            .methods
+            .iter()
+            .filter(|m| m.method.tess.criterion.is_some())
+        {
+            let f = family(&m.method);
+            if !kinds.contains(&f) {
+                kinds.push(f);
+            }
+        }
+        for kind in kinds {
+            // Methods are listed coarse to fine: the first that reaches the target.
+            let reached = s
+                .methods
+                .iter()
+                .find(|m| family(&m.method) == kind && m.error_p99 <= TARGET_P99_PX);
+            let _ = match reached {
+                Some(m) => writeln!(
+                    md,
+                    "| {kind} | {} | {:.3} | {:.2} | {} | {} |",
+                    m.method
+                        .tess
+                        .criterion
+                        .map_or(String::new(), |c| c.to_string()),
+                    m.error_p99,
+                    m.error_max,
+                    m.drawn_triangles,
+                    m.ratio_to_stereo.map_or("–".into(), |r| format!("{r:.3}"))
+                ),
+                None => writeln!(md, "| {kind} | not reached | | | | |"),
+            };
+        }
+    }
+}
+
+/// The CPU model and core count, as far as the OS tells.
+fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_owned())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_owned());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!("{cpu}, {cores} cores available")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cell_with_a_comma_or_quote_stays_one_cell() {
+        let path = std::env::temp_dir().join(format!("omnicave-csv-{}.csv", std::process::id()));
+        let name = "Sponza, \"decimated\"";
+        write_csv(
+            &path,
+            &["scene", "ms"],
+            [vec![name.to_owned(), "1.5".into()]],
+        )
+        .expect("write");
+        let mut reader = csv::Reader::from_path(&path).expect("read");
+        let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.expect("row")).collect();
+        let _ = std::fs::remove_file(&path);
+        assert_eq!(rows.len(), 1);
+        assert_eq!(rows[0].len(), 2);
+        assert_eq!(&rows[0][0], name);
+    }
+}

@@ -1,0 +1,196 @@
+//! `omnicave bench`: loads the scenes and the sky, measures every case and writes the
+//! reports as it goes.
+
+use std::path::PathBuf;
+
+use super::cases::{bundled_path, cases};
+use super::error::BenchError;
+use super::measure::{Row, measure};
+use super::methods::methods;
+use super::panorama;
+use super::report::{write_file, write_outputs};
+use crate::config::Config;
+use crate::render::Gpu;
+use crate::scene::Scene;
+use crate::setup::load_scene;
+use crate::sky::load_sky;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct BenchOptions {
+    pub config: PathBuf,
+    /// Scenes; empty: the config's scene and the bundled city.
+    pub scenes: Vec<PathBuf>,
+    /// Sky for the sky methods; `None`: the config's, else the bundled one.
+    pub sky: Option<PathBuf>,
+    pub out: PathBuf,
+    /// Fewer frames and head positions (finishes in well under 2 minutes on lavapipe).
+    pub quick: bool,
+    /// Timed frames per method and case (default 12, quick 3).
+    pub frames: Option<usize>,
+    /// Replaces every wall's pixel size (quick default: 192×108).
+    pub size: Option<[u32; 2]>,
+    /// Only the panorama methods (`panorama.csv` and a report of them alone).
+    pub panorama_only: bool,
+}
+
+/// Wall size of a quick run: 15 % of the thesis CAVE's in each direction, so that CI's
+/// software renderer (which spends seconds per full-size city frame) finishes in under two
+/// minutes.
+pub const QUICK_SIZE: [u32; 2] = [192, 108];
+
+/// Everything a run produced.
+#[derive(Debug, Clone)]
+pub struct BenchReport {
+    pub rows: Vec<Row>,
+    /// The panorama methods (see [`panorama`]).
+    pub pano_rows: Vec<panorama::PanoRow>,
+    pub adapter: String,
+    pub files: Vec<PathBuf>,
+}
+
+/// Runs the benchmark and writes `results.csv`, `report.md` and the chart into the output
+/// folder. `progress(done, total, what)` is told before each case.
+pub fn run(
+    options: &BenchOptions,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<BenchReport, BenchError> {
+    let mut config = Config::load(&options.config)?;
+    if let Some(size) = options.size.or(options.quick.then_some(QUICK_SIZE)) {
+        for wall in &mut config.cave.walls {
+            wall.resolution = size;
+        }
+    }
+    let mut scenes: Vec<(String, Option<Scene>)> = Vec::new();
+    let scene_paths: Vec<PathBuf> = if options.scenes.is_empty() {
+        let mut v: Vec<PathBuf> = config.scene_path.iter().cloned().collect();
+        let city = bundled_path(&options.config, "assets/city.glb");
+        if city.is_file() && !v.contains(&city) {
+            v.push(city);
+        }
+        v
+    } else {
+        options.scenes.clone()
+    };
+    for path in &scene_paths {
+        let name = path.file_stem().map_or_else(
+            || path.display().to_string(),
+            |s| s.to_string_lossy().into(),
+        );
+        scenes.push((name, Some(load_scene(&config.settings, path)?)));
+    }
+    // The sky alone, over the whole of every wall: its worst case.
+    scenes.push(("sky only".into(), None));
+
+    let sky_path = options
+        .sky
+        .clone()
+        .or_else(|| config.sky_path.clone())
+        .unwrap_or_else(|| bundled_path(&options.config, crate::sky::bundled::PATH));
+    let sky = load_sky(&sky_path)?;
+
+    let frames = options
+        .frames
+        .unwrap_or(if options.quick { 3 } else { 12 })
+        .max(1);
+
+    let gpu = Gpu::headless()?;
+    let adapter = {
+        let info = gpu.adapter.get_info();
+        format!(
+            "{} ({:?}, driver {} {})",
+            info.name, info.backend, info.driver, info.driver_info
+        )
+    };
+    let methods = methods(options.quick);
+    let mut rows = Vec::new();
+    let total: usize = scenes
+        .iter()
+        .filter(|_| !options.panorama_only)
+        .map(|(_, s)| cases(&config, options.quick, s.is_some()).len())
+        .sum();
+    let mut done = 0;
+    let wall_scenes: &[(String, Option<Scene>)] = if options.panorama_only { &[] } else { &scenes };
+    for (scene_name, scene) in wall_scenes {
+        for case in cases(&config, options.quick, scene.is_some()) {
+            let what = format!(
+                "{scene_name}, {}, head {}: {} methods × {frames} frames",
+                case.viewpoint,
+                case.head_name,
+                methods.len()
+            );
+            progress(done, total, &what);
+            done += 1;
+            tracing::info!("[{done}/{total}] {what}");
+            rows.extend(measure(
+                &gpu,
+                &config,
+                scene_name,
+                scene.as_ref(),
+                &sky,
+                &case,
+                &methods,
+                frames,
+            )?);
+            // Rewritten after every case, so a run that is stopped keeps what it measured.
+            write_outputs(options, &config, &adapter, frames, &rows)?;
+        }
+    }
+    progress(
+        total,
+        total,
+        "panorama methods (geometric and image routes, against the CPU ray caster)",
+    );
+    let with_geometry: Vec<(String, Scene)> = scenes
+        .iter()
+        .filter_map(|(name, s)| s.clone().map(|s| (name.clone(), s)))
+        .collect();
+    let (pano_rows, pano_files) = panorama::run_panorama(
+        &gpu,
+        &config,
+        &with_geometry,
+        &options.out,
+        options.quick,
+        frames,
+    )?;
+    progress(total, total, "done");
+    let md_path = options.out.join("report.md");
+    let (mut files, mut md) = if options.panorama_only {
+        let md = format!(
+            "# omnicave bench: the panorama methods\n\nadapter: {adapter}\n\ncommand: `omnicave \
+             bench --panorama-only --config {}{}`\n",
+            options.config.display(),
+            if options.quick { " --quick" } else { "" }
+        );
+        (Vec::new(), md)
+    } else {
+        let files = write_outputs(options, &config, &adapter, frames, &rows)?;
+        // The panorama section at the end of the report.
+        let md = std::fs::read_to_string(&md_path).map_err(|source| BenchError::Write {
+            path: md_path.clone(),
+            source,
+        })?;
+        (files, md)
+    };
+    let images: Vec<PathBuf> = pano_files
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .cloned()
+        .collect();
+    md.push_str(&panorama::pano_markdown(
+        &pano_rows,
+        panorama::pano_size(options.quick),
+        &images,
+    ));
+    write_file(&md_path, &md)?;
+    if options.panorama_only {
+        files.push(md_path);
+    }
+    files.extend(pano_files);
+    Ok(BenchReport {
+        pano_rows,
+        rows,
+        adapter,
+        files,
+    })
+}
