@@ -62,8 +62,12 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
         return Ok(Scene::default());
     }
     let _loading = tracing::info_span!("loading scene", file = %path.display()).entered();
-    let scene = load_gltf(path)?;
-    let _ = settings;
+    let mut scene = load_gltf(path)?;
+    if settings.scene.double_sided {
+        for material in &mut scene.materials {
+            material.double_sided = true;
+        }
+    }
     tracing::info!(
         "scene {}: {} triangles, {} materials, {} textures",
         path.display(),

@@ -205,3 +205,44 @@ fn textured_floor_is_sampled_and_lit() {
         "checker not visible"
     );
 }
+
+#[test]
+fn the_double_sided_setting_draws_content_wound_the_wrong_way() {
+    // A single-sided quad in front of the front wall whose front face points away from the
+    // viewer (as in a model wound inward): culled as the file says, drawn with
+    // `[scene] double_sided = true`.
+    let mut w = GlbWriter::new();
+    let mat = w.add_material(&MaterialDesc {
+        unlit: true,
+        ..MaterialDesc::plain("away", [1.0, 0.0, 1.0], 0.5)
+    });
+    // u × v = X × −Y = −Z: the front face looks towards the front wall, away from the viewer.
+    let quad = grid(Vec3::new(-0.5, 2.2, -1.0), Vec3::X, Vec3::NEG_Y, 1, 1, 1.0);
+    let mesh = w.add_mesh("away", &[(&quad, mat)]);
+    let node = w.add_node(NodeDesc::new("away").with_mesh(mesh));
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("wound-away.glb");
+    std::fs::write(&path, w.to_glb(&[node])).unwrap();
+
+    let cave = cave_at(160, 90);
+    let magenta_at_centre = |double_sided: bool| {
+        let mut settings = omnicave::config::ConfigFile::default();
+        settings.scene.double_sided = double_sided;
+        let scene = omnicave::setup::load_scene(&settings, &path).unwrap();
+        let images = render(
+            &cave,
+            Head::at(Vec3::new(0.0, 1.7, 0.0)),
+            RenderMode::Mono,
+            &scene,
+            RenderSettings::default(),
+        );
+        let front = &images[cave.wall_index("front").unwrap()].left;
+        // The quad covers the wall's centre seen from the head.
+        let p = front.get_pixel(80, 40).0;
+        p[0] > 200 && p[1] < 60 && p[2] > 200
+    };
+    assert!(!magenta_at_centre(false), "a back face was drawn");
+    assert!(
+        magenta_at_centre(true),
+        "double_sided did not draw the back face"
+    );
+}

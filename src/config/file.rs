@@ -375,6 +375,9 @@ impl Default for RenderSection {
 pub struct SceneSection {
     /// glTF file; relative paths are relative to the config file's folder.
     pub path: Option<PathBuf>,
+    /// Draw every material double-sided (no back-face culling), for content wound the wrong
+    /// way (a model whose floor or walls vanish from inside).
+    pub double_sided: bool,
     pub world_from_cave: PlacementSection,
 }
 
