@@ -21,7 +21,6 @@ use winit::window::WindowId;
 
 use crate::config::{AppMode, Config, ConfigError, PanelPlacement};
 use crate::render::gpu::Gpu;
-use crate::render::present::PresentPass;
 use crate::render::{RenderError, Renderer};
 use crate::scene::{Scene, SceneError};
 use crate::setup::{load_config_sky, load_scene};
@@ -145,7 +144,6 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
 struct Graphics {
     gpu: Gpu,
     renderer: Renderer,
-    present: PresentPass,
     windows: Vec<OutputWindow>,
     egui: Option<EguiHost>,
 }
@@ -231,9 +229,8 @@ impl App {
             tracing::error!("{e}; running without a sky");
         }
         let gpu_timing = renderer.enable_gpu_timing(&gpu);
-        let mut present = PresentPass::new(&gpu.device);
         for w in &windows {
-            present.ensure_pipeline(&gpu.device, w.format());
+            renderer.ensure_present_format(w.format());
         }
         let host = match (config.app.mode, &config.app.panel) {
             (AppMode::Preview, _) => windows.iter().position(|w| w.role == Role::Preview),
@@ -263,7 +260,6 @@ impl App {
         Ok(Graphics {
             gpu,
             renderer,
-            present,
             windows,
             egui,
         })
@@ -571,7 +567,7 @@ fn present_windows(
             (Some(host), Some(frame)) if host.window_index == index => Some((host, frame)),
             _ => None,
         };
-        match win.draw(&gfx.gpu, &gfx.renderer, &gfx.present, state, egui) {
+        match win.draw(&gfx.gpu, &gfx.renderer, state, egui) {
             Ok(r) => recovered += u64::from(r),
             Err(e) => tracing::warn!("{e}"),
         }

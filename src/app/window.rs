@@ -296,13 +296,13 @@ impl OutputWindow {
         &mut self,
         gpu: &Gpu,
         renderer: &Renderer,
-        present: &PresentPass,
         state: &AppState,
         egui: Option<(&mut EguiHost, &EguiFrame)>,
     ) -> Result<bool, AppError> {
         if !self.configured {
             return Ok(false);
         }
+        let present = renderer.present_pass();
         let walls = &state.cave().walls;
         self.ensure_bindings(gpu, renderer, present, walls.len());
         let show_pano =

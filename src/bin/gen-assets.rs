@@ -29,25 +29,38 @@ struct Args {
 
 fn main() -> anyhow::Result<()> {
     let Args { out, check } = <Args as clap::Parser>::parse();
-    let files = [
-        ("living-room.glb", living_room()?),
-        ("city.glb", city()?),
-        ("sky.png", png(&sky())?),
+    type Generator = fn() -> anyhow::Result<Vec<u8>>;
+    let generators: [(&str, Generator); 3] = [
+        ("living-room.glb", living_room),
+        ("city.glb", city),
+        ("sky.png", || png(&sky())),
     ];
+    // A bar with an ETA on a terminal (the city and the sky take seconds each).
+    let bar = indicatif::ProgressBar::new(generators.len() as u64).with_style(
+        indicatif::ProgressStyle::with_template(
+            "[{bar:30}] {pos}/{len} {elapsed_precise} (ETA {eta}) {wide_msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("#>-"),
+    );
     let mut stale = Vec::new();
-    for (name, bytes) in &files {
+    for (name, generate) in generators {
+        bar.set_message(name);
+        let bytes = generate()?;
+        bar.inc(1);
         let path = out.join(name);
         if check {
             let on_disk = std::fs::read(&path).unwrap_or_default();
-            if on_disk != *bytes {
+            if on_disk != bytes {
                 stale.push(path);
             }
         } else {
             std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-            std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
-            eprintln!("wrote {} ({} KiB)", path.display(), bytes.len() / 1024);
+            std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+            bar.suspend(|| eprintln!("wrote {} ({} KiB)", path.display(), bytes.len() / 1024));
         }
     }
+    bar.finish_and_clear();
     if !stale.is_empty() {
         bail!(
             "assets differ from the generator's output: {:?}; run `cargo run --bin gen-assets`",

@@ -138,7 +138,8 @@ pub struct Renderer {
     wireframe_supported: bool,
     /// GPU frame timer (benchmark only; `None` unless enabled).
     timer: Option<FrameTimer>,
-    /// Stereo output composition (headless use; windows own theirs).
+    /// Stereo output composition: the one present pass, for headless composition and every
+    /// window's surface format.
     present: present::PresentPass,
     /// Bumped whenever an eye target is rebuilt (bindings of eye textures must follow).
     targets_generation: u64,
@@ -378,6 +379,16 @@ impl Renderer {
                 Ok(())
             }
         }
+    }
+
+    /// The present pass that composes eye images into outputs (windows bind it too).
+    pub fn present_pass(&self) -> &present::PresentPass {
+        &self.present
+    }
+
+    /// Builds the present pipeline for a window's surface format (once per format).
+    pub fn ensure_present_format(&mut self, format: wgpu::TextureFormat) {
+        self.present.ensure_pipeline(&self.device, format);
     }
 
     /// Whether a sky is set.
