@@ -32,15 +32,26 @@ struct ViewUniforms {
     wall_plane: vec4<f32>,
     // Omnistereo: xyz head position; w: signed half IPD (−IPD/2 left eye, +IPD/2 right eye).
     omni_head: vec4<f32>,
-    // Panorama views only (zero for walls): x projection code + 1, y near and z far clipping
-    // sphere radius, w stereo (0 mono, 1 volume, 2 omni). In a panorama view wall_plane holds
-    // x: the volume stereo's zero-parallax depth, y: the target's MSAA sample count.
-    pano: vec4<f32>,
-    // Panorama: the field of view's centre and half size in map coordinates.
+    // The fields below are for panorama views only (zero for walls). The projection's code
+    // + 1 (0: not a panorama).
+    pano_projection: u32,
+    // Near and far clipping sphere radius, metres.
+    pano_near: f32,
+    pano_far: f32,
+    // 0 mono, 1 volume, 2 omni.
+    pano_stereo: u32,
+    // The field of view's centre and half size in map coordinates.
     pano_window: vec4<f32>,
-    // Panorama: x, y image pixels; z signed half inter-ocular distance and w viewing distance
-    // of the volume stereo (its zero-parallax depth is wall_plane.x).
-    pano_size: vec4<f32>,
+    // Image pixels.
+    pano_size: vec2<f32>,
+    // Volume stereo: signed half inter-ocular distance, viewing distance and zero-parallax
+    // depth (normalised device units).
+    volume_half_ioid: f32,
+    volume_distance: f32,
+    volume_zero_parallax: f32,
+    // The panorama target's MSAA sample count.
+    pano_msaa: u32,
+    pano_pad: vec2<u32>,
 }
 
 // Omnistereo, mirrored on the CPU by src/cave/omni.rs (keep the two in step).
@@ -287,8 +298,8 @@ fn pano_map(code: u32, lon: f32, lat: f32) -> vec2<f32> {
 // Pixel position (x right, y up, from the image centre) of a longitude and latitude in a
 // panorama view.
 fn pano_pixel(pv: ViewUniforms, lon: f32, lat: f32) -> vec2<f32> {
-    let ndc = (pano_map(u32(pv.pano.x) - 1u, lon, lat) - pv.pano_window.xy) / pv.pano_window.zw;
-    return 0.5 * ndc * pv.pano_size.xy;
+    let ndc = (pano_map(pv.pano_projection - 1u, lon, lat) - pv.pano_window.xy) / pv.pano_window.zw;
+    return 0.5 * ndc * pv.pano_size;
 }
 
 // The unit direction at map coordinates; w = 0 where the projection shows nothing.

@@ -1,14 +1,19 @@
 // Scene geometry: Blinn-Phong shaded, textured triangles for one wall and eye.
 // Paired with src/render/scene_pass.rs; shared structs come from common.wgsl.
 
-// Keep in sync with `MaterialUniforms` in src/render/uniforms.rs.
+// Keep in sync with `MaterialUniforms` in src/render/uniforms.rs (tests/gpu_layout.rs checks).
 struct MaterialUniforms {
     // Linear RGBA multiplier.
     base_color: vec4<f32>,
-    // rgb: emitted light (linear); w: 1 for unlit materials.
-    emissive: vec4<f32>,
-    // x: shininess, y: specular strength, z: alpha cutoff (< 0 = opaque), w unused.
-    params: vec4<f32>,
+    // Emitted light (linear).
+    emissive: vec3<f32>,
+    // 1 for unlit materials (KHR_materials_unlit).
+    unlit: u32,
+    shininess: f32,
+    specular: f32,
+    // Alpha cutoff (< 0: opaque).
+    alpha_cutoff: f32,
+    material_pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
@@ -136,7 +141,7 @@ struct PanoOutput {
 
 // The eye a CAVE-space point is seen from: the head, or in omnistereo its own eye.
 fn pano_eye(p: vec3<f32>) -> vec3<f32> {
-    if view.pano.w > 1.5 {
+    if view.pano_stereo == 2u {
         return omni_eye(p, view, frame.omni);
     }
     return view.eye_position.xyz;
@@ -149,17 +154,17 @@ fn pano_view_dir(v: vec3<f32>) -> vec3<f32> {
 
 // Normalised depth of a distance between the clipping spheres.
 fn pano_depth(distance: f32) -> f32 {
-    return (distance - view.pano.y) / (view.pano.z - view.pano.y);
+    return (distance - view.pano_near) / (view.pano_far - view.pano_near);
 }
 
 // VR'14's volume stereo: the horizontal parallax of a point at normalised depth `depth`.
 fn volume_parallax(depth: f32) -> f32 {
-    if view.pano.w < 0.5 || view.pano.w > 1.5 {
+    if view.pano_stereo != 1u {
         return 0.0;
     }
     let z = 2.0 * depth - 1.0;
-    let d = view.pano_size.w;
-    return view.pano_size.z * (1.0 - (view.wall_plane.x + d) / (z + d));
+    let d = view.volume_distance;
+    return view.volume_half_ioid * (1.0 - (view.volume_zero_parallax + d) / (z + d));
 }
 
 // Largest distance (pixels) between an edge's image and its chord (sampled) for a
@@ -181,7 +186,7 @@ fn outward(a: vec2<f32>, b: vec2<f32>, area: f32) -> vec2<f32> {
 
 // Image position (clip space, w = 1) of a longitude, latitude and distance.
 fn pano_clip(lon: f32, lat: f32, distance: f32) -> vec4<f32> {
-    let code = u32(view.pano.x) - 1u;
+    let code = view.pano_projection - 1u;
     var ndc = (pano_map(code, lon, lat) - view.pano_window.xy) / view.pano_window.zw;
     let depth = pano_depth(distance);
     ndc.x += volume_parallax(depth);
@@ -226,7 +231,7 @@ fn arc_sin_lat(a: vec3<f32>, b: vec3<f32>, lowest: bool) -> f32 {
 // The band of image rows (NDC y, low and high) that latitudes lo..hi can reach at any
 // longitude.
 fn pano_band(lo: f32, hi: f32) -> vec2<f32> {
-    let code = u32(view.pano.x) - 1u;
+    let code = view.pano_projection - 1u;
     var y = vec2<f32>(lo, hi);
     if code == 2u {
         // Hammer: |y| grows from the central meridian to the rear one.
@@ -329,7 +334,7 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
             pano_clip(lon[2], ll[2].y, dist[2]),
         );
         out.clip = clip[k];
-        let half_size = 0.5 * view.pano_size.xy;
+        let half_size = 0.5 * view.pano_size;
         let s = array<vec2<f32>, 3>(
             clip[0].xy * half_size, clip[1].xy * half_size, clip[2].xy * half_size,
         );
@@ -416,18 +421,18 @@ struct PanoRay {
 // depth `depth` (the volume stereo's parallax depends on it): through the inverse map, from
 // the head, or in omnistereo from the eye for its direction.
 fn pano_ray(pixel: vec2<f32>, depth: f32) -> PanoRay {
-    let size = view.pano_size.xy;
+    let size = view.pano_size;
     let ndc = vec2<f32>(pixel.x / size.x * 2.0 - 1.0, 1.0 - pixel.y / size.y * 2.0);
     let m = view.pano_window.xy + vec2<f32>(ndc.x - volume_parallax(depth), ndc.y)
         * view.pano_window.zw;
-    let unmapped = pano_unmap(u32(view.pano.x) - 1u, m);
+    let unmapped = pano_unmap(view.pano_projection - 1u, m);
     let rotation = mat3x3<f32>(
         view.clip_from_cave[0].xyz, view.clip_from_cave[1].xyz, view.clip_from_cave[2].xyz,
     );
     var ray: PanoRay;
     ray.dir = transpose(rotation) * unmapped.xyz;
     ray.origin = view.eye_position.xyz;
-    if view.pano.w > 1.5 {
+    if view.pano_stereo == 2u {
         ray.origin = omni_eye(ray.origin + 1000.0 * ray.dir, view, frame.omni);
     }
     ray.shown = unmapped.w > 0.5;
@@ -458,7 +463,7 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
         ray = pano_ray(in.clip.xy, depth);
         hit = ray_plane(ray.origin, ray.dir, in.p0, in.p1, in.p2);
         depth = pano_depth(hit.x);
-        if view.pano.w < 0.5 || view.pano.w > 1.5 {
+        if view.pano_stereo != 1u {
             break;
         }
     }
@@ -469,7 +474,7 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
     // are antialiased as the walls' are; shading stays once per pixel, from the centre's
     // ray, or from the first covered sample's where the centre's misses.
     var mask = select(0u, 1u, met && inside);
-    let samples = u32(view.wall_plane.y);
+    let samples = view.pano_msaa;
     if samples == 4u {
         mask = 0u;
         let corner = floor(in.clip.xy);
@@ -531,10 +536,10 @@ fn surface_color(
     front_facing: bool,
 ) -> vec4<f32> {
     let base = material.base_color * texel;
-    if material.params.z >= 0.0 && base.a < material.params.z {
+    if material.alpha_cutoff >= 0.0 && base.a < material.alpha_cutoff {
         return vec4<f32>(0.0, 0.0, 0.0, -1.0);
     }
-    if material.emissive.w > 0.5 {
+    if material.unlit != 0u {
         // KHR_materials_unlit: exactly the base colour.
         return vec4<f32>(base.rgb, 1.0);
     }
@@ -543,9 +548,9 @@ fn surface_color(
         n = -n;
     }
     let lit = blinn_phong(
-        frame, base.rgb, position, n, eye, material.params.x, material.params.y,
+        frame, base.rgb, position, n, eye, material.shininess, material.specular,
     );
-    return vec4<f32>(lit + material.emissive.rgb, 1.0);
+    return vec4<f32>(lit + material.emissive, 1.0);
 }
 
 @fragment

@@ -7,19 +7,35 @@
 // is left at the maximum depth; cs_prefix and cs_scatter sort the output by draw (material)
 // and write one indirect draw per draw. No CPU read-back anywhere.
 
-// Keep in sync with `TessUniforms` in src/render/tessellator.rs.
+// Keep in sync with `TessUniforms` in src/render/tessellator.rs (tests/gpu_layout.rs checks).
 struct TessUniforms {
-    // x: criterion (0 none, 1 uniform, 2 edge, 3 sphere, 4 error); y: its value;
-    // z: maximum depth; w: 1 if edge lengths count along x only (vertical wall).
-    criterion: vec4<f32>,
-    // x, y: wall pixels; z: wall pixels per metre; w: distance of C from the wall plane.
-    wall: vec4<f32>,
-    // x: near; y: 1 = back-face culling; z: 1 = frustum culling; w: eye-ball radius.
-    cull: vec4<f32>,
-    // xyz: centre of the eye ball (head in omnistereo, else the eye); w unused.
-    eye_ball: vec4<f32>,
-    // x: source triangles; y: live capacity; z: output capacity; w: draws.
-    counts: vec4<u32>,
+    // 0 none, 1 uniform, 2 edge, 3 sphere, 4 error.
+    criterion: u32,
+    // The criterion's parameter: levels (uniform) or pixels.
+    criterion_value: f32,
+    // Split rounds (the maximum depth).
+    rounds: u32,
+    // 1 if edge lengths count along x only (a vertical wall).
+    x_length_only: u32,
+    // Target pixels: the wall's or the panorama's.
+    target_width: f32,
+    target_height: f32,
+    // Pixels per metre on the wall, or per radian in a panorama.
+    pixels_per_unit: f32,
+    // Distance of the centre of projection from the wall plane (1 in a panorama).
+    eye_wall_distance: f32,
+    near: f32,
+    // 1 = back-face culling, 1 = frustum culling.
+    backface_cull: u32,
+    frustum_cull: u32,
+    // The ball the eyes lie on: the head in omnistereo (radius IPD/2), else the eye (0).
+    eye_ball_radius: f32,
+    eye_ball_centre: vec3<f32>,
+    eye_ball_pad: u32,
+    source_triangles: u32,
+    live_capacity: u32,
+    output_capacity: u32,
+    draws: u32,
 }
 
 const DEAD: u32 = 0xffffffffu;
@@ -91,8 +107,8 @@ fn project(world: vec3<f32>) -> Projected {
     var out: Projected;
     out.clip = view.clip_from_cave * vec4<f32>(warped, 1.0);
     out.pixel = vec2<f32>(
-        (out.clip.x / out.clip.w * 0.5 + 0.5) * tess.wall.x,
-        (0.5 - out.clip.y / out.clip.w * 0.5) * tess.wall.y,
+        (out.clip.x / out.clip.w * 0.5 + 0.5) * tess.target_width,
+        (0.5 - out.clip.y / out.clip.w * 0.5) * tess.target_height,
     );
     return out;
 }
@@ -101,12 +117,12 @@ fn midpoint(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
     return (a + b) / 2u;
 }
 
-// Panorama view (view.pano.x > 0): longitude, latitude and distance of a world point from
+// Panorama view (view.pano_projection > 0): longitude, latitude and distance of a world point from
 // its eye (the head, or its omnistereo eye), in the panorama's view space.
 fn pano_point(world: vec3<f32>) -> vec3<f32> {
     let p = (frame.cave_from_world * vec4<f32>(world, 1.0)).xyz;
     var eye = view.eye_position.xyz;
-    if view.pano.w > 1.5 {
+    if view.pano_stereo == 2u {
         eye = omni_eye(p, view, frame.omni);
     }
     let v = (view.clip_from_cave * vec4<f32>(p - eye, 0.0)).xyz;
@@ -119,8 +135,8 @@ fn pano_point(world: vec3<f32>) -> vec3<f32> {
 // one passing near a pole shows its large curvature. Endpoints in a canonical order (as
 // `interp_plan`), so that both triangles sharing an edge decide alike, bit for bit.
 fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> bool {
-    let code = u32(tess.criterion.x);
-    let value = tess.criterion.y;
+    let code = tess.criterion;
+    let value = tess.criterion_value;
     var a = a_in;
     var b = b_in;
     if sorts_before(point_position(p, b), point_position(p, a)) {
@@ -131,7 +147,7 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
     let pb = point_position(p, b);
     let la = pano_point(pa);
     let lb = pano_point(pb);
-    let near = view.pano.y;
+    let near = view.pano_near;
     if la.z < near && lb.z < near {
         return false;
     }
@@ -146,7 +162,7 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
         let cb = (frame.cave_from_world * vec4<f32>(pb, 1.0)).xyz;
         let centre = pano_point(0.5 * (pa + pb));
         // Angular diameter of the edge's bounding sphere, in pixels per radian.
-        return length(cb - ca) / max(centre.z, 1e-6) * tess.wall.z > value;
+        return length(cb - ca) / max(centre.z, 1e-6) * tess.pixels_per_unit > value;
     }
     let lm = pano_point(point_position(p, midpoint(a, b)));
     let jm = pano_pixel(view, la.x + wrap_angle(lm.x - la.x), lm.y);
@@ -155,19 +171,19 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
 
 // Mirrors tess::criteria::split_edge.
 fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
-    let code = u32(tess.criterion.x);
-    let value = tess.criterion.y;
+    let code = tess.criterion;
+    let value = tess.criterion_value;
     if code == 1u {
         return f32(depth) < value;
     }
-    if view.pano.x > 0.5 {
+    if view.pano_projection != 0u {
         return pano_split_edge(p, a, b);
     }
     let pa = point_position(p, a);
     let pb = point_position(p, b);
     let ja = project(pa);
     let jb = project(pb);
-    let near = tess.cull.x;
+    let near = tess.near;
     let va = ja.clip.w > near;
     let vb = jb.clip.w > near;
     if !va && !vb {
@@ -194,7 +210,7 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
     if code == 2u {
         let d = jb.pixel - ja.pixel;
         var len = length(d);
-        if tess.criterion.w > 0.5 {
+        if tess.x_length_only != 0u {
             len = abs(d.x);
         }
         return len > value;
@@ -207,7 +223,7 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
         if centre.clip.w <= near {
             return true;
         }
-        return 2.0 * radius * tess.wall.w / centre.clip.w * tess.wall.z > value;
+        return 2.0 * radius * tess.eye_wall_distance / centre.clip.w * tess.pixels_per_unit > value;
     }
     if mid.clip.w <= near {
         return true;
@@ -241,7 +257,7 @@ fn make_entry(source: u32, depth: u32, c0: vec2<u32>, c1: vec2<u32>, c2: vec2<u3
 // A finished triangle goes to the output; dropped (and flagged) if the output is full.
 fn emit(e: TessEntry) {
     let slot = atomicAdd(&counters[C_OUT], 1u);
-    if slot < tess.counts.z {
+    if slot < tess.output_capacity {
         output[slot] = e;
         let draw = tri_info[e.source] & 0x7fffffffu;
         atomicAdd(&counters[C_DRAWS + draw], 1u);
@@ -284,22 +300,22 @@ fn outside_all(pts: array<vec4<f32>, 6>, near: f32, margin: f32) -> bool {
 @compute @workgroup_size(64)
 fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = id.x;
-    if t >= tess.counts.x {
+    if t >= tess.source_triangles {
         return;
     }
-    if (tri_info[t] & 0x7fffffffu) >= tess.counts.w {
+    if (tri_info[t] & 0x7fffffffu) >= tess.draws {
         // Not part of any draw (the scene pass dropped its draw): nothing to draw it with.
         return;
     }
     let p = source_positions(t);
     let double_sided = (tri_info[t] & 0x80000000u) != 0u;
-    if tess.cull.y > 0.5 && !double_sided {
+    if tess.backface_cull != 0u && !double_sided {
         let a = (frame.cave_from_world * vec4<f32>(p[0], 1.0)).xyz;
         let b = (frame.cave_from_world * vec4<f32>(p[1], 1.0)).xyz;
         let c = (frame.cave_from_world * vec4<f32>(p[2], 1.0)).xyz;
         let n = cross(b - a, c - a);
         let len = length(n);
-        if len > 0.0 && dot(n, tess.eye_ball.xyz - a) / len < -(tess.cull.w + 1e-4) {
+        if len > 0.0 && dot(n, tess.eye_ball_centre - a) / len < -(tess.eye_ball_radius + 1e-4) {
             atomicAdd(&counters[C_BACK], 1u);
             return;
         }
@@ -307,7 +323,7 @@ fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
     let v0 = vec2<u32>(0u, 0u);
     let v1 = vec2<u32>(BARY_ONE, 0u);
     let v2 = vec2<u32>(0u, BARY_ONE);
-    if tess.cull.z > 0.5 {
+    if tess.frustum_cull != 0u {
         let pts = array<vec4<f32>, 6>(
             project(p[0]).clip,
             project(p[1]).clip,
@@ -316,23 +332,23 @@ fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
             project(point_position(p, midpoint(v1, v2))).clip,
             project(point_position(p, midpoint(v2, v0))).clip,
         );
-        if outside_all(pts, tess.cull.x, CULL_MARGIN) {
+        if outside_all(pts, tess.near, CULL_MARGIN) {
             atomicAdd(&counters[C_FRUSTUM], 1u);
             return;
         }
     }
-    if atomicAdd(&counters[C_BUDGET], 1u) >= tess.counts.z {
+    if atomicAdd(&counters[C_BUDGET], 1u) >= tess.output_capacity {
         // Not even the unrefined scene fits the output: this triangle is not drawn.
         atomicStore(&counters[C_OVERFLOW], 1u);
         return;
     }
     let e = make_entry(t, 0u, v0, v1, v2);
-    if u32(tess.criterion.x) == 0u || tess.criterion.z < 0.5 {
+    if tess.criterion == 0u || tess.rounds == 0u {
         emit(e);
         return;
     }
     let slot = atomicAdd(&count_out, 1u);
-    if slot < tess.counts.y {
+    if slot < tess.live_capacity {
         live_out[slot] = e;
     } else {
         atomicStore(&counters[C_OVERFLOW], 1u);
@@ -344,7 +360,7 @@ fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
 // count, and reset the next list (harmless before the flush, which reads only count_in).
 @compute @workgroup_size(1)
 fn cs_prepare() {
-    let n = min(atomicLoad(&count_in), tess.counts.y);
+    let n = min(atomicLoad(&count_in), tess.live_capacity);
     let groups = (n + WORKGROUP - 1u) / WORKGROUP;
     args[0] = groups;
     args[1] = 1u;
@@ -357,7 +373,7 @@ fn cs_prepare() {
 
 @compute @workgroup_size(64)
 fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = min(atomicLoad(&count_in), tess.counts.y);
+    let n = min(atomicLoad(&count_in), tess.live_capacity);
     if id.x >= n {
         return;
     }
@@ -418,7 +434,7 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
         }
     }
     let extra = count - 1u;
-    if atomicAdd(&counters[C_BUDGET], extra) + extra > tess.counts.z {
+    if atomicAdd(&counters[C_BUDGET], extra) + extra > tess.output_capacity {
         // Budget: draw this triangle unrefined and report it.
         atomicSub(&counters[C_BUDGET], extra);
         atomicStore(&counters[C_OVERFLOW], 1u);
@@ -426,7 +442,7 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let base = atomicAdd(&count_out, count);
-    if base + count <= tess.counts.y {
+    if base + count <= tess.live_capacity {
         for (var k = 0u; k < count; k++) {
             live_out[base + k] = kids[k];
         }
@@ -434,7 +450,7 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     // Cannot happen while live capacity >= output capacity (the budget bounds both); kept so
     // that a smaller live list degrades like the budget: dead padding, parent unrefined.
-    for (var k = base; k < min(base + count, tess.counts.y); k++) {
+    for (var k = base; k < min(base + count, tess.live_capacity); k++) {
         var dead = e;
         dead.depth = DEAD;
         live_out[k] = dead;
@@ -445,7 +461,7 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn cs_flush(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = min(atomicLoad(&count_in), tess.counts.y);
+    let n = min(atomicLoad(&count_in), tess.live_capacity);
     if id.x >= n {
         return;
     }
@@ -460,7 +476,7 @@ fn cs_flush(@builtin(global_invocation_id) id: vec3<u32>) {
 @compute @workgroup_size(1)
 fn cs_prefix() {
     var offset = 0u;
-    for (var d = 0u; d < tess.counts.w; d++) {
+    for (var d = 0u; d < tess.draws; d++) {
         let n = atomicLoad(&counters[C_DRAWS + d]);
         let a = 6u + 4u * d;
         args[a] = 3u * n;
@@ -470,7 +486,7 @@ fn cs_prefix() {
         atomicStore(&counters[C_DRAWS + d], offset);
         offset += n;
     }
-    let total = min(atomicLoad(&counters[C_OUT]), tess.counts.z);
+    let total = min(atomicLoad(&counters[C_OUT]), tess.output_capacity);
     args[3] = (total + WORKGROUP - 1u) / WORKGROUP;
     args[4] = 1u;
     args[5] = 1u;
@@ -478,7 +494,7 @@ fn cs_prefix() {
 
 @compute @workgroup_size(64)
 fn cs_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
-    let total = min(atomicLoad(&counters[C_OUT]), tess.counts.z);
+    let total = min(atomicLoad(&counters[C_OUT]), tess.output_capacity);
     if id.x >= total {
         return;
     }

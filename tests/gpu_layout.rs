@@ -93,9 +93,17 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "eye_position" => eye_position,
                 "wall_plane" => wall_plane,
                 "omni_head" => omni_head,
-                "pano" => pano,
+                "pano_projection" => pano_projection,
+                "pano_near" => pano_near,
+                "pano_far" => pano_far,
+                "pano_stereo" => pano_stereo,
                 "pano_window" => pano_window,
                 "pano_size" => pano_size,
+                "volume_half_ioid" => volume_half_ioid,
+                "volume_distance" => volume_distance,
+                "volume_zero_parallax" => volume_zero_parallax,
+                "pano_msaa" => pano_msaa,
+                "pano_pad" => pano_pad,
             ),
         ),
         (
@@ -104,7 +112,11 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
             layout!(MaterialUniforms,
                 "base_color" => base_color,
                 "emissive" => emissive,
-                "params" => params,
+                "unlit" => unlit,
+                "shininess" => shininess,
+                "specular" => specular,
+                "alpha_cutoff" => alpha_cutoff,
+                "material_pad" => material_pad,
             ),
         ),
         (
@@ -123,10 +135,23 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
             "TessUniforms",
             layout!(TessUniforms,
                 "criterion" => criterion,
-                "wall" => wall,
-                "cull" => cull,
-                "eye_ball" => eye_ball,
-                "counts" => counts,
+                "criterion_value" => criterion_value,
+                "rounds" => rounds,
+                "x_length_only" => x_length_only,
+                "target_width" => target_width,
+                "target_height" => target_height,
+                "pixels_per_unit" => pixels_per_unit,
+                "eye_wall_distance" => eye_wall_distance,
+                "near" => near,
+                "backface_cull" => backface_cull,
+                "frustum_cull" => frustum_cull,
+                "eye_ball_radius" => eye_ball_radius,
+                "eye_ball_centre" => eye_ball_centre,
+                "eye_ball_pad" => eye_ball_pad,
+                "source_triangles" => source_triangles,
+                "live_capacity" => live_capacity,
+                "output_capacity" => output_capacity,
+                "draws" => draws,
             ),
         ),
         (
@@ -184,17 +209,21 @@ fn a_mismatch_is_caught() {
     // The checker itself must fail on structs that differ: TessUniforms laid against
     // FrameUniforms (other size, other members), and a member moved by 16 bytes.
     let source = compose(shaders::SCENE);
-    let wrong = layout!(TessUniforms, "criterion" => criterion);
+    let wrong = layout!(TessUniforms, "criterion" => criterion_value);
     assert!(!differences(&source, "FrameUniforms", &wrong).is_empty());
     let moved = layout!(MaterialUniforms,
         "base_color" => base_color,
-        "emissive" => params,
-        "params" => params,
+        "emissive" => shininess,
+        "unlit" => unlit,
+        "shininess" => shininess,
+        "specular" => specular,
+        "alpha_cutoff" => alpha_cutoff,
+        "material_pad" => material_pad,
     );
     let found = differences(&source, "MaterialUniforms", &moved);
     assert_eq!(found.len(), 1, "{found:?}");
     assert!(
-        found[0].contains("MaterialUniforms.emissive is at byte 16"),
+        found[0].contains("MaterialUniforms.emissive is at byte 16 in WGSL, 32 in"),
         "{found:?}"
     );
 }

@@ -73,29 +73,27 @@ pub fn pano_view_uniforms(
 ) -> ViewUniforms {
     let sign = eye.map_or(0.0, Eye::sign);
     let (stereo_code, omni_half, volume) = match settings.stereo {
-        PanoStereo::Mono => (0.0, 0.0, [0.0; 3]),
-        PanoStereo::Volume { ioid, d, offset } => (1.0, 0.0, [sign * 0.5 * ioid, d, offset]),
-        PanoStereo::Omni => (2.0, sign * 0.5 * ipd, [0.0; 3]),
+        PanoStereo::Mono => (0, 0.0, [0.0; 3]),
+        PanoStereo::Volume { ioid, d, offset } => (1, 0.0, [sign * 0.5 * ioid, d, offset]),
+        PanoStereo::Omni => (2, sign * 0.5 * ipd, [0.0; 3]),
     };
     let fitted = settings.fitted();
     ViewUniforms {
         clip_from_cave: settings.view_from_cave(head).to_cols_array_2d(),
         eye_position: head.extend(1.0).to_array(),
-        wall_plane: [volume[2], msaa as f32, 0.0, 0.0],
+        wall_plane: [0.0; 4],
         omni_head: head.extend(omni_half).to_array(),
-        pano: [
-            (fitted.projection.code() + 1) as f32,
-            near,
-            far,
-            stereo_code,
-        ],
+        pano_projection: fitted.projection.code() + 1,
+        pano_near: near,
+        pano_far: far,
+        pano_stereo: stereo_code,
         pano_window: fitted.map_window(),
-        pano_size: [
-            settings.size[0] as f32,
-            settings.size[1] as f32,
-            volume[0],
-            volume[1],
-        ],
+        pano_size: settings.size.map(|v| v as f32),
+        volume_half_ioid: volume[0],
+        volume_distance: volume[1],
+        volume_zero_parallax: volume[2],
+        pano_msaa: msaa,
+        pano_pad: [0; 2],
     }
 }
 

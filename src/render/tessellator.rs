@@ -21,15 +21,40 @@ pub struct GpuTessEntry {
     pub corners: [[u32; 2]; 3],
 }
 
-/// Per-view parameters. Keep in sync with `TessUniforms` in shaders/tessellate.wgsl.
+/// Per-view parameters. Keep in sync with `TessUniforms` in shaders/tessellate.wgsl
+/// (tests/gpu_layout.rs checks).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct TessUniforms {
-    pub criterion: [f32; 4],
-    pub wall: [f32; 4],
-    pub cull: [f32; 4],
-    pub eye_ball: [f32; 4],
-    pub counts: [u32; 4],
+    /// 0 none, 1 uniform, 2 edge, 3 sphere, 4 error (`Criterion::gpu_code`).
+    pub criterion: u32,
+    /// The criterion's parameter: levels (uniform) or pixels.
+    pub criterion_value: f32,
+    /// Split rounds (the maximum depth).
+    pub rounds: u32,
+    /// 1 if edge lengths count along x only (a vertical wall, as the thesis measures).
+    pub x_length_only: u32,
+    /// Target pixels: the wall's or the panorama's.
+    pub target_width: f32,
+    pub target_height: f32,
+    /// Pixels per metre on the wall, or per radian in a panorama.
+    pub pixels_per_unit: f32,
+    /// Distance of the view's centre of projection from the wall plane (1 in a panorama).
+    pub eye_wall_distance: f32,
+    pub near: f32,
+    /// 1 = back-face culling.
+    pub backface_cull: u32,
+    /// 1 = frustum culling.
+    pub frustum_cull: u32,
+    /// The ball the eyes lie on: the head in omnistereo (radius IPD/2), else the eye (0).
+    pub eye_ball_radius: f32,
+    pub eye_ball_centre: [f32; 3],
+    pub eye_ball_pad: u32,
+    /// Filled in by `TessBuffers::write_uniforms`.
+    pub source_triangles: u32,
+    pub live_capacity: u32,
+    pub output_capacity: u32,
+    pub draws: u32,
 }
 
 impl TessUniforms {
@@ -42,33 +67,24 @@ impl TessUniforms {
             Some(o) if omni => (o.head, 0.5 * o.ipd),
             _ => (view.eye_position, 0.0),
         };
-        let flag = |b: bool| if b { 1.0 } else { 0.0 };
         Self {
-            criterion: [
-                code as f32,
-                value,
-                rounds(settings) as f32,
-                flag(wall_is_vertical(wall)),
-            ],
-            wall: [
-                w,
-                h,
-                w / wall.size_m().x,
-                wall.signed_distance(view.eye_position),
-            ],
-            cull: [
-                view.near,
-                flag(settings.backface_cull),
-                flag(settings.frustum_cull),
-                radius,
-            ],
-            eye_ball: centre.extend(0.0).to_array(),
-            counts: [0; 4],
+            criterion: code,
+            criterion_value: value,
+            rounds: rounds(settings),
+            x_length_only: u32::from(wall_is_vertical(wall)),
+            target_width: w,
+            target_height: h,
+            pixels_per_unit: w / wall.size_m().x,
+            eye_wall_distance: wall.signed_distance(view.eye_position),
+            near: view.near,
+            backface_cull: u32::from(settings.backface_cull),
+            frustum_cull: u32::from(settings.frustum_cull),
+            eye_ball_radius: radius,
+            eye_ball_centre: centre.to_array(),
+            ..Zeroable::zeroed()
         }
     }
-}
 
-impl TessUniforms {
     /// Parameters of one panorama eye: criteria measured in the panorama's pixels (the
     /// projection and its window come from the view uniforms), no frustum culling (the view
     /// surrounds the head), back faces culled against the ball the omnistereo eyes lie on.
@@ -80,13 +96,18 @@ impl TessUniforms {
         eye_radius: f32,
     ) -> Self {
         let (code, value) = settings.criterion.map_or((0, 0.0), |c| c.gpu_code());
-        let flag = |b: bool| if b { 1.0 } else { 0.0 };
         Self {
-            criterion: [code as f32, value, rounds(settings) as f32, 0.0],
-            wall: [size[0] as f32, size[1] as f32, pixels_per_radian, 1.0],
-            cull: [0.0, flag(settings.backface_cull), 0.0, eye_radius],
-            eye_ball: head.extend(0.0).to_array(),
-            counts: [0; 4],
+            criterion: code,
+            criterion_value: value,
+            rounds: rounds(settings),
+            target_width: size[0] as f32,
+            target_height: size[1] as f32,
+            pixels_per_unit: pixels_per_radian,
+            eye_wall_distance: 1.0,
+            backface_cull: u32::from(settings.backface_cull),
+            eye_ball_radius: eye_radius,
+            eye_ball_centre: head.to_array(),
+            ..Zeroable::zeroed()
         }
     }
 }
@@ -475,13 +496,13 @@ impl TessBuffers {
     ) {
         self.staging.clear();
         for u in views.take(self.uniform_capacity) {
-            let mut u = u;
-            u.counts = [
-                self.source_triangles,
-                self.capacity,
-                self.capacity,
-                self.draws,
-            ];
+            let u = TessUniforms {
+                source_triangles: self.source_triangles,
+                live_capacity: self.capacity,
+                output_capacity: self.capacity,
+                draws: self.draws,
+                ..u
+            };
             self.staging.extend_from_slice(bytemuck::bytes_of(&u));
             let stride = super::uniforms::UNIFORM_STRIDE as usize;
             self.staging

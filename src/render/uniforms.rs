@@ -79,16 +79,26 @@ pub struct ViewUniforms {
     pub eye_position: [f32; 4],
     pub wall_plane: [f32; 4],
     pub omni_head: [f32; 4],
-    /// Panorama views only (zero for walls): x projection code + 1, y near and z far
-    /// clipping sphere radius (metres), w stereo (0 mono, 1 volume, 2 omni). In a panorama
-    /// view `wall_plane` holds x: the volume stereo's zero-parallax depth, y: the target's
-    /// MSAA sample count.
-    pub pano: [f32; 4],
-    /// Panorama: the field of view's centre and half size in map coordinates.
+    /// The fields below are for panorama views only (zero for walls). The projection's code
+    /// + 1 (0: not a panorama).
+    pub pano_projection: u32,
+    /// Near and far clipping sphere radius, metres.
+    pub pano_near: f32,
+    pub pano_far: f32,
+    /// 0 mono, 1 volume, 2 omni.
+    pub pano_stereo: u32,
+    /// The field of view's centre and half size in map coordinates.
     pub pano_window: [f32; 4],
-    /// Panorama: x, y image pixels; z signed half inter-ocular distance, w viewing distance
-    /// and (in `wall_plane.x`) zero-parallax depth of the volume stereo.
-    pub pano_size: [f32; 4],
+    /// Image pixels.
+    pub pano_size: [f32; 2],
+    /// Volume stereo: signed half inter-ocular distance, viewing distance and zero-parallax
+    /// depth (normalised device units).
+    pub volume_half_ioid: f32,
+    pub volume_distance: f32,
+    pub volume_zero_parallax: f32,
+    /// The panorama target's MSAA sample count.
+    pub pano_msaa: u32,
+    pub pano_pad: [u32; 2],
 }
 
 impl From<&ViewSetup> for ViewUniforms {
@@ -105,9 +115,7 @@ impl From<&ViewSetup> for ViewUniforms {
             eye_position: view.eye_position.extend(1.0).to_array(),
             wall_plane,
             omni_head,
-            pano: [0.0; 4],
-            pano_window: [0.0; 4],
-            pano_size: [0.0; 4],
+            ..Zeroable::zeroed()
         }
     }
 }
@@ -116,22 +124,29 @@ impl From<&ViewSetup> for ViewUniforms {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct MaterialUniforms {
+    /// Linear RGBA multiplier.
     pub base_color: [f32; 4],
-    pub emissive: [f32; 4],
-    pub params: [f32; 4],
+    /// Emitted light (linear).
+    pub emissive: [f32; 3],
+    /// 1 for unlit materials (KHR_materials_unlit).
+    pub unlit: u32,
+    pub shininess: f32,
+    pub specular: f32,
+    /// Alpha cutoff (< 0: opaque).
+    pub alpha_cutoff: f32,
+    pub material_pad: u32,
 }
 
 impl From<&Material> for MaterialUniforms {
     fn from(m: &Material) -> Self {
         Self {
             base_color: m.base_color,
-            emissive: [
-                m.emissive[0],
-                m.emissive[1],
-                m.emissive[2],
-                if m.unlit { 1.0 } else { 0.0 },
-            ],
-            params: [m.shininess, m.specular, m.alpha_cutoff.unwrap_or(-1.0), 0.0],
+            emissive: m.emissive,
+            unlit: u32::from(m.unlit),
+            shininess: m.shininess,
+            specular: m.specular,
+            alpha_cutoff: m.alpha_cutoff.unwrap_or(-1.0),
+            material_pad: 0,
         }
     }
 }
