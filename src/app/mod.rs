@@ -279,19 +279,23 @@ impl App {
         };
         // The panel first, so what it changes shows in this frame.
         let mut egui_frame = None;
-        let mut read_counts = false;
         if let Some(host) = gfx.egui.as_mut() {
             let win = &gfx.windows[host.window_index];
-            let (frame, requests) = host.run(&gfx.gpu, win, &mut self.state, &self.info);
-            egui_frame = Some(frame);
-            read_counts = requests.read_tess_counts;
+            egui_frame = Some(host.run(&gfx.gpu, win, &mut self.state, &self.info));
         }
-        if let Err(e) = render_views(gfx, &mut self.state, &mut self.info, read_counts) {
+        if let Err(e) = render_views(gfx, &mut self.state, &mut self.info) {
             self.fail(event_loop, e);
             return;
         }
         self.surface_recoveries += present_windows(gfx, &self.state, egui_frame);
-        let gpu_ms = gfx.renderer.poll_gpu_time_ms();
+        // The newest frame the GPU has finished: its time and tessellation counts (never waits).
+        let readback = gfx.renderer.poll_readbacks();
+        let gpu_ms = readback.gpu_ms;
+        per_wall_counts(
+            &gfx.renderer,
+            self.state.cave().walls.len(),
+            &mut self.info.tess_emitted,
+        );
         self.clock.record(Instant::now(), now.elapsed(), gpu_ms);
         self.info.stats = self.clock.summary;
         self.log_stats();
@@ -528,7 +532,6 @@ fn render_views(
     gfx: &mut Graphics,
     state: &mut AppState,
     info: &mut PanelInfo,
-    read_counts: bool,
 ) -> Result<(), AppError> {
     let settings = state.render_settings();
     if gfx.renderer.settings() != settings
@@ -538,9 +541,6 @@ fn render_views(
         state.settings.render.msaa = gfx.renderer.settings().msaa;
     }
     let stats = gfx.renderer.render(&state.frame_params())?;
-    if read_counts {
-        info.tess_emitted = read_tess_counts(&gfx.renderer, state);
-    }
     if state.settings.panorama.show {
         let frame = state.frame_params();
         if let Err(e) = gfx.renderer.render_panorama(&frame, &state.settings.pano()) {
@@ -578,24 +578,19 @@ fn present_windows(
     recovered
 }
 
-/// Reads the tessellator's counts of the last frame, summed per wall (a blocking read, only
-/// when the user asks for it).
-fn read_tess_counts(renderer: &Renderer, state: &AppState) -> Option<Vec<u32>> {
-    let stats = match renderer.read_tess_stats() {
-        Ok(s) => s,
-        Err(e) => {
-            tracing::warn!("{e}");
-            return None;
-        }
-    };
-    if stats.is_empty() {
-        return None;
+/// The tessellator's counts of the newest frame read back, summed per wall (both eyes), into
+/// `counts` (reused; emptied when that frame was not tessellated or had other views).
+fn per_wall_counts(renderer: &Renderer, walls: usize, counts: &mut Vec<u32>) {
+    counts.clear();
+    let stats = &renderer.latest_readback().tess;
+    let views = renderer.last_views();
+    if stats.is_empty() || stats.len() != views.len() {
+        return;
     }
-    let mut counts = vec![0; state.cave().walls.len()];
-    for (view, s) in renderer.last_views().iter().zip(stats) {
+    counts.resize(walls, 0);
+    for (view, s) in views.iter().zip(stats) {
         if let Some(count) = counts.get_mut(view.wall) {
             *count += s.emitted;
         }
     }
-    Some(counts)
 }

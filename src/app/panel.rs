@@ -23,8 +23,9 @@ pub struct PanelInfo {
     pub gpu_timing: bool,
     /// Triangles submitted for each wall (scene triangles × views of a wall).
     pub triangles_per_wall: usize,
-    /// Per wall (in wall order): triangles the tessellator emitted, when last read (button).
-    pub tess_emitted: Option<Vec<u32>>,
+    /// Per wall (in wall order): triangles the tessellator emitted for both eyes, from the
+    /// newest frame read back (empty while the frame is not tessellated).
+    pub tess_emitted: Vec<u32>,
     /// Whether the scene has a sky loaded.
     pub has_sky: bool,
     /// Whether this device can tessellate.
@@ -35,13 +36,6 @@ pub struct PanelInfo {
     pub save_message: Option<String>,
     /// OSC tracking and gamepads.
     pub tracking: TrackingInfo,
-}
-
-/// Requests from the panel that need the app (not just state changes).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct PanelRequests {
-    /// Read the tessellator's per-view counts once (a blocking read, on demand only).
-    pub read_tess_counts: bool,
 }
 
 /// A drop-down labelled `label` choosing `value` among `all`, each shown by `name`.
@@ -62,11 +56,10 @@ fn combo<T: Copy + PartialEq>(
 }
 
 /// Draws the whole panel into `ui` (scrolls when the window is short).
-pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelRequests {
-    let mut requests = PanelRequests::default();
+pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     egui::ScrollArea::vertical().show(ui, |ui| {
         ui.heading("omnicave");
-        stats_section(ui, state, info, &mut requests);
+        stats_section(ui, state, info);
         ui.separator();
         render_section(ui, state, info);
         ui.separator();
@@ -96,10 +89,9 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) -> PanelReq
             ui.label(message);
         }
     });
-    requests
 }
 
-fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo, requests: &mut PanelRequests) {
+fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
     let s = &info.stats;
     ui.label(format!("GPU: {}", info.adapter));
     ui.label(format!("{:.1} fps   frame {:.1} ms", s.fps, s.frame_ms));
@@ -131,16 +123,12 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo, requests: &mut
             ui.label(info.triangles_per_wall.to_string());
             let emitted = info
                 .tess_emitted
-                .as_ref()
-                .and_then(|t| t.get(i))
+                .get(i)
                 .map_or_else(|| "–".to_owned(), u32::to_string);
             ui.label(emitted);
             ui.end_row();
         }
     });
-    if ui.button("Read tessellation counts").clicked() {
-        requests.read_tess_counts = true;
-    }
 }
 
 /// The model's range of the setting at `path` (the one declared beside it in the config's

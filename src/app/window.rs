@@ -10,7 +10,7 @@ use winit::monitor::MonitorHandle;
 use winit::window::{Fullscreen, Window, WindowId};
 
 use super::AppError;
-use super::panel::{self, PanelInfo, PanelRequests};
+use super::panel::{self, PanelInfo};
 use super::state::AppState;
 use crate::cave::Eye;
 use crate::config::{Config, MonitorRef};
@@ -552,9 +552,8 @@ impl EguiHost {
         window: &OutputWindow,
         state: &mut AppState,
         info: &PanelInfo,
-    ) -> (EguiFrame, PanelRequests) {
+    ) -> EguiFrame {
         let raw = self.input.take_egui_input(window.window());
-        let mut requests = PanelRequests::default();
         let mut central = None;
         let role = self.role;
         let output = self.ctx.run_ui(raw, |ui| {
@@ -564,7 +563,7 @@ impl EguiHost {
                         egui::Panel::left("controls")
                             .default_size(340.0)
                             .resizable(true)
-                            .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
+                            .show(ui, |ui| panel::panel_ui(ui, state, info));
                     }
                     central = Some(ui.available_rect_before_wrap());
                 }
@@ -573,18 +572,18 @@ impl EguiHost {
                     egui::Panel::left("controls")
                         .default_size(340.0)
                         .resizable(true)
-                        .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
+                        .show(ui, |ui| panel::panel_ui(ui, state, info));
                     central = Some(ui.available_rect_before_wrap());
                 }
                 Role::Operator => {
                     egui::CentralPanel::default_margins()
-                        .show(ui, |ui| requests = panel::panel_ui(ui, state, info));
+                        .show(ui, |ui| panel::panel_ui(ui, state, info));
                 }
                 Role::Wall(_) => {
                     if state.show_panel {
                         egui::Window::new("omnicave controls")
                             .default_width(340.0)
-                            .show(ui.ctx(), |ui| requests = panel::panel_ui(ui, state, info));
+                            .show(ui.ctx(), |ui| panel::panel_ui(ui, state, info));
                     }
                 }
             }
@@ -604,7 +603,7 @@ impl EguiHost {
         }
         let textures_free = std::mem::take(&mut textures.free).into_iter().collect();
         textures.clear();
-        let frame = EguiFrame {
+        EguiFrame {
             jobs,
             textures_free,
             pixels_per_point: ppp,
@@ -616,8 +615,7 @@ impl EguiHost {
                     r.height() * ppp,
                 ]
             }),
-        };
-        (frame, requests)
+        }
     }
 
     /// Records the panel over what the window already shows; returns egui's own command

@@ -3,6 +3,7 @@
 pub mod gpu;
 pub mod panorama;
 pub mod present;
+pub mod readback;
 pub mod scene_pass;
 pub mod shaders;
 pub mod sky_pass;
@@ -10,9 +11,6 @@ pub mod targets;
 pub mod tessellator;
 pub mod uniforms;
 pub mod view_set;
-
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
 
 use glam::Mat4;
 use image::RgbaImage;
@@ -136,8 +134,14 @@ pub struct Renderer {
     wall_names: Vec<String>,
     last_views: Vec<ViewSetup>,
     wireframe_supported: bool,
-    /// GPU frame timer (benchmark only; `None` unless enabled).
+    /// GPU frame timer (`None` unless enabled).
     timer: Option<FrameTimer>,
+    /// Frames rendered so far (the read-back ring tags results with it).
+    frame_number: u64,
+    /// Timestamps and tessellation counts of each frame, read back without waiting.
+    readback: readback::ReadbackRing,
+    /// The newest frame read back.
+    latest: FrameReadback,
     /// Stereo output composition: the one present pass, for headless composition and every
     /// window's surface format.
     present: present::PresentPass,
@@ -149,34 +153,26 @@ pub struct Renderer {
     pano_views: usize,
 }
 
-/// Two timestamps around a frame's GPU work, resolved into a buffer the CPU can map.
+/// Two timestamps around a frame's GPU work, resolved into a buffer that the read-back ring
+/// (or, for the bench, a blocking read) copies from.
 #[derive(Debug)]
 struct FrameTimer {
     queries: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     period_ns: f32,
-    /// Staging buffers for reading frame times without stalling (the interactive app).
-    slots: Vec<TimerSlot>,
-    /// Newest GPU frame time read so far (ms) and the frame it belongs to.
-    latest: Option<(u64, f64)>,
-    frame: u64,
 }
 
-/// A staging buffer a frame's timestamps are copied into and mapped asynchronously.
-#[derive(Debug)]
-struct TimerSlot {
-    buffer: wgpu::Buffer,
-    /// `SLOT_*`: set to done or failed by the map callback.
-    state: Arc<AtomicU8>,
-    frame: u64,
+/// The newest frame read back through the ring (see [`readback`]).
+#[derive(Debug, Clone, Default)]
+pub struct FrameReadback {
+    /// The frame it belongs to (0: none has arrived yet).
+    pub frame: u64,
+    /// Its GPU time, ms (`None` without timestamps).
+    pub gpu_ms: Option<f64>,
+    /// The walls' tessellation statistics, one per view in `view_setups` order (empty when
+    /// that frame was not tessellated).
+    pub tess: Vec<TessStats>,
 }
-
-const SLOT_FREE: u8 = 0;
-const SLOT_IN_FLIGHT: u8 = 1;
-const SLOT_DONE: u8 = 2;
-const SLOT_FAILED: u8 = 3;
-/// Frames of timestamps in flight at once; more would only mean older numbers.
-const TIMER_SLOTS: usize = 3;
 
 impl Renderer {
     /// Creates targets for every wall of `cave` and builds all pipelines.
@@ -233,6 +229,13 @@ impl Renderer {
             last_views: Vec::new(),
             wireframe_supported: gpu.wireframe_supported,
             timer: None,
+            frame_number: 0,
+            readback: readback::ReadbackRing::new(
+                &gpu.device,
+                readback::TIMESTAMP_BYTES
+                    + tessellator::STATS_BYTES * (cave.walls.len() * 2) as u64,
+            ),
+            latest: FrameReadback::default(),
             present: present::PresentPass::new(&gpu.device),
             targets_generation: 0,
             pano,
@@ -271,52 +274,53 @@ impl Renderer {
                 mapped_at_creation: false,
             }),
             period_ns: self.queue.get_timestamp_period(),
-            slots: (0..TIMER_SLOTS)
-                .map(|i| TimerSlot {
-                    buffer: self.device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some(&format!("Renderer::frame_timer_staging {i}")),
-                        size: 16,
-                        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                        mapped_at_creation: false,
-                    }),
-                    state: Arc::new(AtomicU8::new(SLOT_FREE)),
-                    frame: 0,
-                })
-                .collect(),
-            latest: None,
-            frame: 0,
         });
         true
     }
 
-    /// The GPU time (ms) of the newest frame whose timestamps have arrived, without waiting:
-    /// frames copy their timestamps into staging buffers mapped asynchronously, collected here.
-    /// `None` until timing is enabled and a frame has finished.
-    pub fn poll_gpu_time_ms(&mut self) -> Option<f64> {
-        let timer = self.timer.as_mut()?;
+    /// Collects the frames the GPU has finished (their timestamps and the walls' tessellation
+    /// counts), without waiting, and returns the newest.
+    pub fn poll_readbacks(&mut self) -> &FrameReadback {
         // Only collects callbacks of finished work; never blocks.
         let _ = self.device.poll(wgpu::PollType::Poll);
-        for slot in &mut timer.slots {
-            match slot.state.load(Ordering::Acquire) {
-                SLOT_DONE => {
-                    let ms = slot
-                        .buffer
-                        .get_mapped_range(..)
-                        .ok()
-                        .and_then(|bytes| ticks_to_ms(&bytes, timer.period_ns));
-                    slot.buffer.unmap();
-                    if let Some(ms) = ms
-                        && timer.latest.is_none_or(|(f, _)| f < slot.frame)
-                    {
-                        timer.latest = Some((slot.frame, ms));
-                    }
-                    slot.state.store(SLOT_FREE, Ordering::Release);
-                }
-                SLOT_FAILED => slot.state.store(SLOT_FREE, Ordering::Release),
-                _ => {}
+        let period_ns = self.timer.as_ref().map_or(0.0, |t| t.period_ns);
+        let input = self.scene.as_ref().map_or(0, |s| s.triangle_count as u32);
+        let capacity = self.tess_capacity;
+        let latest = &mut self.latest;
+        self.readback.collect(|frame, layout, bytes| {
+            if frame <= latest.frame {
+                return;
             }
-        }
-        timer.latest.map(|(_, ms)| ms)
+            latest.frame = frame;
+            let stamps = bytes
+                .get(..readback::TIMESTAMP_BYTES as usize)
+                .unwrap_or(&[]);
+            latest.gpu_ms = if layout.timestamps {
+                ticks_to_ms(stamps, period_ns)
+            } else {
+                None
+            };
+            latest.tess.clear();
+            let stats_bytes = tessellator::STATS_BYTES as usize * layout.tess_views;
+            if let Some(stats) = bytes.get(
+                readback::TIMESTAMP_BYTES as usize
+                    ..readback::TIMESTAMP_BYTES as usize + stats_bytes,
+            ) {
+                tessellator::stats_from_bytes(stats, input, capacity, &mut latest.tess);
+            }
+        });
+        &self.latest
+    }
+
+    /// The newest frame read back by [`Self::poll_readbacks`].
+    pub fn latest_readback(&self) -> &FrameReadback {
+        &self.latest
+    }
+
+    /// The GPU time (ms) of the newest frame whose timestamps have arrived, without waiting.
+    /// `None` until timing is enabled and a frame has finished.
+    pub fn poll_gpu_time_ms(&mut self) -> Option<f64> {
+        self.poll_readbacks().gpu_ms
     }
 
     /// How many render and compute pipelines this renderer has built (tests check that
@@ -572,33 +576,48 @@ impl Renderer {
             }
             self.sky_pass.draw(&mut pass, index, view.wall);
         }
-        let mut staged = None;
-        if let Some(timer) = &mut self.timer {
+        if let Some(timer) = &self.timer {
             encoder.write_timestamp(&timer.queries, 1);
             encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
-            timer.frame += 1;
-            if let Some(slot) = timer
-                .slots
-                .iter_mut()
-                .find(|s| s.state.load(Ordering::Acquire) == SLOT_FREE)
+        }
+        // This frame's timestamps and tessellation counts into the read-back ring.
+        self.frame_number += 1;
+        let layout = readback::SlotLayout {
+            timestamps: self.timer.is_some(),
+            tess_views: if tessellate { views.len() } else { 0 },
+        };
+        let needed =
+            readback::TIMESTAMP_BYTES + tessellator::STATS_BYTES * layout.tess_views as u64;
+        if needed > self.readback.slot_size() {
+            // More walls than the ring was made for (not per frame).
+            self.readback = readback::ReadbackRing::new(&self.device, needed);
+        }
+        if let Some(slot) = self.readback.begin(self.frame_number, layout) {
+            if let Some(timer) = &self.timer {
+                encoder.copy_buffer_to_buffer(
+                    &timer.resolve,
+                    0,
+                    slot,
+                    0,
+                    readback::TIMESTAMP_BYTES,
+                );
+            }
+            if let Some(stats) = self
+                .walls
+                .tessellated()
+                .and_then(|t| t.stats_buffer(layout.tess_views))
             {
-                encoder.copy_buffer_to_buffer(&timer.resolve, 0, &slot.buffer, 0, 16);
-                slot.frame = timer.frame;
-                slot.state.store(SLOT_IN_FLIGHT, Ordering::Release);
-                staged = Some((slot.buffer.clone(), slot.state.clone()));
+                encoder.copy_buffer_to_buffer(
+                    stats,
+                    0,
+                    slot,
+                    readback::TIMESTAMP_BYTES,
+                    needed - readback::TIMESTAMP_BYTES,
+                );
             }
         }
         self.queue.submit([encoder.finish()]);
-        if let Some((buffer, state)) = staged {
-            buffer.map_async(wgpu::MapMode::Read, .., move |result| {
-                let done = if result.is_ok() {
-                    SLOT_DONE
-                } else {
-                    SLOT_FAILED
-                };
-                state.store(done, Ordering::Release);
-            });
-        }
+        self.readback.finish();
         let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
         let stats = FrameStats {
             views: views.len(),

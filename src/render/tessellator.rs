@@ -112,6 +112,24 @@ impl TessUniforms {
     }
 }
 
+/// Per-view statistics from their bytes (`STATS_BYTES` a view) into `out` (appended), for
+/// `input` source triangles and an output budget of `capacity`.
+pub fn stats_from_bytes(bytes: &[u8], input: u32, capacity: u32, out: &mut Vec<TessStats>) {
+    for view in bytes.chunks_exact(STATS_BYTES as usize) {
+        let word = |i: usize| {
+            view.get(i * 4..i * 4 + 4)
+                .map_or(0, bytemuck::pod_read_unaligned::<u32>)
+        };
+        out.push(TessStats {
+            input,
+            culled_backface: word(C_BACK),
+            culled_frustum: word(C_FRUSTUM),
+            emitted: word(C_OUT).min(capacity),
+            overflowed: word(C_OVERFLOW) != 0,
+        });
+    }
+}
+
 /// Number of split rounds a setting asks for.
 pub fn rounds(settings: &TessSettings) -> u32 {
     if settings.criterion.is_some() {
@@ -621,22 +639,14 @@ impl TessBuffers {
             STATS_BYTES * views as u64,
             "TessBuffers::read_stats",
         )?;
-        let words: Vec<u32> = bytes
-            .chunks_exact(4)
-            .map(bytemuck::pod_read_unaligned)
-            .collect();
-        let stats = (0..views)
-            .map(|v| {
-                let w = &words[v * 4..v * 4 + 4];
-                TessStats {
-                    input,
-                    culled_backface: w[C_BACK],
-                    culled_frustum: w[C_FRUSTUM],
-                    emitted: w[C_OUT].min(self.capacity),
-                    overflowed: w[C_OVERFLOW] != 0,
-                }
-            })
-            .collect();
+        let mut stats = Vec::with_capacity(views);
+        stats_from_bytes(&bytes, input, self.capacity, &mut stats);
         Ok(stats)
+    }
+
+    /// The per-view statistics the frame's views wrote (`STATS_BYTES` each), for copying into
+    /// a read-back; `None` when it holds fewer than `views`.
+    pub fn stats_buffer(&self, views: usize) -> Option<&wgpu::Buffer> {
+        (views <= self.stats_capacity).then_some(&self.stats)
     }
 }

@@ -1,0 +1,131 @@
+//! The renderer's per-frame data: the walls and the panorama keep their own uniforms and
+//! tessellation output whatever the call order, and every frame's GPU time and tessellation
+//! counts come back through the read-back ring without waiting.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use glam::Vec3;
+
+use common::{NO_MSAA, cave_at, gpu, test_frame};
+use omnicave::cave::omni::OmniSettings;
+use omnicave::cave::{Cave, Head, RenderMode};
+use omnicave::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
+use omnicave::render::Renderer;
+use omnicave::scene::load_gltf;
+use omnicave::tess::{Criterion, TessSettings};
+
+const HEAD: Vec3 = Vec3::new(0.2, 1.6, -0.3);
+
+fn cave() -> Cave {
+    cave_at(64, 36)
+}
+
+fn settings(projection: Projection, route: PanoRoute, fov_deg: [f32; 2]) -> PanoSettings {
+    PanoSettings {
+        projection,
+        h_fov: fov_deg[0].to_radians(),
+        v_fov: fov_deg[1].to_radians(),
+        route,
+        stereo: PanoStereo::Mono,
+        yaw: 0.0,
+        size: [128, 64],
+        cube_size: 64,
+    }
+}
+
+#[test]
+fn walls_and_panorama_keep_their_own_frame_data_in_any_order() {
+    // Each has its own uniforms and tessellation output: rendering the panorama between the
+    // walls' frame and reading the walls back (images and tessellation counts) changes
+    // nothing, and the panorama's counts describe its own eyes.
+    let cave = cave();
+    let scene = load_gltf(&repo_path("assets/living-room.glb")).expect("living room");
+    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+    renderer.set_scene(&scene);
+    let tess = TessSettings {
+        criterion: Some(Criterion::Error(1.0)),
+        ..TessSettings::default()
+    };
+    let frame = test_frame(
+        &cave,
+        Head::at(HEAD),
+        RenderMode::OmniOffAxis,
+        OmniSettings::default(),
+        tess,
+    );
+    renderer.render(&frame).expect("walls");
+    let walls_alone = renderer.read_images().expect("read back");
+    let stats_alone = renderer.read_tess_stats().expect("stats");
+    assert_eq!(stats_alone.len(), cave.walls.len() * 2);
+
+    let mut pano = settings(
+        Projection::Equirectangular,
+        PanoRoute::Geometric,
+        [360.0, 180.0],
+    );
+    pano.size = [128, 64];
+    pano.stereo = PanoStereo::Omni;
+    renderer.render_panorama(&frame, &pano).expect("panorama");
+    let pano_stats = renderer.read_panorama_tess_stats().expect("panorama stats");
+    assert_eq!(pano_stats.len(), 2, "one per panorama eye");
+    assert_eq!(renderer.read_tess_stats().expect("stats"), stats_alone);
+    let walls_after = renderer.read_images().expect("read back");
+    for (a, b) in walls_alone.iter().zip(&walls_after) {
+        assert!(a.left == b.left && a.right == b.right, "{} changed", a.wall);
+    }
+    // And the other order: the walls' frame leaves the panorama's counts as they were.
+    renderer.render(&frame).expect("walls again");
+    assert_eq!(
+        renderer.read_panorama_tess_stats().expect("panorama stats"),
+        pano_stats
+    );
+}
+
+fn repo_path(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+#[test]
+fn the_readback_ring_returns_each_frames_time_and_tessellation_counts_without_waiting() {
+    // Every frame copies its timestamps and the walls' tessellation counts into a ring slot
+    // mapped asynchronously: once the GPU has finished, polling returns them tagged with
+    // their frame, equal to what a blocking read finds.
+    let cave = cave();
+    let scene = load_gltf(&repo_path("assets/living-room.glb")).expect("living room");
+    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+    let timed = renderer.enable_gpu_timing(gpu());
+    renderer.set_scene(&scene);
+    assert_eq!(renderer.poll_readbacks().frame, 0, "nothing rendered yet");
+    let mut frame = test_frame(
+        &cave,
+        Head::at(HEAD),
+        RenderMode::OmniOffAxis,
+        OmniSettings::default(),
+        TessSettings {
+            criterion: Some(Criterion::Error(1.0)),
+            ..TessSettings::default()
+        },
+    );
+    for expected_frame in 1..=4 {
+        renderer.render(&frame).expect("render");
+        renderer.wait_idle().expect("idle");
+        let blocking = renderer.read_tess_stats().expect("stats");
+        let latest = renderer.poll_readbacks().clone();
+        assert_eq!(latest.frame, expected_frame);
+        assert_eq!(latest.tess, blocking, "frame {expected_frame}");
+        assert_eq!(latest.gpu_ms.is_some(), timed);
+        // Alternate tessellated and plain frames: a plain frame reads back no counts.
+        frame.tess.criterion = if frame.tess.criterion.is_some() {
+            None
+        } else {
+            Some(Criterion::Error(1.0))
+        };
+        if expected_frame % 2 == 0 {
+            assert!(latest.tess.is_empty());
+        } else {
+            assert_eq!(latest.tess.len(), cave.walls.len() * 2);
+            assert!(latest.tess.iter().all(|s| s.emitted > 0));
+        }
+    }
+}
