@@ -2,8 +2,9 @@
 //! that name the file, the field or object, and the value.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use omnicave::config::Config;
 use omnicave::scene::load_gltf;
@@ -366,16 +367,8 @@ fn garbage_empty_and_missing_files_are_refused() {
 // ---------------------------------------------------------------- CLI
 
 fn omnicave(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_omnicave"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("RUST_LOG", "warn")
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let (ok, _, stderr) = common::run_omnicave(args);
+    (ok, stderr)
 }
 
 #[test]

@@ -276,11 +276,13 @@ fn stability_sweep_writes_its_table_and_the_failing_methods_fail() {
         String::from_utf8_lossy(&run.stderr)
     );
     let csv = std::fs::read_to_string(out.join("stability.csv")).expect("stability.csv");
-    let rows: Vec<Vec<u64>> = csv
-        .lines()
-        .skip(1)
-        .map(|l| {
-            l.split(',')
+    // Read as CSV: the configurations' names contain commas (quoted cells).
+    let rows: Vec<Vec<u64>> = csv::Reader::from_reader(csv.as_bytes())
+        .records()
+        .map(|record| {
+            record
+                .expect("row")
+                .iter()
                 .skip(1)
                 .map(|v| v.parse().expect("count"))
                 .collect()
@@ -307,10 +309,17 @@ fn stability_sweep_writes_its_table_and_the_failing_methods_fail() {
     // The rendered part: holes on the GPU's images, popping and error with the CPU twin.
     let rendered =
         std::fs::read_to_string(out.join("stability-rendered.csv")).expect("rendered csv");
-    let mut lines = rendered.lines();
-    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
-    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // Read as CSV: the methods' names contain commas (quoted cells).
+    let mut reader = csv::Reader::from_reader(rendered.as_bytes());
+    let header: Vec<String> = reader
+        .headers()
+        .expect("header")
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    let col = |name: &str| header.iter().position(|h| h == name).expect(name);
+    let records: Vec<csv::StringRecord> = reader.records().map(|r| r.expect("row")).collect();
+    let rows: Vec<Vec<&str>> = records.iter().map(|r| r.iter().collect()).collect();
     let row = |prefix: &str| {
         rows.iter()
             .find(|r| r[0].starts_with(prefix))
@@ -326,7 +335,7 @@ fn stability_sweep_writes_its_table_and_the_failing_methods_fail() {
     // The recommended configuration: no hole, nothing pops by more than a pixel, and the
     // drawn edges stay within the error criterion's bound (0.5 px at edge midpoints, so about
     // 1 px anywhere along an edge; measured 1.01 px at this grid).
-    let recommended = row("omni-offaxis + error:0.5; similar triangles");
+    let recommended = row("omni-offaxis + error:0.5, similar triangles");
     assert_eq!(num(recommended, "hole_pixels"), 0.0, "{rendered}");
     assert_eq!(num(recommended, "points_popping"), 0.0, "{rendered}");
     assert!(num(recommended, "max_error_px") <= 1.1, "{rendered}");
@@ -341,15 +350,15 @@ fn stability_sweep_writes_its_table_and_the_failing_methods_fail() {
     // The failing methods show their failures: the plain warp tears holes into the closed
     // room and pops; the intersection-point warp leaves holes and draws points hundreds of
     // pixels off; without pole merge the overhead and underfoot geometry is drawn far off.
-    let plain = row("omni-offaxis; no tessellation");
+    let plain = row("omni-offaxis, no tessellation");
     assert!(num(plain, "hole_pixels") > 1000.0, "{rendered}");
     assert!(num(plain, "points_popping") > 10.0, "{rendered}");
-    let intersection = row("omni-offaxis + error:0.5; intersection point");
+    let intersection = row("omni-offaxis + error:0.5, intersection point");
     assert!(num(intersection, "hole_pixels") > 100.0, "{rendered}");
     assert!(num(intersection, "max_error_px") > 100.0, "{rendered}");
     assert!(
         num(
-            row("omni-offaxis + error:0.5; pole merge off"),
+            row("omni-offaxis + error:0.5, pole merge off"),
             "max_error_px"
         ) > 100.0,
         "{rendered}"

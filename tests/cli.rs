@@ -4,6 +4,8 @@
 //! errors name the line.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -18,17 +20,7 @@ use omnicave::tracking::QuaternionOrder;
 use omnicave::tracking::sim::SimForm;
 
 fn omnicave(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_omnicave"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("RUST_LOG", "warn")
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    common::run_omnicave(args)
 }
 
 fn repo(rel: &str) -> std::path::PathBuf {

@@ -26,16 +26,7 @@ fn cave() -> Cave {
 }
 
 fn settings(projection: Projection, route: PanoRoute, fov_deg: [f32; 2]) -> PanoSettings {
-    PanoSettings {
-        projection,
-        h_fov: fov_deg[0].to_radians(),
-        v_fov: fov_deg[1].to_radians(),
-        route,
-        stereo: PanoStereo::Mono,
-        yaw: 20f32.to_radians(),
-        size: [720, 360],
-        cube_size: 512,
-    }
+    common::pano_settings(projection, route, fov_deg)
 }
 
 /// Renders the panorama of `scene` and reads both eyes back.

@@ -7,10 +7,10 @@ mod common;
 
 use glam::Vec3;
 
-use common::{NO_MSAA, cave_at, gpu, test_frame};
+use common::{NO_MSAA, cave_at, gpu, pano_settings, test_frame};
 use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Cave, Head, RenderMode};
-use omnicave::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
+use omnicave::pano::{PanoRoute, PanoStereo, Projection};
 use omnicave::render::Renderer;
 use omnicave::scene::load_gltf;
 use omnicave::tess::{Criterion, TessSettings};
@@ -19,19 +19,6 @@ const HEAD: Vec3 = Vec3::new(0.2, 1.6, -0.3);
 
 fn cave() -> Cave {
     cave_at(64, 36)
-}
-
-fn settings(projection: Projection, route: PanoRoute, fov_deg: [f32; 2]) -> PanoSettings {
-    PanoSettings {
-        projection,
-        h_fov: fov_deg[0].to_radians(),
-        v_fov: fov_deg[1].to_radians(),
-        route,
-        stereo: PanoStereo::Mono,
-        yaw: 0.0,
-        size: [128, 64],
-        cube_size: 64,
-    }
 }
 
 #[test]
@@ -59,7 +46,7 @@ fn walls_and_panorama_keep_their_own_frame_data_in_any_order() {
     let stats_alone = renderer.read_tess_stats().expect("stats");
     assert_eq!(stats_alone.len(), cave.walls.len() * 2);
 
-    let mut pano = settings(
+    let mut pano = pano_settings(
         Projection::Equirectangular,
         PanoRoute::Geometric,
         [360.0, 180.0],

@@ -2,6 +2,7 @@
 //! unfolded (preview), the egui control panel, keys and mouse; one process, one wgpu device.
 
 pub mod devices;
+mod error;
 pub mod keys;
 pub mod panel;
 pub mod state;
@@ -19,40 +20,19 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::PhysicalKey;
 use winit::window::WindowId;
 
-use crate::config::{AppMode, Config, ConfigError, PanelPlacement};
+use crate::config::{AppMode, Config, PanelPlacement};
+use crate::render::Renderer;
 use crate::render::gpu::Gpu;
-use crate::render::{RenderError, Renderer};
-use crate::scene::{Scene, SceneError};
+use crate::scene::Scene;
 use crate::setup::{load_config_sky, load_scene};
 use crate::sky::CubeMap;
 use devices::{Gamepads, Tracking};
+pub use error::AppError;
 use keys::HeldKeys;
 use panel::PanelInfo;
 use state::AppState;
 use stats::FrameClock;
 use window::{EguiHost, OutputWindow, Role};
-
-/// Everything that can stop the application from starting or running.
-#[derive(Debug, thiserror::Error)]
-pub enum AppError {
-    #[error(transparent)]
-    Config(#[from] ConfigError),
-    #[error(transparent)]
-    Scene(#[from] SceneError),
-    #[error(transparent)]
-    Render(#[from] RenderError),
-    #[error("cannot open the window system: {0}")]
-    EventLoop(String),
-    #[error("cannot create window '{name}': {message}")]
-    Window { name: String, message: String },
-    #[error("cannot present to window '{name}': {message}")]
-    Surface { name: String, message: String },
-    #[error("head position {position} is not usable: {problem}")]
-    Head {
-        position: glam::Vec3,
-        problem: String,
-    },
-}
 
 /// How to start the application.
 #[derive(Debug, Clone, Default)]

@@ -9,7 +9,7 @@ use winit::event_loop::ActiveEventLoop;
 use winit::monitor::MonitorHandle;
 use winit::window::{Fullscreen, Window, WindowId};
 
-use super::AppError;
+use super::error::AppError;
 use super::panel::{self, PanelInfo};
 use super::state::AppState;
 use crate::cave::Eye;

@@ -9,7 +9,7 @@ use super::chart;
 use super::error::BenchError;
 use super::measure::{Row, VISIBLE_DIFFERENCE, percentile};
 use super::methods::{Method, family};
-use super::run::BenchOptions;
+use super::options::BenchOptions;
 use crate::cave::RenderMode;
 use crate::config::Config;
 use crate::sky::SkyMode;

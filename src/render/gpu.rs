@@ -1,6 +1,6 @@
 //! The one wgpu device: adapter selection and the optional features the renderer uses.
 
-use super::RenderError;
+use super::error::RenderError;
 
 /// Instance, adapter, device and queue, plus what the adapter can do.
 #[derive(Debug, Clone)]

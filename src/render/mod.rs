@@ -1,5 +1,6 @@
 //! The multi-wall stereo renderer: owns the GPU resources and draws every wall for every eye.
 
+pub mod error;
 pub mod gpu;
 pub mod panorama;
 pub mod present;
@@ -15,6 +16,7 @@ pub mod view_set;
 use glam::Mat4;
 use image::RgbaImage;
 
+pub use error::RenderError;
 pub use gpu::Gpu;
 use scene_pass::{SceneGpu, ScenePass};
 use sky_pass::{SkyFrame, SkyPass};
@@ -30,32 +32,6 @@ use crate::scene::Lighting;
 use crate::scene::Scene;
 use crate::sky::{CubeMap, SkyMode, SkySettings};
 use crate::tess::{TessSettings, TessStats};
-
-/// Everything that can go wrong in the render layer.
-#[derive(Debug, thiserror::Error)]
-pub enum RenderError {
-    #[error(
-        "no usable GPU adapter: {0} (is a Vulkan driver such as mesa-vulkan-drivers installed?)"
-    )]
-    NoAdapter(String),
-    #[error("cannot create the GPU device: {0}")]
-    Device(String),
-    #[error("reading images back from the GPU failed: {0}")]
-    Readback(String),
-    #[error("MSAA ×{0} is not supported here (use 1 or 4)")]
-    Msaa(u32),
-    #[error(transparent)]
-    Tessellation(#[from] tessellator::TessError),
-    #[error(
-        "the panorama's geometric route needs the tessellator, which this adapter cannot run \
-         (use the image route)"
-    )]
-    PanoramaNeedsTessellator,
-    #[error("a panorama of {0}×{1} pixels is empty or exceeds this device's texture limit")]
-    PanoramaSize(u32, u32),
-    #[error("sky faces of {size}×{size} exceed this device's texture limit of {max}")]
-    SkyTooLarge { size: u32, max: u32 },
-}
 
 /// Settings that change pipelines or targets (rarely; never per frame).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -562,16 +538,19 @@ impl Renderer {
                     self.scene_pass.draw_tessellated(
                         &mut pass,
                         scene,
-                        &self.walls,
+                        self.walls.bind_group(),
                         buffers,
                         index,
                         wireframe,
                     );
                 }
-                (Some(scene), None) => {
-                    self.scene_pass
-                        .draw(&mut pass, scene, &self.walls, index, wireframe)
-                }
+                (Some(scene), None) => self.scene_pass.draw(
+                    &mut pass,
+                    scene,
+                    self.walls.bind_group(),
+                    index,
+                    wireframe,
+                ),
                 (None, _) => {}
             }
             self.sky_pass.draw(&mut pass, index, view.wall);
@@ -693,7 +672,8 @@ impl Renderer {
                 self.pano_set
                     .write_uniforms(&self.queue, &frame_uniforms, faces);
                 self.pano_set.set_tessellated_views(0);
-                let (scene_pass, scene, faces) = (&self.scene_pass, &self.scene, &self.pano_set);
+                let (scene_pass, scene, faces) =
+                    (&self.scene_pass, &self.scene, self.pano_set.bind_group());
                 // Alpha 0 where the faces show nothing: the look-up puts the sky there.
                 let face_clear = wgpu::Color { a: 0.0, ..clear };
                 self.pano
@@ -779,7 +759,7 @@ impl Renderer {
                         self.scene_pass.draw_panorama(
                             &mut pass,
                             scene,
-                            &self.pano_set,
+                            self.pano_set.bind_group(),
                             buffers,
                             index,
                         );

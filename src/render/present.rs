@@ -6,8 +6,9 @@ use std::collections::HashMap;
 use bytemuck::{Pod, Zeroable};
 use image::RgbaImage;
 
+use super::error::RenderError;
 use super::shaders;
-use super::{RenderError, targets};
+use super::targets;
 use crate::output::formats::{StereoFormat, frame_packing_gap};
 
 /// Keep in sync with `PresentUniforms` in shaders/present.wgsl.

@@ -9,7 +9,6 @@ use wgpu::util::DeviceExt;
 use super::shaders;
 use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
 use super::uniforms::{MaterialUniforms, UNIFORM_STRIDE};
-use super::view_set::ViewSet;
 use crate::scene::{Scene, Texture, Wrap};
 
 /// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl.
@@ -291,7 +290,7 @@ impl ScenePass {
         self.msaa
     }
 
-    /// The layout of group 0 (frame uniforms and the view), which every [`ViewSet`] binds.
+    /// The layout of group 0 (frame uniforms and the view), which every view set binds.
     pub fn frame_layout(&self) -> &wgpu::BindGroupLayout {
         &self.frame_layout
     }
@@ -301,7 +300,7 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
-        views: &ViewSet,
+        views: &wgpu::BindGroup,
         view_index: usize,
         wireframe: bool,
     ) {
@@ -330,7 +329,7 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
-        views: &ViewSet,
+        views: &wgpu::BindGroup,
         tess: &super::tessellator::TessBuffers,
         view_index: usize,
         wireframe: bool,
@@ -359,7 +358,7 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
-        views: &ViewSet,
+        views: &wgpu::BindGroup,
         tess: &super::tessellator::TessBuffers,
         view_index: usize,
     ) {
@@ -388,14 +387,14 @@ impl ScenePass {
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
-        views: &ViewSet,
+        views: &wgpu::BindGroup,
         view_index: usize,
         wireframe: bool,
         variant: Variant,
         issue: impl Fn(&mut wgpu::RenderPass<'_>, usize, &GpuDraw),
     ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
-        pass.set_bind_group(0, views.bind_group(), &[view_offset]);
+        pass.set_bind_group(0, views, &[view_offset]);
         let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
         for &wire in layers {
             let mut bound: Option<PipelineKey> = None;

@@ -2,7 +2,7 @@
 
 use image::RgbaImage;
 
-use super::RenderError;
+use super::error::RenderError;
 
 /// Colour format of every eye image: shading is linear, storage sRGB.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;

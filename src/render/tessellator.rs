@@ -6,7 +6,8 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-use super::RenderError;
+use super::error::RenderError;
+pub use super::error::TessError;
 use super::shaders;
 use crate::cave::{ViewSetup, Wall};
 use crate::tess::criteria::wall_is_vertical;
@@ -165,13 +166,6 @@ pub fn max_capacity(device: &wgpu::Device) -> u32 {
         / std::mem::size_of::<GpuTessEntry>() as u64;
     let by_dispatch = 65_535 * u64::from(WORKGROUP);
     by_binding.min(by_dispatch).min(u64::from(u32::MAX)) as u32
-}
-
-/// Everything that can go wrong setting up the tessellator.
-#[derive(Debug, thiserror::Error)]
-pub enum TessError {
-    #[error("scene has {0} triangles; the tessellator dispatches at most {1}")]
-    TooManyTriangles(usize, usize),
 }
 
 /// The compute pipelines and their layouts (built once).

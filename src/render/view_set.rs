@@ -2,7 +2,7 @@
 //! faces): its frame and view uniforms and its own tessellation output, so that neither set
 //! can disturb the other's and no call order between them matters.
 
-use super::RenderError;
+use super::error::RenderError;
 use super::scene_pass::SceneGpu;
 use super::tessellator::{TessBuffers, Tessellator};
 use super::uniforms::{FrameUniforms, UNIFORM_STRIDE, ViewUniforms};

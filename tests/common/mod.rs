@@ -9,6 +9,7 @@ use image::RgbaImage;
 
 use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Cave, Head, RenderMode};
+use omnicave::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
 use omnicave::render::{FrameParams, Gpu, RenderSettings, Renderer, WallImages};
 use omnicave::scene::Lighting;
 use omnicave::scene::build::{MeshData, uv_sphere};
@@ -264,4 +265,35 @@ pub fn udp_kernel_drops(port: u16) -> Option<u64> {
             .ends_with(&port_hex)
             .then(|| fields.last()?.parse().ok())?
     })
+}
+
+/// Runs the `omnicave` binary from the repository root with `args` (log level warn); whether
+/// it succeeded, its standard output and its standard error.
+pub fn run_omnicave(args: &[&str]) -> (bool, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_omnicave"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A mono panorama of `projection` by `route` over `fov_deg` (degrees), turned 20° right,
+/// 720×360 pixels, 512-pixel cube faces.
+pub fn pano_settings(projection: Projection, route: PanoRoute, fov_deg: [f32; 2]) -> PanoSettings {
+    PanoSettings {
+        projection,
+        h_fov: fov_deg[0].to_radians(),
+        v_fov: fov_deg[1].to_radians(),
+        route,
+        stereo: PanoStereo::Mono,
+        yaw: 20f32.to_radians(),
+        size: [720, 360],
+        cube_size: 512,
+    }
 }

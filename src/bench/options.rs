@@ -1,0 +1,27 @@
+//! What `omnicave bench` is asked to run.
+
+use std::path::PathBuf;
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct BenchOptions {
+    pub config: PathBuf,
+    /// Scenes; empty: the config's scene and the bundled city.
+    pub scenes: Vec<PathBuf>,
+    /// Sky for the sky methods; `None`: the config's, else the bundled one.
+    pub sky: Option<PathBuf>,
+    pub out: PathBuf,
+    /// Fewer frames and head positions (finishes in well under 2 minutes on lavapipe).
+    pub quick: bool,
+    /// Timed frames per method and case (default 12, quick 3).
+    pub frames: Option<usize>,
+    /// Replaces every wall's pixel size (quick default: 192×108).
+    pub size: Option<[u32; 2]>,
+    /// Only the panorama methods (`panorama.csv` and a report of them alone).
+    pub panorama_only: bool,
+}
+
+/// Wall size of a quick run: 15 % of the thesis CAVE's in each direction, so that CI's
+/// software renderer (which spends seconds per full-size city frame) finishes in under two
+/// minutes.
+pub const QUICK_SIZE: [u32; 2] = [192, 108];

@@ -1,0 +1,34 @@
+//! Everything that can go wrong in the render layer (and in setting up its tessellator).
+
+/// Everything that can go wrong in the render layer.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(
+        "no usable GPU adapter: {0} (is a Vulkan driver such as mesa-vulkan-drivers installed?)"
+    )]
+    NoAdapter(String),
+    #[error("cannot create the GPU device: {0}")]
+    Device(String),
+    #[error("reading images back from the GPU failed: {0}")]
+    Readback(String),
+    #[error("MSAA ×{0} is not supported here (use 1 or 4)")]
+    Msaa(u32),
+    #[error(transparent)]
+    Tessellation(#[from] TessError),
+    #[error(
+        "the panorama's geometric route needs the tessellator, which this adapter cannot run \
+         (use the image route)"
+    )]
+    PanoramaNeedsTessellator,
+    #[error("a panorama of {0}×{1} pixels is empty or exceeds this device's texture limit")]
+    PanoramaSize(u32, u32),
+    #[error("sky faces of {size}×{size} exceed this device's texture limit of {max}")]
+    SkyTooLarge { size: u32, max: u32 },
+}
+
+/// Everything that can go wrong setting up the tessellator.
+#[derive(Debug, thiserror::Error)]
+pub enum TessError {
+    #[error("scene has {0} triangles; the tessellator dispatches at most {1}")]
+    TooManyTriangles(usize, usize),
+}
