@@ -395,3 +395,40 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     let shown = texts(&driver.frame(&mut state));
     assert!(!shown.iter().any(|t| t.starts_with("OSC:")), "{shown:?}");
 }
+
+#[test]
+fn a_config_saved_before_the_settings_model_still_loads_as_it_was_saved() {
+    // tests/data/saved-at-0dd4a4e.toml is what "Save settings" wrote at commit 0dd4a4e (the
+    // state of `saved_settings_load_back_as_they_were`, saved by that commit's code; only its
+    // absolute asset paths were made relative to the file). It loads into the same state.
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/saved-at-0dd4a4e.toml");
+    let loaded = AppState::new(Config::load(&path).expect("an old saved config loads"));
+    assert_eq!(loaded.settings.render.mode, RenderMode::OmniOnAxis);
+    assert_eq!(loaded.settings.cave.eye_separation, 0.07);
+    assert_eq!(loaded.criterion(), Some(Criterion::Sphere(12.0)));
+    assert!(!loaded.settings.omnistereo.pole_merge);
+    assert_eq!(loaded.head_position(), Vec3::new(0.2, 1.5, -0.4));
+    assert_eq!(
+        loaded.settings.app.preview_output,
+        omnicave::output::formats::StereoFormat::RowInterleaved
+    );
+    assert!(loaded.settings.tracking.enabled);
+    assert_eq!(loaded.settings.tracking.filter.beta, 3.5);
+    assert_eq!(
+        loaded.settings.gamepad.mode,
+        omnicave::gamepad::GamepadMode::Head
+    );
+    assert_eq!(loaded.settings.app.navigation_speed, 4.0);
+    // The moved walls: 4 m wide, 3 m high, 3.3 m deep.
+    let (min, max) = omnicave::cave::Cave::bounding_box(&loaded.cave().walls);
+    assert!(((max - min) - Vec3::new(4.0, 3.0, 3.3)).abs().max_element() < 1e-5);
+    assert!(
+        loaded
+            .config
+            .scene_path
+            .as_ref()
+            .is_some_and(|p| p.is_file()),
+        "the scene path resolves"
+    );
+}
