@@ -109,6 +109,12 @@ impl Overrides {
         let pano = &mut settings.panorama;
         if let Some(p) = self.pano_projection {
             pano.projection = p;
+            if self.pano_fov_degrees.is_none() {
+                // The config's field of view, as much of it as the projection shows.
+                let (max_h, max_v) = p.max_fov();
+                pano.h_fov_degrees = pano.h_fov_degrees.min(max_h.to_degrees().round());
+                pano.v_fov_degrees = pano.v_fov_degrees.min(max_v.to_degrees().round());
+            }
         }
         if let Some(r) = self.pano_route {
             pano.route = r;

@@ -159,6 +159,11 @@ fn config_errors_name_file_field_and_value() {
             vec!["app.window_size", "[0, 720]"],
         ),
         (
+            "bad-wall-window.toml",
+            base.replace("monitor = 1 ", "window_size = [0, 100000]\nmonitor = 1 "),
+            vec!["wall[0].window_size", "[0, 100000]", "1..=8192"],
+        ),
+        (
             "bad-monitor.toml",
             base.replace("monitor = 1 ", "monitor = -1 "),
             vec!["monitor"],

@@ -276,3 +276,38 @@ fn config_errors_name_the_line() {
     assert!(err.contains("field `render.mode`"), "{err}");
     assert!(err.contains(&format!("line {line}")), "{err}");
 }
+
+#[test]
+fn a_narrower_projection_takes_as_much_of_the_configs_field_of_view_as_it_shows() {
+    // config/cave.toml asks for 360° × 180°; perspective shows at most 170° × 170° and Albers
+    // 360° × 170°: without --fov the render clamps to that instead of refusing.
+    for projection in ["perspective", "albers"] {
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("narrow-{projection}"));
+        let (ok, _, err) = omnicave(&[
+            "render",
+            "--view",
+            "panorama",
+            "--projection",
+            projection,
+            "--pano-size",
+            "64x32",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(ok, "{projection}: {err}");
+        assert!(out.join("panorama.png").is_file(), "{projection}");
+    }
+    // An explicit field of view beyond the projection is still refused.
+    let (ok, _, err) = omnicave(&[
+        "render",
+        "--view",
+        "panorama",
+        "--projection",
+        "perspective",
+        "--fov",
+        "200,90",
+        "--out",
+        "out/never",
+    ]);
+    assert!(!ok && err.contains("panorama.h_fov_degrees"), "{err}");
+}

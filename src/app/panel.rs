@@ -131,8 +131,13 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
     });
 }
 
+/// Settings whose slider takes its range from the settings model.
+const POLE_MERGE_START: &str = "omnistereo.pole_merge_start_degrees";
+const PANO_H_FOV: &str = "panorama.h_fov_degrees";
+const PANO_V_FOV: &str = "panorama.v_fov_degrees";
+
 /// The model's range of the setting at `path` (the one declared beside it in the config's
-/// settings model), for a slider.
+/// settings model), for a slider (a test checks every path used here has one).
 fn model_range(path: &str) -> std::ops::RangeInclusive<f32> {
     crate::config::bounds(path).map_or(0.0..=1.0, |b| b.f32_range())
 }
@@ -156,7 +161,7 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     );
     ui.checkbox(&mut o.pole_merge, "Pole merge");
     ui.add_enabled_ui(o.pole_merge, |ui| {
-        let range = model_range("omnistereo.pole_merge_start_degrees");
+        let range = model_range(POLE_MERGE_START);
         ui.add(Slider::new(&mut o.pole_merge_start_degrees, range.clone()).text("merge start °"));
         let end = o.pole_merge_start_degrees..=*range.end();
         ui.add(Slider::new(&mut o.pole_merge_end_degrees, end).text("merge end °"));
@@ -236,10 +241,15 @@ fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
         // A slider move that would put the head behind a wall is not taken.
         let _ = state.set_head_position(head);
     }
-    ui.add(
-        Slider::new(&mut state.settings.head.yaw_degrees, -180.0..=180.0)
-            .text("head yaw ° (tracked)"),
-    );
+    // The same direction shown within ±180° (the config allows ±360°): written back only when
+    // moved, so showing the panel never changes a configured yaw.
+    let mut yaw = crate::pano::wrap_degrees(state.settings.head.yaw_degrees);
+    if ui
+        .add(Slider::new(&mut yaw, -180.0..=180.0).text("head yaw ° (tracked)"))
+        .changed()
+    {
+        state.settings.head.yaw_degrees = yaw;
+    }
     ui.label("CAVE size (walls move live, m)");
     let mut size = state.cave_size;
     let base = state.base_cave_size();
@@ -400,10 +410,10 @@ fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         );
         let (max_h, max_v) = pano.projection.max_fov();
         let (max_h, max_v) = (max_h.to_degrees(), max_v.to_degrees());
-        // The model's ranges, narrowed to what the projection shows (a slider clamps what it
-        // shows, so a value the config accepts stays as it is until moved).
-        let h = model_range("panorama.h_fov_degrees");
-        let v = model_range("panorama.v_fov_degrees");
+        // The model's ranges, narrowed to what the projection shows (switching to a narrower
+        // projection clamps the field of view to it, as the image would be).
+        let h = model_range(PANO_H_FOV);
+        let v = model_range(PANO_V_FOV);
         ui.add(
             Slider::new(&mut pano.h_fov_degrees, *h.start()..=max_h.min(*h.end()))
                 .text("horizontal FoV °"),
@@ -459,4 +469,16 @@ pub fn help_window(ctx: &egui::Context, open: &mut bool) {
                 }
             });
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_slider_range_comes_from_the_model() {
+        for path in [POLE_MERGE_START, PANO_H_FOV, PANO_V_FOV] {
+            assert!(crate::config::bounds(path).is_some(), "{path} has no range");
+        }
+    }
 }

@@ -53,7 +53,11 @@ pub(super) struct OutOfBounds {
 
 /// The first setting of `file` outside its range (non-finite numbers included).
 pub(super) fn check(file: &ConfigFile) -> Result<(), OutOfBounds> {
-    let value = serde_json::to_value(file).unwrap_or(Value::Null);
+    let value = serde_json::to_value(file).map_err(|e| OutOfBounds {
+        path: "(the whole file)".into(),
+        value: String::new(),
+        reason: format!("cannot be checked: {e}"),
+    })?;
     walk(&value, String::new(), table())
 }
 

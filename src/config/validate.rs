@@ -273,7 +273,13 @@ impl ConfigFile {
                     offset,
                 },
                 filter: f.enabled.then_some(params),
-                timeout: Duration::from_secs_f32(timeout),
+                timeout: Duration::try_from_secs_f32(timeout).map_err(|_| {
+                    ck.fail(
+                        "tracking.timeout_seconds",
+                        timeout,
+                        "must be a positive number of seconds",
+                    )
+                })?,
             },
         })
     }
@@ -330,8 +336,15 @@ impl ConfigFile {
             },
         };
         let mut walls = Vec::with_capacity(self.walls.len());
-        for w in &self.walls {
+        for (i, w) in self.walls.iter().enumerate() {
             let size = w.window_size.unwrap_or(w.resolution);
+            if !size.iter().all(|v| (1..=MAX_WALL_PIXELS).contains(v)) {
+                return Err(ck.fail(
+                    &format!("wall[{i}].window_size"),
+                    size,
+                    &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
+                ));
+            }
             let output = w.output.unwrap_or(a.wall_output);
             walls.push(WallWindow {
                 monitor: w.monitor.clone(),

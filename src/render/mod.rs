@@ -571,7 +571,11 @@ impl Renderer {
             // More walls than the ring was made for (not per frame).
             self.readback = readback::ReadbackRing::new(&self.device, needed);
         }
-        if let Some(slot) = self.readback.begin(self.frame_number, layout) {
+        let wanted = layout.timestamps || layout.tess_views > 0;
+        if let Some(slot) = wanted
+            .then(|| self.readback.begin(self.frame_number, layout))
+            .flatten()
+        {
             if let Some(timer) = &self.timer {
                 encoder.copy_buffer_to_buffer(
                     &timer.resolve,
