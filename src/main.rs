@@ -492,6 +492,19 @@ impl Progress {
     }
 }
 
+/// Writes a command's output to standard output; a reader that closed the pipe early (`| head`)
+/// is not an error.
+fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(bytes).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(e).context("cannot write to standard output")
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The error and its causes on one line, each said once (an I/O error that a message already
 /// quotes is not repeated).
 fn error_text(e: &anyhow::Error) -> String {
@@ -592,16 +605,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::TrackSim(args) => track_sim(args),
         Command::Completions { shell } => {
+            // Into memory first: clap_complete panics on a failed write (a closed pipe).
+            let mut script = Vec::new();
             let mut command = <Cli as clap::CommandFactory>::command();
-            clap_complete::generate(shell, &mut command, "omnicave", &mut std::io::stdout());
-            Ok(())
+            clap_complete::generate(shell, &mut command, "omnicave", &mut script);
+            write_stdout(&script)
         }
         Command::Config(ConfigCommand::Schema) => {
-            use std::io::Write;
-            std::io::stdout()
-                .write_all(omnicave::config::schema::json_schema_text().as_bytes())
-                .context("cannot write the schema")?;
-            Ok(())
+            write_stdout(omnicave::config::schema::json_schema_text().as_bytes())
         }
         Command::Render(args) => {
             let overrides = Overrides {

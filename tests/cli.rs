@@ -311,3 +311,23 @@ fn a_narrower_projection_takes_as_much_of_the_configs_field_of_view_as_it_shows(
     ]);
     assert!(!ok && err.contains("panorama.h_fov_degrees"), "{err}");
 }
+
+#[test]
+fn a_reader_closing_the_pipe_early_is_no_panic() {
+    // `omnicave completions bash | head -1`: the reader goes away before the writer is done.
+    // The read end is closed right after the start, long before the program has parsed its
+    // arguments, so its write meets a broken pipe.
+    for args in [["completions", "bash"], ["config", "schema"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_omnicave"))
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert_ne!(out.status.code(), Some(101), "{args:?}: {stderr}");
+    }
+}
