@@ -40,6 +40,10 @@ impl Bounds {
 /// The range of the setting at `path` (`cave.eye_separation`, `wall[0].resolution[1]`), if
 /// the model gives it one.
 pub fn bounds(path: &str) -> Option<Bounds> {
+    // The panel asks every frame: no allocation for a path without indices.
+    if !path.contains('[') {
+        return table().get(path).copied();
+    }
     table().get(&generic_path(path)).copied()
 }
 

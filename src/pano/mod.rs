@@ -83,11 +83,6 @@ impl PanoStereo {
         }
     }
 
-    /// `mono`, `volume` (with VR'14's parameters) or `omni`.
-    pub fn from_name(name: &str) -> Option<Self> {
-        PanoStereoKind::from_name(name).map(|k| Self::of_kind(k, VOLUME_DEFAULT_PARAMS))
-    }
-
     pub fn is_stereo(self) -> bool {
         !matches!(self, Self::Mono)
     }

@@ -334,22 +334,8 @@ impl ScenePass {
         view_index: usize,
         wireframe: bool,
     ) {
-        pass.set_bind_group(2, &tess.draw_group, &[]);
         let variant = Variant::Tessellated;
-        self.draw_materials(
-            pass,
-            scene,
-            views,
-            view_index,
-            wireframe,
-            variant,
-            |pass, d, _| {
-                pass.draw_indirect(
-                    &tess.args,
-                    super::tessellator::TessBuffers::draw_args_offset(d),
-                );
-            },
-        );
+        self.draw_indirect(pass, scene, views, tess, view_index, wireframe, variant);
     }
 
     /// Records the panorama's geometric route for view slot `view_index`: the tessellator's
@@ -362,14 +348,29 @@ impl ScenePass {
         tess: &super::tessellator::TessBuffers,
         view_index: usize,
     ) {
-        pass.set_bind_group(2, &tess.draw_group, &[]);
         let variant = Variant::Panorama;
+        self.draw_indirect(pass, scene, views, tess, view_index, false, variant);
+    }
+
+    /// The tessellator's output for a view, one indirect draw per scene draw.
+    #[allow(clippy::too_many_arguments)]
+    fn draw_indirect(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        scene: &SceneGpu,
+        views: &wgpu::BindGroup,
+        tess: &super::tessellator::TessBuffers,
+        view_index: usize,
+        wireframe: bool,
+        variant: Variant,
+    ) {
+        pass.set_bind_group(2, &tess.draw_group, &[]);
         self.draw_materials(
             pass,
             scene,
             views,
             view_index,
-            false,
+            wireframe,
             variant,
             |pass, d, _| {
                 pass.draw_indirect(
