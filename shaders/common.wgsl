@@ -1,26 +1,40 @@
 // Shared declarations, prepended to every feature shader by `render::shaders::compose`.
 // Keep the structs in sync with `src/render/uniforms.rs`.
 
+// One light, CAVE space. Keep in sync with `GpuLight` in src/render/uniforms.rs.
+struct Light {
+    // xyz: position; w: range in metres (0: no cut-off).
+    position: vec4<f32>,
+    // xyz: unit direction the light travels; w: kind (0 directional, 1 point, 2 spot).
+    direction: vec4<f32>,
+    // rgb: linear colour × intensity (radiance scale); w: falloff (0 inverse square with the
+    // glTF range window, 1 the config's smooth fade to the range).
+    color: vec4<f32>,
+    // Spot: x cos(outer cone), y 1 / (cos(inner) − cos(outer)).
+    cone: vec4<f32>,
+}
+
+// Lights a frame holds at most (the config's and the scene file's, in that order).
+const MAX_LIGHTS: u32 = 8u;
+
 // Per-frame data, CAVE space. Keep in sync with `FrameUniforms` in src/render/uniforms.rs.
 struct FrameUniforms {
     cave_from_world: mat4x4<f32>,
     // Inverse transpose of cave_from_world's linear part (for normals).
     normal_from_world: mat4x4<f32>,
-    // xyz: direction the sun's light travels (CAVE space, unit); w unused.
-    sun_direction: vec4<f32>,
-    // rgb: sun colour × intensity (linear); w unused.
-    sun_color: vec4<f32>,
-    // xyz: point light position (CAVE space); w: range in metres.
-    point_position: vec4<f32>,
-    // rgb: point light colour × intensity (linear); w unused.
-    point_color: vec4<f32>,
-    // rgb: ambient light (linear); w unused.
+    // rgb: ambient radiance (linear); w unused.
     ambient: vec4<f32>,
     // rgba: wireframe overlay colour (linear).
     wire_color: vec4<f32>,
     // x: warp (0 = none, 1 = similar triangles, 2 = intersection point);
     // y, z: pole-merge start and end elevation (radians); w: 1 if pole merging is on.
     omni: vec4<f32>,
+    // Lights in use (0..=MAX_LIGHTS).
+    light_count: u32,
+    // 0: physically based (shaders/pbr.wgsl); 1: the simple Blinn-Phong model.
+    shading: u32,
+    frame_pad: vec2<u32>,
+    lights: array<Light, MAX_LIGHTS>,
 }
 
 // One wall seen from one eye. Keep in sync with `ViewUniforms` in src/render/uniforms.rs.
@@ -99,42 +113,10 @@ fn omni_warp(v: vec3<f32>, e: vec3<f32>, view: ViewUniforms, variant: f32) -> ve
     return c + normalize(i - c) * length(v - c);
 }
 
-// Blinn-Phong lighting of a surface point, all vectors in CAVE space.
-// `eye` is where the surface is seen from (per view, or per vertex in omnistereo).
-fn blinn_phong(
-    frame: FrameUniforms,
-    albedo: vec3<f32>,
-    position: vec3<f32>,
-    normal: vec3<f32>,
-    eye: vec3<f32>,
-    shininess: f32,
-    specular_strength: f32,
-) -> vec3<f32> {
-    let v = normalize(eye - position);
-    var diffuse = frame.ambient.rgb;
-    var specular = vec3<f32>(0.0);
-
-    let l_sun = -frame.sun_direction.xyz;
-    let n_dot_sun = dot(normal, l_sun);
-    if n_dot_sun > 0.0 {
-        diffuse += n_dot_sun * frame.sun_color.rgb;
-        let h = normalize(l_sun + v);
-        specular += pow(max(dot(normal, h), 0.0), shininess) * frame.sun_color.rgb;
-    }
-
-    let to_light = frame.point_position.xyz - position;
-    let dist = length(to_light);
-    let l_point = to_light / max(dist, 1e-4);
-    let fade = clamp(1.0 - dist / frame.point_position.w, 0.0, 1.0);
-    let attenuation = fade * fade;
-    let n_dot_point = dot(normal, l_point);
-    if n_dot_point > 0.0 && attenuation > 0.0 {
-        diffuse += n_dot_point * attenuation * frame.point_color.rgb;
-        let h = normalize(l_point + v);
-        specular += pow(max(dot(normal, h), 0.0), shininess) * attenuation * frame.point_color.rgb;
-    }
-    return albedo * diffuse + specular_strength * specular;
-}
+// Scene vertices as the tessellator and the tessellated draws read them (f32 each): position
+// 0..3, normal 3..6, uv 6..8, uv1 8..10, colour 10..14, tangent 14..18. Keep in sync with
+// `GpuVertex` in src/render/scene_pass.rs.
+const VERTEX_FLOATS: u32 = 18u;
 
 // Tessellation, shared by shaders/tessellate.wgsl (splitting) and shaders/scene.wgsl (drawing);
 // mirrored on the CPU by src/tess/mod.rs.
@@ -226,7 +208,7 @@ fn interp3(plan: InterpPlan, v: array<vec3<f32>, 3>) -> vec3<f32> {
     return plan.w.x * v[0] + plan.w.y * v[1] + plan.w.z * v[2];
 }
 
-fn interp2(plan: InterpPlan, v: array<vec2<f32>, 3>) -> vec2<f32> {
+fn interp4(plan: InterpPlan, v: array<vec4<f32>, 3>) -> vec4<f32> {
     if plan.mode == 0u {
         return v[plan.i];
     }

@@ -1,4 +1,4 @@
-// Scene geometry: Blinn-Phong shaded, textured triangles for one wall and eye.
+// Scene geometry: physically based (shaders/pbr.wgsl), textured triangles for one wall and eye.
 // Paired with src/render/scene_pass.rs; shared structs come from common.wgsl.
 
 // Keep in sync with `MaterialUniforms` in src/render/uniforms.rs (tests/gpu_layout.rs checks).
@@ -7,25 +7,57 @@ struct MaterialUniforms {
     base_color: vec4<f32>,
     // Emitted light (linear).
     emissive: vec3<f32>,
+    // Bit k: texture slot k is bound; bit 8 + k: slot k reads TEXCOORD_1. Slots: 0 base
+    // colour, 1 metallic-roughness, 2 normal, 3 occlusion, 4 emissive.
+    texture_flags: u32,
+    metallic: f32,
+    roughness: f32,
+    normal_scale: f32,
+    occlusion_strength: f32,
+    // Alpha cutoff (< 0: no mask).
+    alpha_cutoff: f32,
+    // 1: alpha-blended (the colour keeps its alpha); 0: opaque.
+    alpha_blend: u32,
     // 1 for unlit materials (KHR_materials_unlit).
     unlit: u32,
-    shininess: f32,
-    specular: f32,
-    // Alpha cutoff (< 0: opaque).
-    alpha_cutoff: f32,
     material_pad: u32,
+    // KHR_texture_transform of slot k: rows 2k and 2k + 1 map (u, v, 1) to its coordinates.
+    uv_transforms: array<vec4<f32>, 10>,
 }
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<uniform> view: ViewUniforms;
 @group(1) @binding(0) var<uniform> material: MaterialUniforms;
-@group(1) @binding(1) var base_texture: texture_2d<f32>;
-@group(1) @binding(2) var base_sampler: sampler;
+@group(1) @binding(1) var base_color_texture: texture_2d<f32>;
+@group(1) @binding(2) var metallic_roughness_texture: texture_2d<f32>;
+@group(1) @binding(3) var normal_texture: texture_2d<f32>;
+@group(1) @binding(4) var occlusion_texture: texture_2d<f32>;
+@group(1) @binding(5) var emissive_texture: texture_2d<f32>;
+@group(1) @binding(6) var base_color_sampler: sampler;
+@group(1) @binding(7) var metallic_roughness_sampler: sampler;
+@group(1) @binding(8) var normal_sampler: sampler;
+@group(1) @binding(9) var occlusion_sampler: sampler;
+@group(1) @binding(10) var emissive_sampler: sampler;
 
+// Keep in sync with `GpuVertex` in src/render/scene_pass.rs.
 struct VertexInput {
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
+    @location(3) uv1: vec2<f32>,
+    @location(4) color: vec4<f32>,
+    @location(5) tangent: vec4<f32>,
+}
+
+// Everything a vertex carries besides its position (world space as read, CAVE space once
+// transformed).
+struct Attributes {
+    normal: vec3<f32>,
+    // xy: TEXCOORD_0, zw: TEXCOORD_1.
+    uvs: vec4<f32>,
+    color: vec4<f32>,
+    // xyz: tangent; w: the bitangent's sign (0 everywhere: no tangent).
+    tangent: vec4<f32>,
 }
 
 struct VertexOutput {
@@ -34,8 +66,9 @@ struct VertexOutput {
     @invariant @builtin(position) clip: vec4<f32>,
     @location(0) cave_position: vec3<f32>,
     @location(1) normal: vec3<f32>,
-    @location(2) uv: vec2<f32>,
-    @location(3) eye: vec3<f32>,
+    @location(2) uvs: vec4<f32>,
+    @location(3) color: vec4<f32>,
+    @location(4) tangent: vec4<f32>,
 }
 
 // Tessellated geometry (src/render/tessellator.rs): the sorted output triangles and the
@@ -44,69 +77,93 @@ struct VertexOutput {
 @group(2) @binding(1) var<storage, read> tess_vertices: array<f32>;
 @group(2) @binding(2) var<storage, read> tess_indices: array<u32>;
 
-// Everything after fetching a vertex: CAVE space, omnistereo eye and warp, projection.
-fn transform_vertex(position: vec3<f32>, normal: vec3<f32>, uv: vec2<f32>) -> VertexOutput {
+// Attributes moved from world into CAVE space.
+fn cave_attributes(a: Attributes) -> Attributes {
+    var out = a;
+    out.normal = (frame.normal_from_world * vec4<f32>(a.normal, 0.0)).xyz;
+    out.tangent = vec4<f32>((frame.cave_from_world * vec4<f32>(a.tangent.xyz, 0.0)).xyz,
+        a.tangent.w);
+    return out;
+}
+
+// Everything after fetching a vertex: CAVE space, omnistereo warp, projection.
+fn transform_vertex(position: vec3<f32>, a: Attributes) -> VertexOutput {
     let p = (frame.cave_from_world * vec4<f32>(position, 1.0)).xyz;
-    var eye = view.eye_position.xyz;
     var projected = p;
     if frame.omni.x > 0.5 {
-        // Omnistereo: this vertex's own eye, and the warp that makes the projection from C
-        // draw it where that eye sees it. Lighting uses the same eye (thesis 5.3).
-        eye = omni_eye(p, view, frame.omni);
-        projected = omni_warp(p, eye, view, frame.omni.x);
+        // Omnistereo: the warp that makes the projection from C draw this vertex where its
+        // own eye sees it.
+        projected = omni_warp(p, omni_eye(p, view, frame.omni), view, frame.omni.x);
     }
+    let c = cave_attributes(a);
     var out: VertexOutput;
     out.clip = view.clip_from_cave * vec4<f32>(projected, 1.0);
     out.cave_position = p;
-    out.normal = (frame.normal_from_world * vec4<f32>(normal, 0.0)).xyz;
-    out.uv = uv;
-    out.eye = eye;
+    out.normal = c.normal;
+    out.uvs = c.uvs;
+    out.color = c.color;
+    out.tangent = c.tangent;
     return out;
 }
 
 @vertex
 fn vs_main(in: VertexInput) -> VertexOutput {
-    return transform_vertex(in.position, in.normal, in.uv);
+    var a: Attributes;
+    a.normal = in.normal;
+    a.uvs = vec4<f32>(in.uv, in.uv1);
+    a.color = in.color;
+    a.tangent = in.tangent;
+    return transform_vertex(in.position, a);
 }
 
 fn tess_vec3(vertex: u32, offset: u32) -> vec3<f32> {
-    let base = 8u * vertex + offset;
+    let base = VERTEX_FLOATS * vertex + offset;
     return vec3<f32>(tess_vertices[base], tess_vertices[base + 1u], tess_vertices[base + 2u]);
+}
+
+fn tess_vec4(vertex: u32, offset: u32) -> vec4<f32> {
+    let base = VERTEX_FLOATS * vertex + offset;
+    return vec4<f32>(tess_vertices[base], tess_vertices[base + 1u], tess_vertices[base + 2u],
+        tess_vertices[base + 3u]);
 }
 
 // One corner of a tessellated triangle (world space), interpolated canonically from its
 // source triangle so that neighbours produce bit-identical points (watertight).
 struct Corner {
     position: vec3<f32>,
-    normal: vec3<f32>,
-    uv: vec2<f32>,
+    attributes: Attributes,
 }
 
 fn tess_corner(e: TessEntry, k: u32) -> Corner {
     let corners = array<vec2<u32>, 3>(e.c0, e.c1, e.c2);
     let b = corners[k];
-    let i0 = tess_indices[3u * e.source];
-    let i1 = tess_indices[3u * e.source + 1u];
-    let i2 = tess_indices[3u * e.source + 2u];
-    let p = array<vec3<f32>, 3>(tess_vec3(i0, 0u), tess_vec3(i1, 0u), tess_vec3(i2, 0u));
-    let n = array<vec3<f32>, 3>(tess_vec3(i0, 3u), tess_vec3(i1, 3u), tess_vec3(i2, 3u));
-    let uv = array<vec2<f32>, 3>(
-        vec2<f32>(tess_vertices[8u * i0 + 6u], tess_vertices[8u * i0 + 7u]),
-        vec2<f32>(tess_vertices[8u * i1 + 6u], tess_vertices[8u * i1 + 7u]),
-        vec2<f32>(tess_vertices[8u * i2 + 6u], tess_vertices[8u * i2 + 7u]),
+    let i = array<u32, 3>(
+        tess_indices[3u * e.source], tess_indices[3u * e.source + 1u],
+        tess_indices[3u * e.source + 2u],
+    );
+    let p = array<vec3<f32>, 3>(tess_vec3(i[0], 0u), tess_vec3(i[1], 0u), tess_vec3(i[2], 0u));
+    let n = array<vec3<f32>, 3>(tess_vec3(i[0], 3u), tess_vec3(i[1], 3u), tess_vec3(i[2], 3u));
+    let uv = array<vec4<f32>, 3>(tess_vec4(i[0], 6u), tess_vec4(i[1], 6u), tess_vec4(i[2], 6u));
+    let color = array<vec4<f32>, 3>(
+        tess_vec4(i[0], 10u), tess_vec4(i[1], 10u), tess_vec4(i[2], 10u),
+    );
+    let tangent = array<vec4<f32>, 3>(
+        tess_vec4(i[0], 14u), tess_vec4(i[1], 14u), tess_vec4(i[2], 14u),
     );
     let plan = interp_plan(p, b);
     var c: Corner;
     c.position = interp3(plan, p);
-    c.normal = interp3(plan, n);
-    c.uv = interp2(plan, uv);
+    c.attributes.normal = interp3(plan, n);
+    c.attributes.uvs = interp4(plan, uv);
+    c.attributes.color = interp4(plan, color);
+    c.attributes.tangent = interp4(plan, tangent);
     return c;
 }
 
 @vertex
 fn vs_tess(@builtin(vertex_index) vertex_index: u32) -> VertexOutput {
     let c = tess_corner(tess_entries[vertex_index / 3u], vertex_index % 3u);
-    return transform_vertex(c.position, c.normal, c.uv);
+    return transform_vertex(c.position, c.attributes);
 }
 
 // ---- Panorama, geometric route (VR'14), paired with src/render/panorama.rs ----
@@ -125,18 +182,24 @@ override PANO_CULL_BACK: bool = true;
 
 struct PanoOutput {
     @builtin(position) clip: vec4<f32>,
-    // 1 for a pre-clipped triangle (drawn over a band of latitudes).
-    @location(0) @interpolate(flat) preclipped: u32,
-    // The triangle itself (CAVE space), for every fragment's own ray: nothing else is
-    // interpolated.
-    @location(1) @interpolate(flat) p0: vec3<f32>,
-    @location(2) @interpolate(flat) p1: vec3<f32>,
-    @location(3) @interpolate(flat) p2: vec3<f32>,
-    @location(4) @interpolate(flat) n0: vec3<f32>,
-    @location(5) @interpolate(flat) n1: vec3<f32>,
-    @location(6) @interpolate(flat) n2: vec3<f32>,
-    @location(7) @interpolate(flat) uv01: vec4<f32>,
-    @location(8) @interpolate(flat) uv2: vec2<f32>,
+    // The triangle itself (CAVE space), for every fragment's own ray, and its corners'
+    // attributes (CAVE space): nothing is interpolated. p0.w: 1 for a pre-clipped triangle
+    // (drawn over a band of latitudes).
+    @location(0) @interpolate(flat) p0: vec4<f32>,
+    @location(1) @interpolate(flat) p1: vec3<f32>,
+    @location(2) @interpolate(flat) p2: vec3<f32>,
+    @location(3) @interpolate(flat) n0: vec3<f32>,
+    @location(4) @interpolate(flat) n1: vec3<f32>,
+    @location(5) @interpolate(flat) n2: vec3<f32>,
+    @location(6) @interpolate(flat) uv0: vec4<f32>,
+    @location(7) @interpolate(flat) uv1: vec4<f32>,
+    @location(8) @interpolate(flat) uv2: vec4<f32>,
+    @location(9) @interpolate(flat) color0: vec4<f32>,
+    @location(10) @interpolate(flat) color1: vec4<f32>,
+    @location(11) @interpolate(flat) color2: vec4<f32>,
+    @location(12) @interpolate(flat) tangent0: vec4<f32>,
+    @location(13) @interpolate(flat) tangent1: vec4<f32>,
+    @location(14) @interpolate(flat) tangent2: vec4<f32>,
 }
 
 // The eye a CAVE-space point is seen from: the head, or in omnistereo its own eye.
@@ -252,15 +315,15 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
         tess_corner(entry, 0u), tess_corner(entry, 1u), tess_corner(entry, 2u),
     );
     var p: array<vec3<f32>, 3>;
-    var n: array<vec3<f32>, 3>;
     var eyes: array<vec3<f32>, 3>;
     var dirs: array<vec3<f32>, 3>;
     var dist: array<f32, 3>;
     var ll: array<vec2<f32>, 3>;
     let head = view.eye_position.xyz;
+    var attrs: array<Attributes, 3>;
     for (var i = 0u; i < 3u; i++) {
         p[i] = (frame.cave_from_world * vec4<f32>(corners[i].position, 1.0)).xyz;
-        n[i] = (frame.normal_from_world * vec4<f32>(corners[i].normal, 0.0)).xyz;
+        attrs[i] = cave_attributes(corners[i].attributes);
         eyes[i] = pano_eye(p[i]);
         let v = pano_view_dir(p[i] - eyes[i]);
         dist[i] = length(v);
@@ -268,15 +331,21 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
         ll[i] = pano_lon_lat(dirs[i]);
     }
     var out: PanoOutput;
-    out.preclipped = 0u;
-    out.p0 = p[0];
+    out.p0 = vec4<f32>(p[0], 0.0);
     out.p1 = p[1];
     out.p2 = p[2];
-    out.n0 = n[0];
-    out.n1 = n[1];
-    out.n2 = n[2];
-    out.uv01 = vec4<f32>(corners[0].uv, corners[1].uv);
-    out.uv2 = corners[2].uv;
+    out.n0 = attrs[0].normal;
+    out.n1 = attrs[1].normal;
+    out.n2 = attrs[2].normal;
+    out.uv0 = attrs[0].uvs;
+    out.uv1 = attrs[1].uvs;
+    out.uv2 = attrs[2].uvs;
+    out.color0 = attrs[0].color;
+    out.color1 = attrs[1].color;
+    out.color2 = attrs[2].color;
+    out.tangent0 = attrs[0].tangent;
+    out.tangent1 = attrs[1].tangent;
+    out.tangent2 = attrs[2].tangent;
 
     let geometric = cross(p[1] - p[0], p[2] - p[0]);
     let g_len = length(geometric);
@@ -381,7 +450,7 @@ fn vs_pano(@builtin(vertex_index) vertex_index: u32) -> PanoOutput {
         vec2<f32>(4.0, band.x),
         vec2<f32>(0.0, band.x + 2.0 * height),
     );
-    out.preclipped = 1u;
+    out.p0.w = 1.0;
     out.clip = vec4<f32>(shape[k], 0.5, 1.0);
     return out;
 }
@@ -439,11 +508,6 @@ fn pano_ray(pixel: vec2<f32>, depth: f32) -> PanoRay {
     return ray;
 }
 
-// Texture coordinates where a ray meets the triangle's plane.
-fn plane_uv(hit: vec3<f32>, in: PanoOutput) -> vec2<f32> {
-    return (1.0 - hit.y - hit.z) * in.uv01.xy + hit.y * in.uv01.zw + hit.z * in.uv2;
-}
-
 @fragment
 fn fs_pano(in: PanoOutput) -> PanoFragment {
     // Every fragment casts its own ray at its triangle's plane: exact depth (no fighting
@@ -454,14 +518,14 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
     // The volume stereo's parallax depends on the depth found: a few rounds from the
     // rasterised depth converge far below a pixel (the parallax is smooth in depth).
     var depth = in.clip.z;
-    if in.preclipped != 0u {
-        depth = pano_depth(length((in.p0 + in.p1 + in.p2) / 3.0 - view.eye_position.xyz));
+    if in.p0.w > 0.5 {
+        depth = pano_depth(length((in.p0.xyz + in.p1 + in.p2) / 3.0 - view.eye_position.xyz));
     }
     var hit = vec3<f32>(-1.0, 0.0, 0.0);
     var ray: PanoRay;
     for (var round = 0u; round < 3u; round++) {
         ray = pano_ray(in.clip.xy, depth);
-        hit = ray_plane(ray.origin, ray.dir, in.p0, in.p1, in.p2);
+        hit = ray_plane(ray.origin, ray.dir, in.p0.xyz, in.p1, in.p2);
         depth = pano_depth(hit.x);
         if view.pano_stereo != 1u {
             break;
@@ -481,7 +545,7 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
         var first = true;
         for (var k = 0u; k < 4u; k++) {
             let r = pano_ray(corner + SAMPLE_POSITIONS_4[k], depth);
-            let h = ray_plane(r.origin, r.dir, in.p0, in.p1, in.p2);
+            let h = ray_plane(r.origin, r.dir, in.p0.xyz, in.p1, in.p2);
             if r.shown && h.x > 0.0 && h.y >= 0.0 && h.z >= 0.0 && h.y + h.z <= 1.0 {
                 mask |= 1u << k;
                 if first && !(met && inside) {
@@ -497,17 +561,20 @@ fn fs_pano(in: PanoOutput) -> PanoFragment {
     // gradients come from the neighbouring pixels' exact coordinates; a pixel whose rays
     // miss is discarded below, but still lends its neighbours a gradient).
     let w = vec3<f32>(1.0 - hit.y - hit.z, hit.y, hit.z);
-    let position = w.x * in.p0 + w.y * in.p1 + w.z * in.p2;
-    let normal = w.x * in.n0 + w.y * in.n1 + w.z * in.n2;
-    let uv = plane_uv(hit, in);
-    let ddx = dpdx(uv);
-    let ddy = dpdy(uv);
-    let eye = ray.origin;
-    let facing = dot(cross(in.p1 - in.p0, in.p2 - in.p0), ray.origin - in.p0) >= 0.0;
-    let keep = mask != 0u && depth >= 0.0 && depth <= 1.0;
+    var surface: SurfaceInput;
+    surface.position = w.x * in.p0.xyz + w.y * in.p1 + w.z * in.p2;
+    surface.normal = w.x * in.n0 + w.y * in.n1 + w.z * in.n2;
+    surface.uvs = w.x * in.uv0 + w.y * in.uv1 + w.z * in.uv2;
+    surface.color = w.x * in.color0 + w.y * in.color1 + w.z * in.color2;
+    surface.tangent = w.x * in.tangent0 + w.y * in.tangent1 + w.z * in.tangent2;
     // Explicit gradients: those of the exact coordinates, not of the rasterised varyings.
-    let texel = textureSampleGrad(base_texture, base_sampler, uv, ddx, ddy);
-    let color = surface_color(position, normal, texel, eye, facing);
+    let ddx = dpdx(surface.uvs);
+    let ddy = dpdy(surface.uvs);
+    let eye = ray.origin;
+    let facing = dot(cross(in.p1 - in.p0.xyz, in.p2 - in.p0.xyz), ray.origin - in.p0.xyz)
+        >= 0.0;
+    let keep = mask != 0u && depth >= 0.0 && depth <= 1.0;
+    let color = surface_color(surface, ddx, ddy, eye, facing);
     if !keep || color.a < 0.0 {
         discard;
     }
@@ -526,38 +593,130 @@ const SAMPLE_POSITIONS_4 = array<vec2<f32>, 4>(
     vec2<f32>(0.625, 0.875),
 );
 
-// The lit colour of a surface point (CAVE space); alpha < 0 where the material's alpha
+// A surface point as the rasteriser or a panorama ray finds it (CAVE space).
+struct SurfaceInput {
+    position: vec3<f32>,
+    // Interpolated, not normalised.
+    normal: vec3<f32>,
+    // xy: TEXCOORD_0, zw: TEXCOORD_1.
+    uvs: vec4<f32>,
+    color: vec4<f32>,
+    tangent: vec4<f32>,
+}
+
+// Texture slot `slot`'s coordinates (its set, then KHR_texture_transform) and their screen
+// gradients.
+struct SlotCoords {
+    uv: vec2<f32>,
+    ddx: vec2<f32>,
+    ddy: vec2<f32>,
+}
+
+fn slot_coords(slot: u32, uvs: vec4<f32>, ddx: vec4<f32>, ddy: vec4<f32>) -> SlotCoords {
+    var uv = uvs.xy;
+    var dx = ddx.xy;
+    var dy = ddy.xy;
+    if ((material.texture_flags >> (8u + slot)) & 1u) != 0u {
+        uv = uvs.zw;
+        dx = ddx.zw;
+        dy = ddy.zw;
+    }
+    let r0 = material.uv_transforms[2u * slot];
+    let r1 = material.uv_transforms[2u * slot + 1u];
+    var c: SlotCoords;
+    c.uv = vec2<f32>(dot(r0.xyz, vec3<f32>(uv, 1.0)), dot(r1.xyz, vec3<f32>(uv, 1.0)));
+    c.ddx = vec2<f32>(dot(r0.xy, dx), dot(r1.xy, dx));
+    c.ddy = vec2<f32>(dot(r0.xy, dy), dot(r1.xy, dy));
+    return c;
+}
+
+// A texture slot's texel, or white where the material has no texture in that slot (a
+// primitive without the coordinates a texture needs gets a material without it: nothing is
+// sampled at made-up coordinates). Explicit gradients, so that it may run in non-uniform
+// control flow and the panorama can give the exact coordinates' own.
+fn sample_slot(
+    t: texture_2d<f32>,
+    s: sampler,
+    slot: u32,
+    uvs: vec4<f32>,
+    ddx: vec4<f32>,
+    ddy: vec4<f32>,
+) -> vec4<f32> {
+    if ((material.texture_flags >> slot) & 1u) == 0u {
+        return vec4<f32>(1.0);
+    }
+    let c = slot_coords(slot, uvs, ddx, ddy);
+    return textureSampleGrad(t, s, c.uv, c.ddx, c.ddy);
+}
+
+// The unit shading normal on the viewer's side, bent by the normal map where there is one.
+fn shading_normal(in: SurfaceInput, ddx: vec4<f32>, ddy: vec4<f32>, front_facing: bool)
+    -> vec3<f32> {
+    let side = select(-1.0, 1.0, front_facing);
+    let n = side * normalize(in.normal);
+    let t_raw = side * (in.tangent.xyz - n * dot(n, in.tangent.xyz));
+    if ((material.texture_flags >> 2u) & 1u) == 0u || dot(t_raw, t_raw) < 1e-12 {
+        return n;
+    }
+    let t = normalize(t_raw);
+    // The bitangent flips with the face (n and t did) only through its sign: b = w (n × t).
+    let b = select(-1.0, 1.0, in.tangent.w >= 0.0) * cross(n, t) * side;
+    let texel = sample_slot(normal_texture, normal_sampler, 2u, in.uvs, ddx, ddy).xyz;
+    var m = texel * 2.0 - 1.0;
+    m = vec3<f32>(m.xy * material.normal_scale, m.z);
+    let bent = m.x * t + m.y * b + m.z * n;
+    return select(n, normalize(bent), dot(bent, bent) > 1e-12);
+}
+
+// The lit colour of a surface point seen from `eye`; alpha < 0 where the material's alpha
 // cutoff removes it.
 fn surface_color(
-    position: vec3<f32>,
-    normal: vec3<f32>,
-    texel: vec4<f32>,
+    in: SurfaceInput,
+    ddx: vec4<f32>,
+    ddy: vec4<f32>,
     eye: vec3<f32>,
     front_facing: bool,
 ) -> vec4<f32> {
-    let base = material.base_color * texel;
+    let base_texel = sample_slot(base_color_texture, base_color_sampler, 0u, in.uvs, ddx, ddy);
+    let base = material.base_color * in.color * base_texel;
     if material.alpha_cutoff >= 0.0 && base.a < material.alpha_cutoff {
         return vec4<f32>(0.0, 0.0, 0.0, -1.0);
     }
+    let alpha = select(1.0, clamp(base.a, 0.0, 1.0), material.alpha_blend != 0u);
     if material.unlit != 0u {
         // KHR_materials_unlit: exactly the base colour.
-        return vec4<f32>(base.rgb, 1.0);
+        return vec4<f32>(base.rgb, alpha);
     }
-    var n = normalize(normal);
-    if !front_facing {
-        n = -n;
-    }
-    let lit = blinn_phong(
-        frame, base.rgb, position, n, eye, material.shininess, material.specular,
+    let mr = sample_slot(
+        metallic_roughness_texture, metallic_roughness_sampler, 1u, in.uvs, ddx, ddy,
     );
-    return vec4<f32>(lit + material.emissive, 1.0);
+    let occlusion = sample_slot(occlusion_texture, occlusion_sampler, 3u, in.uvs, ddx, ddy).r;
+    let emissive = sample_slot(emissive_texture, emissive_sampler, 4u, in.uvs, ddx, ddy).rgb;
+    var s: SurfacePoint;
+    s.position = in.position;
+    s.normal = shading_normal(in, ddx, ddy, front_facing);
+    s.base_color = base.rgb;
+    s.metallic = clamp(material.metallic * mr.b, 0.0, 1.0);
+    s.roughness = clamp(material.roughness * mr.g, 0.0, 1.0);
+    s.occlusion = 1.0 + material.occlusion_strength * (occlusion - 1.0);
+    return vec4<f32>(shade_surface(frame, s, eye) + material.emissive * emissive, alpha);
 }
 
 @fragment
 fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
-    // Materials without a texture are bound to a 1×1 white one, so this is always valid.
-    let texel = textureSample(base_texture, base_sampler, in.uv);
-    let color = surface_color(in.cave_position, in.normal, texel, in.eye, front_facing);
+    var surface: SurfaceInput;
+    surface.position = in.cave_position;
+    surface.normal = in.normal;
+    surface.uvs = in.uvs;
+    surface.color = in.color;
+    surface.tangent = in.tangent;
+    // The eye this fragment is seen from: the view's, or in omnistereo the fragment's own
+    // (exact per pixel, not interpolated from the vertices' eyes).
+    var eye = view.eye_position.xyz;
+    if frame.omni.x > 0.5 {
+        eye = omni_eye(in.cave_position, view, frame.omni);
+    }
+    let color = surface_color(surface, dpdx(in.uvs), dpdy(in.uvs), eye, front_facing);
     if color.a < 0.0 {
         discard;
     }

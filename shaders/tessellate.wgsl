@@ -75,7 +75,8 @@ const C_DRAWS: u32 = 5u; // per-draw counts from here
 @group(2) @binding(0) var<storage, read_write> args: array<u32>;
 
 fn vertex_position(i: u32) -> vec3<f32> {
-    return vec3<f32>(vertices[8u * i], vertices[8u * i + 1u], vertices[8u * i + 2u]);
+    let b = VERTEX_FLOATS * i;
+    return vec3<f32>(vertices[b], vertices[b + 1u], vertices[b + 2u]);
 }
 
 fn source_positions(t: u32) -> array<vec3<f32>, 3> {

@@ -29,6 +29,7 @@ pub fn frame_params_from<'a>(
         eye_separation: settings.cave.eye_separation,
         world_from_cave,
         lighting: settings.lighting(),
+        shading: settings.render.shading,
         background: settings.render.background,
         omni: settings.omni(),
         tess: settings.tess(),
@@ -63,17 +64,38 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
     }
     let _loading = tracing::info_span!("loading scene", file = %path.display()).entered();
     let mut scene = load_gltf(path)?;
+    let fit = scene.fit_transform(settings.scene.fit, settings.scene.size_m);
+    if fit != Mat4::IDENTITY {
+        scene.transform(fit);
+        tracing::info!(
+            "scene {}: fitted ({}, {} m): scaled ×{:.4}",
+            path.display(),
+            settings.scene.fit,
+            settings.scene.size_m,
+            fit.x_axis.x
+        );
+    }
+    for camera in &scene.cameras {
+        tracing::info!(
+            "scene {}: camera {:?} at {:.2?} looking {:.2?}",
+            path.display(),
+            camera.name,
+            camera.position.to_array(),
+            camera.forward.to_array()
+        );
+    }
     if settings.scene.double_sided {
         for material in &mut scene.materials {
             material.double_sided = true;
         }
     }
     tracing::info!(
-        "scene {}: {} triangles, {} materials, {} textures",
+        "scene {}: {} triangles, {} materials, {} textures, {} lights",
         path.display(),
         scene.triangle_count(),
         scene.materials.len(),
-        scene.textures.len()
+        scene.textures.len(),
+        scene.lights.len()
     );
     Ok(scene)
 }

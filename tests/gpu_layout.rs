@@ -10,7 +10,8 @@ use omnicave::render::present::PresentUniforms;
 use omnicave::render::shaders::{self, compose};
 use omnicave::render::sky_pass::SkyUniforms;
 use omnicave::render::tessellator::{GpuTessEntry, TessUniforms};
-use omnicave::render::uniforms::{FrameUniforms, MaterialUniforms, ViewUniforms};
+use omnicave::render::scene_pass::GpuVertex;
+use omnicave::render::uniforms::{FrameUniforms, GpuLight, MaterialUniforms, ViewUniforms};
 
 /// A Rust struct's size and, for each WGSL member by name, the Rust offset of its data.
 struct RustLayout {
@@ -76,15 +77,26 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
             layout!(FrameUniforms,
                 "cave_from_world" => cave_from_world,
                 "normal_from_world" => normal_from_world,
-                "sun_direction" => sun_direction,
-                "sun_color" => sun_color,
-                "point_position" => point_position,
-                "point_color" => point_color,
                 "ambient" => ambient,
                 "wire_color" => wire_color,
                 "omni" => omni,
+                "light_count" => light_count,
+                "shading" => shading,
+                "frame_pad" => frame_pad,
+                "lights" => lights,
             ),
         ),
+        (
+            shaders::SCENE,
+            "Light",
+            layout!(GpuLight,
+                "position" => position,
+                "direction" => direction,
+                "color" => color,
+                "cone" => cone,
+            ),
+        ),
+
         (
             shaders::SCENE,
             "ViewUniforms",
@@ -112,11 +124,16 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
             layout!(MaterialUniforms,
                 "base_color" => base_color,
                 "emissive" => emissive,
-                "unlit" => unlit,
-                "shininess" => shininess,
-                "specular" => specular,
+                "texture_flags" => texture_flags,
+                "metallic" => metallic,
+                "roughness" => roughness,
+                "normal_scale" => normal_scale,
+                "occlusion_strength" => occlusion_strength,
                 "alpha_cutoff" => alpha_cutoff,
+                "alpha_blend" => alpha_blend,
+                "unlit" => unlit,
                 "material_pad" => material_pad,
+                "uv_transforms" => uv_transforms,
             ),
         ),
         (
@@ -213,12 +230,17 @@ fn a_mismatch_is_caught() {
     assert!(!differences(&source, "FrameUniforms", &wrong).is_empty());
     let moved = layout!(MaterialUniforms,
         "base_color" => base_color,
-        "emissive" => shininess,
-        "unlit" => unlit,
-        "shininess" => shininess,
-        "specular" => specular,
+        "emissive" => metallic,
+        "texture_flags" => texture_flags,
+        "metallic" => metallic,
+        "roughness" => roughness,
+        "normal_scale" => normal_scale,
+        "occlusion_strength" => occlusion_strength,
         "alpha_cutoff" => alpha_cutoff,
+        "alpha_blend" => alpha_blend,
+        "unlit" => unlit,
         "material_pad" => material_pad,
+        "uv_transforms" => uv_transforms,
     );
     let found = differences(&source, "MaterialUniforms", &moved);
     assert_eq!(found.len(), 1, "{found:?}");
@@ -226,4 +248,40 @@ fn a_mismatch_is_caught() {
         found[0].contains("MaterialUniforms.emissive is at byte 16 in WGSL, 32 in"),
         "{found:?}"
     );
+}
+
+/// A `const NAME: u32` of a composed shader, as naga evaluates it.
+fn wgsl_u32_const(source: &str, name: &str) -> u32 {
+    let module = naga::front::wgsl::parse_str(source).expect("WGSL parses");
+    let (_, constant) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no WGSL constant {name}"));
+    match module.global_expressions[constant.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => v,
+        ref other => panic!("{name} is {other:?}"),
+    }
+}
+
+#[test]
+fn the_vertex_stride_and_light_count_match() {
+    // The tessellator and the tessellated draws read scene vertices as f32 storage with the
+    // stride VERTEX_FLOATS; the vertex buffer is written as GpuVertex.
+    let source = compose(shaders::SCENE);
+    assert_eq!(
+        4 * wgsl_u32_const(&source, "VERTEX_FLOATS") as usize,
+        size_of::<GpuVertex>()
+    );
+    assert_eq!(
+        wgsl_u32_const(&source, "MAX_LIGHTS") as usize,
+        omnicave::render::uniforms::MAX_LIGHTS
+    );
+    // Each attribute where the storage reads expect it (offsets in floats).
+    let floats = |bytes: usize| bytes / 4;
+    assert_eq!(floats(offset_of!(GpuVertex, normal)), 3);
+    assert_eq!(floats(offset_of!(GpuVertex, uv)), 6);
+    assert_eq!(floats(offset_of!(GpuVertex, uv1)), 8);
+    assert_eq!(floats(offset_of!(GpuVertex, color)), 10);
+    assert_eq!(floats(offset_of!(GpuVertex, tangent)), 14);
 }

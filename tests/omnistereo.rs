@@ -276,8 +276,9 @@ fn specular_highlights_are_lit_from_each_vertex_eye() {
     let mut scene = omnicave::scene::Scene::default();
     let m = scene.add_material(omnicave::scene::Material {
         base_color: [0.25, 0.3, 0.35, 1.0],
-        shininess: 400.0,
-        specular: 1.0,
+        // A glossy dielectric: a small, bright GGX highlight.
+        metallic: 0.0,
+        roughness: 0.15,
         ..Default::default()
     });
     let sphere =

@@ -196,6 +196,7 @@ fn triangle_scene(triangles: &[([Vec3; 3], [u8; 3])]) -> Scene {
                 position: p.to_array(),
                 normal: n.to_array(),
                 uv: [0.0, 0.0],
+                ..Default::default()
             })
             .collect();
         scene.add_mesh(&vertices, &[0, 1, 2], m);

@@ -16,6 +16,7 @@ use crate::cave::RenderMode;
 use crate::cave::omni::{PoleMerge, WarpVariant};
 use crate::gamepad::{GamepadMode, GamepadSettings};
 use crate::output::formats::StereoFormat;
+use crate::scene::{SceneFit, Shading};
 use crate::pano::{PanoRoute, PanoStereoKind, Projection, VOLUME_DEFAULT_PARAMS};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
 use crate::tess::{Criterion, TessSettings};
@@ -351,6 +352,9 @@ impl Default for HeadSection {
 #[serde(default, deny_unknown_fields)]
 pub struct RenderSection {
     pub mode: RenderMode,
+    /// Surface shading: "pbr" (glTF metallic-roughness with every map) or "simple" (the
+    /// cheaper Blinn-Phong on base colour and emission).
+    pub shading: Shading,
     /// MSAA sample count: 1 (off) or 4.
     pub msaa: u32,
     pub wireframe: bool,
@@ -362,6 +366,7 @@ impl Default for RenderSection {
     fn default() -> Self {
         Self {
             mode: RenderMode::Stereo,
+            shading: Shading::Pbr,
             msaa: 4,
             wireframe: false,
             background: [0.02, 0.02, 0.03],
@@ -378,6 +383,14 @@ pub struct SceneSection {
     /// Draw every material double-sided (no back-face culling), for content wound the wrong
     /// way (a model whose floor or walls vanish from inside).
     pub double_sided: bool,
+    /// Where the model goes: "as-authored" (its own origin and units) or "floor" (its bounding
+    /// box centred on the scene origin, standing on the floor: with the default placement,
+    /// the middle of the CAVE's floor).
+    pub fit: SceneFit,
+    /// Scale the model uniformly so that its bounding box's largest side is this many metres
+    /// (0: keep the file's units, metres in glTF).
+    #[schemars(range(min = 0.0, max = 1e5))]
+    pub size_m: f32,
     pub world_from_cave: PlacementSection,
 }
 

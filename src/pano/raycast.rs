@@ -373,6 +373,7 @@ mod tests {
             position: (centre + Vec3::new(x, y, 0.0)).to_array(),
             normal: [0.0, 0.0, 1.0],
             uv: [0.0, 0.0],
+            ..Default::default()
         };
         scene.add_mesh(
             &[

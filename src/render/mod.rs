@@ -3,6 +3,7 @@
 pub mod error;
 pub mod gpu;
 pub mod panorama;
+pub mod pbr;
 pub mod present;
 pub mod readback;
 pub mod scene_pass;
@@ -22,13 +23,13 @@ use scene_pass::{SceneGpu, ScenePass};
 use sky_pass::{SkyFrame, SkyPass};
 use targets::WallTargets;
 use tessellator::{TessUniforms, Tessellator};
-use uniforms::{FrameUniforms, ViewUniforms};
+use uniforms::{FrameLights, FrameUniforms, ViewUniforms};
 use view_set::ViewSet;
 
 use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
 use crate::pano::{PanoRoute, PanoSettings};
-use crate::scene::Lighting;
+use crate::scene::{Lighting, Shading};
 use crate::scene::Scene;
 use crate::sky::{CubeMap, SkyMode, SkySettings};
 use crate::tess::{TessSettings, TessStats};
@@ -59,6 +60,8 @@ pub struct FrameParams<'a> {
     pub eye_separation: f32,
     pub world_from_cave: Mat4,
     pub lighting: Lighting,
+    /// The shading model.
+    pub shading: Shading,
     /// Clear colour, sRGB 0..1.
     pub background: [f32; 3],
     /// Warp variant and pole merge (used by the omnistereo modes).
@@ -450,17 +453,34 @@ impl Renderer {
         }
     }
 
+    /// The frame's uniforms (the config's and the scene's lights, the shading model), with the
+    /// scene's blended draws sorted back to front from the head.
+    fn prepare_frame(
+        &mut self,
+        frame: &FrameParams<'_>,
+        omni: Option<OmniSettings>,
+    ) -> FrameUniforms {
+        let head = frame.world_from_cave.transform_point3(frame.head.position);
+        if let Some(scene) = &mut self.scene {
+            scene.sort_blended(head);
+        }
+        let scene_lights = self.scene.as_ref().map_or(&[][..], |s| s.lights.as_slice());
+        let lights = FrameLights {
+            config: &frame.lighting,
+            scene: scene_lights,
+            shading: frame.shading,
+        };
+        FrameUniforms::new(frame.world_from_cave, lights, omni)
+    }
+
     /// Renders every view of the frame and submits the work (no CPU read-back).
     pub fn render(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
         self.sync_walls(frame.cave);
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
         let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
-        let frame_uniforms = FrameUniforms::new(
-            frame.world_from_cave,
-            &frame.lighting,
-            frame.mode.is_omni().then_some(frame.omni),
-        );
+        let frame_uniforms =
+            self.prepare_frame(frame, frame.mode.is_omni().then_some(frame.omni));
         self.walls.write_uniforms(
             &self.queue,
             &frame_uniforms,
@@ -664,8 +684,7 @@ impl Renderer {
             PanoRoute::Image => {
                 self.pano
                     .ensure_cube(&self.device, face_size, self.settings.msaa);
-                let frame_uniforms =
-                    FrameUniforms::new(frame.world_from_cave, &frame.lighting, None);
+                let frame_uniforms = self.prepare_frame(frame, None);
                 let faces = (0..6).map(|f| ViewUniforms {
                     clip_from_cave: panorama::face_clip_from_cave(f, head, face_size, near, far)
                         .to_cols_array_2d(),
@@ -697,11 +716,7 @@ impl Renderer {
                     &[None]
                 };
                 let omni = matches!(pano.stereo, crate::pano::PanoStereo::Omni);
-                let frame_uniforms = FrameUniforms::new(
-                    frame.world_from_cave,
-                    &frame.lighting,
-                    omni.then_some(frame.omni),
-                );
+                let frame_uniforms = self.prepare_frame(frame, omni.then_some(frame.omni));
                 let msaa = self.settings.msaa;
                 let views = eyes.iter().map(|&eye| {
                     panorama::pano_view_uniforms(

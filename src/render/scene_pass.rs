@@ -9,19 +9,41 @@ use wgpu::util::DeviceExt;
 use super::shaders;
 use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
 use super::uniforms::{MaterialUniforms, UNIFORM_STRIDE};
-use crate::scene::{Scene, Texture, Wrap};
+use crate::sky::cubemap::{linear_to_srgb, srgb_to_linear};
+use crate::scene::{
+    AlphaMode, ColorSpace, Light, Scene, TEXTURE_SLOTS, Texture, TextureRef, Vertex, Wrap,
+};
 
-/// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl.
+/// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl and with
+/// `VERTEX_FLOATS` in shaders/common.wgsl (the tessellator reads it as storage).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct GpuVertex {
-    position: [f32; 3],
-    normal: [f32; 3],
-    uv: [f32; 2],
+pub struct GpuVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+    pub uv1: [f32; 2],
+    pub color: [f32; 4],
+    pub tangent: [f32; 4],
 }
 
-const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
-    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+impl From<&Vertex> for GpuVertex {
+    fn from(v: &Vertex) -> Self {
+        Self {
+            position: v.position,
+            normal: v.normal,
+            uv: v.uv,
+            uv1: v.uv1,
+            color: v.color,
+            tangent: v.tangent,
+        }
+    }
+}
+
+const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+    0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Float32x4,
+    5 => Float32x4
+];
 
 /// Which pipeline variant a draw needs. Pipelines are built once per key, never per frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -33,6 +55,8 @@ struct PipelineKey {
     /// The panorama's geometric route (`vs_pano`/`fs_pano`; tessellated output, no
     /// wireframe).
     panorama: bool,
+    /// Alpha-blended over what is drawn (no depth writes; never wireframe).
+    blend: bool,
 }
 
 /// Where a draw's vertices come from and how they are projected.
@@ -65,6 +89,13 @@ pub struct SceneGpu {
     pub(crate) vertex_buffer: wgpu::Buffer,
     pub(crate) index_buffer: wgpu::Buffer,
     draws: Vec<GpuDraw>,
+    /// The order draws are issued in: opaque ones, then blended ones back to front (sorted
+    /// each frame by [`SceneGpu::sort_blended`]).
+    order: Vec<usize>,
+    /// Draws before this position in `order` are opaque.
+    opaque_count: usize,
+    /// The scene file's lights (scene space), for the frame uniforms.
+    pub(crate) lights: Vec<Light>,
     /// Per source triangle: its draw index (or `NO_DRAW`), bit 31 set when double-sided.
     pub(crate) tri_info: Vec<u32>,
     material_bind_groups: Vec<wgpu::BindGroup>,
@@ -80,12 +111,31 @@ struct GpuDraw {
     index_count: u32,
     material: usize,
     double_sided: bool,
+    blend: bool,
+    /// Centre of the draw's bounding box (scene space): blended draws are sorted by its
+    /// distance from the head.
+    centre: glam::Vec3,
 }
 
 impl SceneGpu {
     /// Number of draws (materials runs) the scene is drawn with.
     pub fn draw_count(&self) -> usize {
         self.draws.len()
+    }
+
+    /// Orders the blended draws back to front as seen from `head` (scene space): the farthest
+    /// first, so that each is blended over what lies behind it. Sorting whole draws (a mesh
+    /// primitive each: the loader never merges blended ones) is exact for separate
+    /// transparent objects such as panes, visors and glass; crossing or self-overlapping
+    /// transparent surfaces inside one primitive are not sorted. One order serves every view
+    /// of a frame: the eyes differ from the head by millimetres.
+    pub fn sort_blended(&mut self, head: glam::Vec3) {
+        let draws = &self.draws;
+        self.order[self.opaque_count..].sort_by(|&a, &b| {
+            let da = draws[a].centre.distance_squared(head);
+            let db = draws[b].centre.distance_squared(head);
+            db.total_cmp(&da)
+        });
     }
 }
 
@@ -109,27 +159,32 @@ impl ScenePass {
             label: Some("ScenePass::frame_layout"),
             entries: &[uniform_entry(0, false), uniform_entry(1, true)],
         });
+        // Uniforms, then one texture and one sampler per slot (base colour,
+        // metallic-roughness, normal, occlusion, emissive).
+        let mut material_entries = vec![uniform_entry(0, true)];
+        for slot in 0..TEXTURE_SLOTS as u32 {
+            material_entries.push(wgpu::BindGroupLayoutEntry {
+                binding: 1 + slot,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            });
+        }
+        for slot in 0..TEXTURE_SLOTS as u32 {
+            material_entries.push(wgpu::BindGroupLayoutEntry {
+                binding: 1 + TEXTURE_SLOTS as u32 + slot,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            });
+        }
         let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("ScenePass::material_layout"),
-            entries: &[
-                uniform_entry(0, true),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-            ],
+            entries: &material_entries,
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("ScenePass::pipeline_layout"),
@@ -166,7 +221,7 @@ impl ScenePass {
             .features()
             .contains(wgpu::Features::POLYGON_MODE_LINE);
         for double_sided in [false, true] {
-            for wireframe in [false, true] {
+            for (wireframe, blend) in [(false, false), (true, false), (false, true)] {
                 for (tessellated, panorama) in [(false, false), (true, false), (true, true)] {
                     if (wireframe && (panorama || !wireframe_supported))
                         || (tessellated && self.tess_pipeline_layout.is_none())
@@ -178,6 +233,7 @@ impl ScenePass {
                         wireframe,
                         tessellated,
                         panorama,
+                        blend,
                     };
                     let pipeline = self.build_pipeline(device, key);
                     self.pipelines.insert(key, pipeline);
@@ -189,7 +245,7 @@ impl ScenePass {
 
     fn build_pipeline(&self, device: &wgpu::Device, key: PipelineKey) -> wgpu::RenderPipeline {
         let label = format!(
-            "ScenePass::pipeline{}{}{}{}",
+            "ScenePass::pipeline{}{}{}{}{}",
             if key.double_sided {
                 " double-sided"
             } else {
@@ -197,7 +253,8 @@ impl ScenePass {
             },
             if key.wireframe { " wireframe" } else { "" },
             if key.tessellated { " tessellated" } else { "" },
-            if key.panorama { " panorama" } else { "" }
+            if key.panorama { " panorama" } else { "" },
+            if key.blend { " blended" } else { "" }
         );
         let cull_back = [("PANO_CULL_BACK", if key.double_sided { 0.0 } else { 1.0 })];
         let compilation_options = wgpu::PipelineCompilationOptions {
@@ -244,7 +301,9 @@ impl ScenePass {
             },
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
-                depth_write_enabled: Some(!key.wireframe),
+                // Blended surfaces are tested against the depth of opaque ones but do not hide
+                // what is drawn after them (they are sorted back to front instead).
+                depth_write_enabled: Some(!key.wireframe && !key.blend),
                 depth_compare: Some(if key.wireframe {
                     wgpu::CompareFunction::LessEqual
                 } else {
@@ -277,7 +336,7 @@ impl ScenePass {
                 compilation_options,
                 targets: &[Some(wgpu::ColorTargetState {
                     format: COLOR_FORMAT,
-                    blend: None,
+                    blend: key.blend.then_some(wgpu::BlendState::ALPHA_BLENDING),
                     write_mask: wgpu::ColorWrites::ALL,
                 })],
             }),
@@ -399,12 +458,14 @@ impl ScenePass {
         let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
         for &wire in layers {
             let mut bound: Option<PipelineKey> = None;
-            for (d, draw) in scene.draws.iter().enumerate() {
+            for &d in &scene.order {
+                let draw = &scene.draws[d];
                 let key = PipelineKey {
                     double_sided: draw.double_sided,
                     wireframe: wire,
                     tessellated: variant != Variant::Plain,
                     panorama: variant == Variant::Panorama,
+                    blend: draw.blend && !wire,
                 };
                 if bound != Some(key) {
                     let Some(pipeline) = self.pipelines.get(&key) else {
@@ -431,18 +492,11 @@ impl ScenePass {
         queue: &wgpu::Queue,
         scene: &Scene,
     ) -> SceneGpu {
-        let vertices: Vec<GpuVertex> = scene
-            .vertices
-            .iter()
-            .map(|v| GpuVertex {
-                position: v.position,
-                normal: v.normal,
-                uv: v.uv,
-            })
-            .collect();
+        let vertices: Vec<GpuVertex> = scene.vertices.iter().map(GpuVertex::from).collect();
         // wgpu refuses zero-sized buffers; an empty scene still gets valid (unused) buffers.
+        let empty_vertex = [GpuVertex::zeroed()];
         let vertex_bytes: &[u8] = if vertices.is_empty() {
-            &[0; 32]
+            bytemuck::cast_slice(&empty_vertex)
         } else {
             bytemuck::cast_slice(&vertices)
         };
@@ -475,6 +529,7 @@ impl ScenePass {
                 width: 1,
                 height: 1,
                 rgba8: vec![255; 4],
+                color_space: ColorSpace::Linear,
             },
         );
         let texture_views: Vec<wgpu::TextureView> = textures
@@ -506,38 +561,52 @@ impl ScenePass {
         let mut samplers: HashMap<(Wrap, Wrap, bool), wgpu::Sampler> = HashMap::new();
         let mut material_bind_groups = Vec::with_capacity(scene.materials.len());
         for m in &scene.materials {
-            let (view, key) = match m.base_color_texture {
-                Some(t) if t.texture < texture_views.len() => {
-                    (&texture_views[t.texture], (t.wrap_u, t.wrap_v, t.nearest))
+            let slots = m.texture_slots();
+            // A slot without a (valid) texture binds white; the shader does not sample it.
+            let bound = |t: &Option<TextureRef>| t.filter(|t| t.texture < texture_views.len());
+            let views: Vec<&wgpu::TextureView> = slots
+                .iter()
+                .map(|t| bound(t).map_or(&white_view, |t| &texture_views[t.texture]))
+                .collect();
+            let keys: Vec<(Wrap, Wrap, bool)> = slots
+                .iter()
+                .map(|t| {
+                    bound(t).map_or((Wrap::Repeat, Wrap::Repeat, false), |t| {
+                        (t.wrap_u, t.wrap_v, t.nearest)
+                    })
+                })
+                .collect();
+            for &key in &keys {
+                samplers
+                    .entry(key)
+                    .or_insert_with(|| make_sampler(device, key));
+            }
+            let mut entries = vec![wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &material_buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(std::mem::size_of::<MaterialUniforms>() as u64),
+                }),
+            }];
+            for (slot, view) in views.iter().enumerate() {
+                entries.push(wgpu::BindGroupEntry {
+                    binding: 1 + slot as u32,
+                    resource: wgpu::BindingResource::TextureView(view),
+                });
+            }
+            for (slot, key) in keys.iter().enumerate() {
+                if let Some(sampler) = samplers.get(key) {
+                    entries.push(wgpu::BindGroupEntry {
+                        binding: 1 + (TEXTURE_SLOTS + slot) as u32,
+                        resource: wgpu::BindingResource::Sampler(sampler),
+                    });
                 }
-                _ => (&white_view, (Wrap::Repeat, Wrap::Repeat, false)),
-            };
-            let sampler = samplers
-                .entry(key)
-                .or_insert_with(|| make_sampler(device, key));
+            }
             material_bind_groups.push(device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(&format!("SceneGpu::material {}", m.name)),
                 layout: &self.material_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &material_buffer,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(
-                                std::mem::size_of::<MaterialUniforms>() as u64
-                            ),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::Sampler(sampler),
-                    },
-                ],
+                entries: &entries,
             }));
         }
 
@@ -545,11 +614,27 @@ impl ScenePass {
             .draws
             .iter()
             .filter(|d| d.material < scene.materials.len())
-            .map(|d| GpuDraw {
-                first_index: d.first_index,
-                index_count: d.index_count,
-                material: d.material,
-                double_sided: scene.materials[d.material].double_sided,
+            .map(|d| {
+                let material = &scene.materials[d.material];
+                let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
+                let (lo, hi) = scene.indices.get(range).unwrap_or(&[]).iter().fold(
+                    (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY),
+                    |(lo, hi), &i| {
+                        let p = scene
+                            .vertices
+                            .get(i as usize)
+                            .map_or(glam::Vec3::ZERO, |v| glam::Vec3::from(v.position));
+                        (lo.min(p), hi.max(p))
+                    },
+                );
+                GpuDraw {
+                    first_index: d.first_index,
+                    index_count: d.index_count,
+                    material: d.material,
+                    double_sided: material.double_sided,
+                    blend: material.alpha_mode == AlphaMode::Blend,
+                    centre: 0.5 * (lo + hi),
+                }
             })
             .collect();
         // Triangles no valid draw covers get a draw index no draw has: never drawn.
@@ -562,6 +647,9 @@ impl ScenePass {
                 *info = d as u32 | flag;
             }
         }
+        let mut order: Vec<usize> = (0..draws.len()).filter(|&d| !draws[d].blend).collect();
+        let opaque_count = order.len();
+        order.extend((0..draws.len()).filter(|&d| draws[d].blend));
 
         let mut all_textures = textures;
         all_textures.push(white);
@@ -569,6 +657,9 @@ impl ScenePass {
             vertex_buffer,
             index_buffer,
             draws,
+            order,
+            opaque_count,
+            lights: scene.lights.clone(),
             tri_info,
             material_bind_groups,
             _material_buffer: material_buffer,
@@ -603,7 +694,8 @@ fn make_sampler(device: &wgpu::Device, (u, v, nearest): (Wrap, Wrap, bool)) -> w
     })
 }
 
-/// Uploads an sRGB texture with a full mip chain (box-filtered on the CPU, once at load).
+/// Uploads a texture with a full mip chain, box-filtered on the CPU once at load: in linear
+/// light for sRGB textures (averaging the encoded bytes would darken every mip level).
 fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wgpu::Texture {
     let mip_count = 32 - t.width.max(t.height).max(1).leading_zeros();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -616,13 +708,28 @@ fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wg
         mip_level_count: mip_count,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        format: match t.color_space {
+            ColorSpace::Srgb => wgpu::TextureFormat::Rgba8UnormSrgb,
+            ColorSpace::Linear => wgpu::TextureFormat::Rgba8Unorm,
+        },
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    let mut level = image::RgbaImage::from_raw(t.width, t.height, t.rgba8.clone());
+    let mut level = image::Rgba32FImage::from_raw(
+        t.width,
+        t.height,
+        t.rgba8
+            .chunks_exact(4)
+            .flat_map(|px| decode_texel(px, t.color_space))
+            .collect(),
+    );
     for mip in 0..mip_count {
         let Some(img) = level.as_ref() else { break };
+        let bytes: Vec<u8> = img
+            .as_raw()
+            .chunks_exact(4)
+            .flat_map(|px| encode_texel(px, t.color_space))
+            .collect();
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
                 texture: &texture,
@@ -630,7 +737,7 @@ fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wg
                 origin: wgpu::Origin3d::ZERO,
                 aspect: wgpu::TextureAspect::All,
             },
-            img.as_raw(),
+            &bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
                 bytes_per_row: Some(img.width() * 4),
@@ -651,4 +758,24 @@ fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wg
         ));
     }
     texture
+}
+
+/// One RGBA8 texel as linear-light floats (alpha is always linear).
+fn decode_texel(px: &[u8], space: ColorSpace) -> [f32; 4] {
+    let unit = |b: u8| f32::from(b) / 255.0;
+    let colour = |b: u8| match space {
+        ColorSpace::Srgb => srgb_to_linear(b),
+        ColorSpace::Linear => unit(b),
+    };
+    [colour(px[0]), colour(px[1]), colour(px[2]), unit(px[3])]
+}
+
+/// The inverse of [`decode_texel`], rounded to the nearest byte.
+fn encode_texel(px: &[f32], space: ColorSpace) -> [u8; 4] {
+    let byte = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let colour = |v: f32| match space {
+        ColorSpace::Srgb => linear_to_srgb(v),
+        ColorSpace::Linear => byte(v),
+    };
+    [colour(px[0]), colour(px[1]), colour(px[2]), byte(px[3])]
 }

@@ -1,7 +1,14 @@
-//! WGSL sources: every feature shader is compiled with the shared `common.wgsl` prepended.
+//! WGSL sources: every feature shader is compiled with the shared sources (`common.wgsl`,
+//! `pbr.wgsl`) prepended.
 
-/// Shared structs and functions (lighting, uniforms).
+/// Shared structs and functions (uniforms, omnistereo, tessellation, projections).
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+
+/// Physically based shading (CPU twin: `src/pbr.rs`).
+pub const PBR: &str = include_str!("../../shaders/pbr.wgsl");
+
+/// The shared sources by file stem, in the order they are prepended.
+pub const SHARED: &[(&str, &str)] = &[("common", COMMON), ("pbr", PBR)];
 
 /// Scene geometry (paired with `src/render/scene_pass.rs`).
 pub const SCENE: &str = include_str!("../../shaders/scene.wgsl");
@@ -27,11 +34,13 @@ pub const FEATURES: &[(&str, &str)] = &[
     ("panorama", PANORAMA),
 ];
 
-/// Full source of a feature shader: common declarations followed by the feature's own code.
+/// Full source of a feature shader: the shared sources followed by the feature's own code.
 pub fn compose(feature_source: &str) -> String {
-    let mut s = String::with_capacity(COMMON.len() + feature_source.len() + 1);
-    s.push_str(COMMON);
-    s.push('\n');
+    let mut s = String::new();
+    for (_, shared) in SHARED {
+        s.push_str(shared);
+        s.push('\n');
+    }
     s.push_str(feature_source);
     s
 }

@@ -5,11 +5,59 @@ use glam::{Mat4, Vec3};
 
 use crate::cave::ViewSetup;
 use crate::cave::omni::{OmniSettings, WarpVariant};
-use crate::scene::Lighting;
-use crate::scene::Material;
+use crate::scene::{
+    AlphaMode, Light, LightKind, Lighting, Material, Shading, TEXTURE_SLOTS, UvTransform,
+};
 
 /// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
 pub const UNIFORM_STRIDE: u64 = 256;
+
+/// Lights a frame holds at most. Keep in sync with `MAX_LIGHTS` in shaders/common.wgsl.
+pub const MAX_LIGHTS: usize = 8;
+
+/// One light, CAVE space. Keep in sync with `Light` in shaders/common.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
+pub struct GpuLight {
+    /// xyz: position; w: range in metres (0: no cut-off).
+    pub position: [f32; 4],
+    /// xyz: unit direction the light travels; w: kind (0 directional, 1 point, 2 spot).
+    pub direction: [f32; 4],
+    /// rgb: linear colour × intensity; w: falloff (0 inverse square with the glTF range
+    /// window, 1 the config's smooth fade).
+    pub color: [f32; 4],
+    /// Spot: x cos(outer cone), y 1 / (cos(inner) − cos(outer)).
+    pub cone: [f32; 4],
+}
+
+impl GpuLight {
+    /// A scene light moved into CAVE space (`scale`: CAVE metres per scene unit).
+    pub fn from_scene(light: &Light, cave_from_world: Mat4, scale: f32) -> Self {
+        let (kind, cone) = match light.kind {
+            LightKind::Directional => (0.0, [0.0; 4]),
+            LightKind::Point => (1.0, [0.0; 4]),
+            LightKind::Spot {
+                inner_cone,
+                outer_cone,
+            } => {
+                let (cos_outer, cos_inner) = (outer_cone.cos(), inner_cone.cos());
+                (2.0, [cos_outer, 1.0 / (cos_inner - cos_outer).max(1e-4), 0.0, 0.0])
+            }
+        };
+        let direction = cave_from_world
+            .transform_vector3(light.direction)
+            .normalize_or(Vec3::NEG_Y);
+        Self {
+            position: cave_from_world
+                .transform_point3(light.position)
+                .extend(light.range.map_or(0.0, |r| r * scale))
+                .to_array(),
+            direction: direction.extend(kind).to_array(),
+            color: light.color.extend(0.0).to_array(),
+            cone,
+        }
+    }
+}
 
 /// Per-frame data. Keep in sync with `FrameUniforms` in shaders/common.wgsl.
 #[repr(C)]
@@ -17,37 +65,55 @@ pub const UNIFORM_STRIDE: u64 = 256;
 pub struct FrameUniforms {
     pub cave_from_world: [[f32; 4]; 4],
     pub normal_from_world: [[f32; 4]; 4],
-    pub sun_direction: [f32; 4],
-    pub sun_color: [f32; 4],
-    pub point_position: [f32; 4],
-    pub point_color: [f32; 4],
+    /// rgb: ambient radiance (linear).
     pub ambient: [f32; 4],
     pub wire_color: [f32; 4],
     pub omni: [f32; 4],
+    /// Lights in use (0..=MAX_LIGHTS).
+    pub light_count: u32,
+    /// 0 physically based, 1 simple.
+    pub shading: u32,
+    pub frame_pad: [u32; 2],
+    pub lights: [GpuLight; MAX_LIGHTS],
+}
+
+/// The lights of a frame: the config's directional and point light (when they shine) and
+/// the scene file's, in scene space.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameLights<'a> {
+    pub config: &'a Lighting,
+    pub scene: &'a [Light],
+    pub shading: Shading,
 }
 
 impl FrameUniforms {
     /// Lighting is given in scene (world) space and moved into CAVE space here. `omni` is
-    /// `Some` in the omnistereo modes.
-    pub fn new(world_from_cave: Mat4, lighting: &Lighting, omni: Option<OmniSettings>) -> Self {
+    /// `Some` in the omnistereo modes. Lights past [`MAX_LIGHTS`] are left out (the loader
+    /// warned about them).
+    pub fn new(world_from_cave: Mat4, lights: FrameLights<'_>, omni: Option<OmniSettings>) -> Self {
         let cave_from_world = world_from_cave.inverse();
         // Normals transform with the inverse transpose of the linear part.
         let normal_from_world =
             Mat4::from_mat3(glam::Mat3::from_mat4(cave_from_world).inverse().transpose());
-        let sun = cave_from_world
-            .transform_vector3(lighting.sun_direction)
-            .normalize_or(Vec3::NEG_Y);
-        let point = cave_from_world.transform_point3(lighting.point_position);
         // Ranges are physical distances in the scene; CAVE metres differ by the placement scale.
         let scale = cave_from_world.transform_vector3(Vec3::X).length();
+        let mut gpu_lights = [GpuLight::zeroed(); MAX_LIGHTS];
+        let mut count = 0;
+        for light in config_lights(lights.config).iter().chain(lights.scene) {
+            if count == MAX_LIGHTS {
+                break;
+            }
+            let mut gpu = GpuLight::from_scene(light, cave_from_world, scale);
+            if matches!(light.kind, LightKind::Point) && light.name == CONFIG_POINT_LIGHT {
+                gpu.color[3] = 1.0;
+            }
+            gpu_lights[count] = gpu;
+            count += 1;
+        }
         Self {
             cave_from_world: cave_from_world.to_cols_array_2d(),
             normal_from_world: normal_from_world.to_cols_array_2d(),
-            sun_direction: sun.extend(0.0).to_array(),
-            sun_color: lighting.sun_color.extend(0.0).to_array(),
-            point_position: point.extend(lighting.point_range * scale).to_array(),
-            point_color: lighting.point_color.extend(0.0).to_array(),
-            ambient: lighting.ambient.extend(0.0).to_array(),
+            ambient: lights.config.ambient.extend(0.0).to_array(),
             wire_color: [0.9, 0.9, 0.9, 1.0],
             omni: match omni {
                 None => [0.0; 4],
@@ -67,8 +133,48 @@ impl FrameUniforms {
                     }
                 }
             },
+            light_count: count as u32,
+            shading: match lights.shading {
+                Shading::Pbr => 0,
+                Shading::Simple => 1,
+            },
+            frame_pad: [0; 2],
+            lights: gpu_lights,
         }
     }
+}
+
+/// Name of the config's point light among a frame's lights (its falloff is the config's
+/// smooth fade, not the inverse square).
+const CONFIG_POINT_LIGHT: &str = "[lighting.point]";
+
+/// The config's lights as scene lights: intensities carry π, so that a white matte surface
+/// facing a light of intensity 1 is white (the config's lights are display-referred; glTF
+/// lights are photometric and taken as they are). Dark lights are left out.
+fn config_lights(l: &Lighting) -> Vec<Light> {
+    let pi = std::f32::consts::PI;
+    let mut lights = Vec::with_capacity(2);
+    if l.sun_color.max_element() > 0.0 {
+        lights.push(Light {
+            name: "[lighting.directional]".into(),
+            kind: LightKind::Directional,
+            position: Vec3::ZERO,
+            direction: l.sun_direction,
+            color: l.sun_color * pi,
+            range: None,
+        });
+    }
+    if l.point_color.max_element() > 0.0 && l.point_range > 0.0 {
+        lights.push(Light {
+            name: CONFIG_POINT_LIGHT.into(),
+            kind: LightKind::Point,
+            position: l.point_position,
+            direction: Vec3::NEG_Y,
+            color: l.point_color * pi,
+            range: Some(l.point_range),
+        });
+    }
+    lights
 }
 
 /// One wall from one eye. Keep in sync with `ViewUniforms` in shaders/common.wgsl.
@@ -128,25 +234,60 @@ pub struct MaterialUniforms {
     pub base_color: [f32; 4],
     /// Emitted light (linear).
     pub emissive: [f32; 3],
+    /// Bit k: texture slot k is bound; bit 8 + k: slot k reads `TEXCOORD_1`.
+    pub texture_flags: u32,
+    pub metallic: f32,
+    pub roughness: f32,
+    pub normal_scale: f32,
+    pub occlusion_strength: f32,
+    /// Alpha cutoff (< 0: no mask).
+    pub alpha_cutoff: f32,
+    /// 1: alpha-blended.
+    pub alpha_blend: u32,
     /// 1 for unlit materials (KHR_materials_unlit).
     pub unlit: u32,
-    pub shininess: f32,
-    pub specular: f32,
-    /// Alpha cutoff (< 0: opaque).
-    pub alpha_cutoff: f32,
     pub material_pad: u32,
+    /// `KHR_texture_transform` of slot k: rows 2k and 2k + 1 (xyz used).
+    pub uv_transforms: [[f32; 4]; 2 * TEXTURE_SLOTS],
 }
 
 impl From<&Material> for MaterialUniforms {
     fn from(m: &Material) -> Self {
+        let mut texture_flags = 0;
+        let mut uv_transforms = [[0.0; 4]; 2 * TEXTURE_SLOTS];
+        for (slot, texture) in m.texture_slots().iter().enumerate() {
+            let transform = match texture {
+                Some(t) => {
+                    texture_flags |= 1 << slot;
+                    if t.tex_coord == 1 {
+                        texture_flags |= 1 << (8 + slot);
+                    }
+                    t.transform
+                }
+                None => UvTransform::IDENTITY,
+            };
+            for (row, values) in transform.rows.iter().enumerate() {
+                uv_transforms[2 * slot + row] = [values[0], values[1], values[2], 0.0];
+            }
+        }
+        let (alpha_cutoff, alpha_blend) = match m.alpha_mode {
+            AlphaMode::Opaque => (-1.0, 0),
+            AlphaMode::Mask(cutoff) => (cutoff, 0),
+            AlphaMode::Blend => (-1.0, 1),
+        };
         Self {
             base_color: m.base_color,
             emissive: m.emissive,
+            texture_flags,
+            metallic: m.metallic,
+            roughness: m.roughness,
+            normal_scale: m.normal_scale,
+            occlusion_strength: m.occlusion_strength,
+            alpha_cutoff,
+            alpha_blend,
             unlit: u32::from(m.unlit),
-            shininess: m.shininess,
-            specular: m.specular,
-            alpha_cutoff: m.alpha_cutoff.unwrap_or(-1.0),
             material_pad: 0,
+            uv_transforms,
         }
     }
 }

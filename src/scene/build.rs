@@ -71,6 +71,7 @@ impl MeshData {
                 position: p.to_array(),
                 normal: normal.to_array(),
                 uv: uv.to_array(),
+                ..Default::default()
             });
         }
         self.indices
@@ -94,6 +95,7 @@ pub fn grid(origin: Vec3, u: Vec3, v: Vec3, nx: u32, ny: u32, uv_per_m: f32) -> 
                 position: (origin + s * u + t * v).to_array(),
                 normal: normal.to_array(),
                 uv: [s * lu * uv_per_m, (1.0 - t) * lv * uv_per_m],
+                ..Default::default()
             });
         }
     }
@@ -161,6 +163,7 @@ pub fn frustum_shell(
                 position: [r * s, y, r * c],
                 normal: n.to_array(),
                 uv: [i as f32 / segments as f32, v],
+                ..Default::default()
             });
         }
     }
@@ -182,6 +185,7 @@ pub fn frustum_shell(
                 position: [0.0, y, 0.0],
                 normal: n.to_array(),
                 uv: [0.5, 0.5],
+                ..Default::default()
             });
             for i in 0..segments {
                 let a = i as f32 / segments as f32 * std::f32::consts::TAU;
@@ -190,6 +194,7 @@ pub fn frustum_shell(
                     position: [r * s, y, r * c],
                     normal: n.to_array(),
                     uv: [0.5 + 0.5 * s, 0.5 + 0.5 * c],
+                    ..Default::default()
                 });
             }
             for i in 0..segments {
@@ -222,6 +227,7 @@ pub fn uv_sphere(radius: f32, rings: u32, segments: u32) -> MeshData {
                 position: (n * radius).to_array(),
                 normal: n.to_array(),
                 uv: [i as f32 / segments as f32, j as f32 / rings as f32],
+                ..Default::default()
             });
         }
     }

@@ -3,11 +3,18 @@
 
 use std::path::{Path, PathBuf};
 
+use std::collections::HashMap;
+
 use glam::{Mat3, Mat4, Vec3};
-use gltf::accessor::{DataType, Dimensions};
+use gltf::accessor::Dimensions;
 use gltf::mesh::Mode;
 
-use super::{Material, Scene, Texture, TextureRef, Vertex, Wrap, generate_normals};
+use super::gltf_data::{BinaryData, load_buffers};
+use super::tangents::generate_tangents;
+use super::{
+    AlphaMode, Camera, ColorSpace, Light, LightKind, Material, Scene, TEXTURE_SLOT_NAMES,
+    TEXTURE_SLOTS, Texture, TextureRef, UvTransform, Vertex, Wrap, generate_normals,
+};
 
 /// Everything that can be wrong with a scene file.
 #[derive(Debug, thiserror::Error)]
@@ -55,23 +62,84 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
     }
 }
 
-fn load_unguarded(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
+/// Extensions read here; a file may require them.
+const HANDLED_EXTENSIONS: &[&str] = &[
+    "KHR_materials_unlit",
+    "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
+    "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
+    "KHR_lights_punctual",
+];
+
+/// Parses the JSON (and the GLB's BIN chunk), checks the extensions the file requires or uses,
+/// then lets the gltf crate validate the document.
+fn parse_document(
+    bytes: &[u8],
+    path: &Path,
+) -> Result<(gltf::Document, Option<Vec<u8>>), SceneError> {
     let gltf_err = |source| SceneError::Gltf {
         path: path.to_owned(),
         source,
     };
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(gltf_err)?;
-    let base = path.parent();
-    check_external_files(&document, base.unwrap_or(Path::new(".")), path)?;
-    let buffers = gltf::import_buffers(&document, base, blob).map_err(gltf_err)?;
-    let images = gltf::import_images(&document, base, &buffers).map_err(gltf_err)?;
+    let invalid = |what: String| SceneError::Invalid {
+        path: path.to_owned(),
+        what,
+    };
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(gltf_err)?;
+    let mut root = document.into_json();
+    for name in &root.extensions_required {
+        if name == "KHR_draco_mesh_compression" {
+            return Err(invalid(
+                "its meshes are Draco-compressed (KHR_draco_mesh_compression), which omnicave \
+                 cannot decode; convert the file once, e.g. `npx @gltf-transform/cli meshopt \
+                 in.glb out.glb` (meshopt compression, which omnicave reads) or `gltfpack -i \
+                 in.glb -o out.glb`"
+                    .into(),
+            ));
+        }
+        if !HANDLED_EXTENSIONS.contains(&name.as_str()) {
+            return Err(invalid(format!(
+                "it requires the extension {name}, which omnicave does not support"
+            )));
+        }
+    }
+    for name in &root.extensions_used {
+        if !HANDLED_EXTENSIONS.contains(&name.as_str()) {
+            tracing::warn!(
+                "{}: ignores the extension {name} (not supported); what it adds is not drawn",
+                path.display()
+            );
+        }
+    }
+    // Checked above: the crate would refuse what it does not itself decode.
+    root.extensions_required.clear();
+    let document = gltf::Document::from_json(root).map_err(|e| gltf_err(gltf::Error::from(e)))?;
+    Ok((document, blob))
+}
+
+fn load_unguarded(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
+    let invalid = |what: String| SceneError::Invalid {
+        path: path.to_owned(),
+        what,
+    };
+    let (document, blob) = parse_document(bytes, path)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    check_external_files(&document, base, path)?;
+    let buffers = load_buffers(&document, base, blob).map_err(&invalid)?;
+    let data = BinaryData::new(&document, buffers);
+    warn_ignored_features(&document, path);
     let mut loader = Loader {
         path,
-        buffers: &buffers,
+        base,
+        data: &data,
         scene: Scene::default(),
-        image_to_texture: vec![None; images.len()],
-        images: &images,
+        image_textures: HashMap::new(),
         material_index: Vec::new(),
+        default_material: None,
+        material_variants: HashMap::new(),
+        document: &document,
     };
     loader.load_materials(&document)?;
     let gltf_scene = document
@@ -87,6 +155,24 @@ fn load_unguarded(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
     Ok(loader.scene)
 }
 
+/// One warning per feature of the file that is not drawn.
+fn warn_ignored_features(document: &gltf::Document, path: &Path) {
+    let warn = |what: &str| tracing::warn!("{}: {what}", path.display());
+    if document.animations().next().is_some() {
+        warn("animations are ignored: drawn in the rest pose");
+    }
+    if document.skins().next().is_some() {
+        warn("skins are ignored: skinned meshes are drawn in their bind pose");
+    }
+    if document
+        .meshes()
+        .flat_map(|m| m.primitives())
+        .any(|p| p.morph_targets().next().is_some())
+    {
+        warn("morph targets are ignored: meshes are drawn without them");
+    }
+}
+
 /// Names a missing external buffer or image file (the gltf crate reports only "not found").
 fn check_external_files(
     document: &gltf::Document,
@@ -99,7 +185,9 @@ fn check_external_files(
     };
     let exists = |uri: &str| uri.starts_with("data:") || base.join(percent_decode(uri)).is_file();
     for buffer in document.buffers() {
+        let fallback = buffer.extension_value("EXT_meshopt_compression").is_some();
         if let gltf::buffer::Source::Uri(uri) = buffer.source()
+            && !fallback
             && !exists(uri)
         {
             return Err(missing("buffer", buffer.index(), uri));
@@ -143,14 +231,28 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// A texture as a material refers to it: the texture, its coordinate set, its transform.
+struct TextureUse<'a> {
+    texture: gltf::Texture<'a>,
+    tex_coord: u32,
+    /// The `KHR_texture_transform` object, if any.
+    transform: Option<serde_json::Value>,
+}
+
 struct Loader<'a> {
     path: &'a Path,
-    buffers: &'a [gltf::buffer::Data],
-    images: &'a [gltf::image::Data],
+    base: &'a Path,
+    document: &'a gltf::Document,
+    data: &'a BinaryData,
     scene: Scene,
-    image_to_texture: Vec<Option<usize>>,
-    /// glTF material index → scene material index; the last scene material is the default.
+    /// (image, colour space) → scene texture: each image is decoded once, and only if used.
+    image_textures: HashMap<(usize, ColorSpace), usize>,
+    /// glTF material index → scene material index.
     material_index: Vec<usize>,
+    /// The material of primitives without one, once needed.
+    default_material: Option<usize>,
+    /// (scene material, texture slots dropped) → scene material without those textures.
+    material_variants: HashMap<(usize, u32), usize>,
 }
 
 impl Loader<'_> {
@@ -159,6 +261,10 @@ impl Loader<'_> {
             path: self.path.to_owned(),
             what,
         }
+    }
+
+    fn warn(&self, what: &str) {
+        tracing::warn!("{}: {what}", self.path.display());
     }
 
     fn load_materials(&mut self, document: &gltf::Document) -> Result<(), SceneError> {
@@ -171,103 +277,215 @@ impl Loader<'_> {
     }
 
     fn convert_material(&mut self, m: &gltf::Material<'_>) -> Result<Material, SceneError> {
+        let name = m.name().unwrap_or("unnamed").to_owned();
         let pbr = m.pbr_metallic_roughness();
-        let base_color_texture = match pbr.base_color_texture() {
-            Some(info) => {
-                if info.tex_coord() != 0 {
-                    tracing::warn!(
-                        "{}: material {:?} uses TEXCOORD_{}; only TEXCOORD_0 is supported",
-                        self.path.display(),
-                        m.name(),
-                        info.tex_coord()
-                    );
-                }
-                let tex = info.texture();
-                let sampler = tex.sampler();
-                Some(TextureRef {
-                    texture: self.texture_for_image(tex.source().index())?,
-                    wrap_u: wrap(sampler.wrap_s()),
-                    wrap_v: wrap(sampler.wrap_t()),
-                    nearest: matches!(
-                        sampler.mag_filter(),
-                        Some(gltf::texture::MagFilter::Nearest)
-                    ),
-                })
+        fn info_use(info: gltf::texture::Info<'_>) -> TextureUse<'_> {
+            TextureUse {
+                texture: info.texture(),
+                tex_coord: info.tex_coord(),
+                transform: info.extension_value("KHR_texture_transform").cloned(),
             }
-            None => None,
-        };
+        }
+        let base_color_texture = pbr.base_color_texture().map(info_use);
+        let mr_texture = pbr.metallic_roughness_texture().map(info_use);
+        let emissive_texture = m.emissive_texture().map(info_use);
+        let normal = m.normal_texture();
+        let normal_scale = normal.as_ref().map_or(1.0, |n| n.scale());
+        let normal_texture = normal.map(|n| TextureUse {
+            texture: n.texture(),
+            tex_coord: n.tex_coord(),
+            transform: n.extension_value("KHR_texture_transform").cloned(),
+        });
+        let occlusion = m.occlusion_texture();
+        let occlusion_strength = occlusion.as_ref().map_or(1.0, |o| o.strength());
+        let occlusion_texture = occlusion.map(|o| TextureUse {
+            texture: o.texture(),
+            tex_coord: o.tex_coord(),
+            transform: o.extension_value("KHR_texture_transform").cloned(),
+        });
         let strength = m.emissive_strength().unwrap_or(1.0);
-        let emissive = m.emissive_factor().map(|c| c * strength);
-        let roughness = pbr.roughness_factor().clamp(0.02, 1.0);
-        let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
-        // Map roughness to a Blinn-Phong exponent (the usual α = r², n = 2/α² − 2 fit).
-        let alpha = roughness * roughness;
-        let shininess = (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 512.0);
-        let alpha_cutoff = match m.alpha_mode() {
-            gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
-            gltf::material::AlphaMode::Blend => {
-                tracing::warn!(
-                    "{}: material {:?} is alpha-blended; drawn opaque",
-                    self.path.display(),
-                    m.name()
-                );
-                None
-            }
-            gltf::material::AlphaMode::Opaque => None,
+        let alpha_mode = match m.alpha_mode() {
+            gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
         };
-        Ok(Material {
-            name: m.name().unwrap_or("unnamed").to_owned(),
+        let mut material = Material {
+            name: name.clone(),
             base_color: pbr.base_color_factor(),
-            base_color_texture,
-            emissive,
+            base_color_texture: None,
+            metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+            roughness: pbr.roughness_factor().clamp(0.0, 1.0),
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale,
+            occlusion_texture: None,
+            occlusion_strength: occlusion_strength.clamp(0.0, 1.0),
+            emissive: m.emissive_factor().map(|c| c * strength),
+            emissive_texture: None,
             unlit: m.unlit(),
             double_sided: m.double_sided(),
-            alpha_cutoff,
-            shininess,
-            specular: 0.04 + 0.5 * (1.0 - roughness) + 0.4 * metallic,
-        })
+            alpha_mode,
+        };
+        let uses = [
+            base_color_texture,
+            mr_texture,
+            normal_texture,
+            occlusion_texture,
+            emissive_texture,
+        ];
+        let spaces = [
+            ColorSpace::Srgb,
+            ColorSpace::Linear,
+            ColorSpace::Linear,
+            ColorSpace::Linear,
+            ColorSpace::Srgb,
+        ];
+        for (slot, (texture_use, space)) in uses.into_iter().zip(spaces).enumerate() {
+            let Some(texture_use) = texture_use else {
+                continue;
+            };
+            let reference = self.texture_ref(&name, slot, &texture_use, space)?;
+            *material.texture_slots_mut()[slot] = reference;
+        }
+        Ok(material)
     }
 
-    fn texture_for_image(&mut self, image: usize) -> Result<usize, SceneError> {
-        if let Some(Some(index)) = self.image_to_texture.get(image) {
-            return Ok(*index);
+    /// A material's texture slot: the image decoded (once per colour space), the sampler,
+    /// the coordinate set and `KHR_texture_transform`. `None` (with a warning) where the
+    /// texture cannot be drawn.
+    fn texture_ref(
+        &mut self,
+        material: &str,
+        slot: usize,
+        texture_use: &TextureUse<'_>,
+        space: ColorSpace,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let slot_name = TEXTURE_SLOT_NAMES[slot];
+        let transform = match &texture_use.transform {
+            Some(t) => Some(parse_texture_transform(t).map_err(|why| {
+                self.invalid(format!(
+                    "material {material:?} {slot_name}: KHR_texture_transform {why}"
+                ))
+            })?),
+            None => None,
+        };
+        let tex_coord = transform
+            .and_then(|(_, set)| set)
+            .unwrap_or(texture_use.tex_coord);
+        if tex_coord > 1 {
+            self.warn(&format!(
+                "material {material:?} {slot_name} uses TEXCOORD_{tex_coord}; only TEXCOORD_0 \
+                 and TEXCOORD_1 are read, the texture is not drawn"
+            ));
+            return Ok(None);
         }
-        let data = self
-            .images
-            .get(image)
-            .ok_or_else(|| self.invalid(format!("texture refers to missing image {image}")))?;
-        if data.width == 0
-            || data.height == 0
-            || data.width > MAX_TEXTURE_SIDE
-            || data.height > MAX_TEXTURE_SIDE
-        {
-            return Err(self.invalid(format!(
-                "image {image} is {}×{}; sides must be 1..={MAX_TEXTURE_SIDE}",
-                data.width, data.height
-            )));
+        let texture = &texture_use.texture;
+        let sampler = texture.sampler();
+        Ok(Some(TextureRef {
+            texture: self.texture_for_image(texture.source().index(), space)?,
+            wrap_u: wrap(sampler.wrap_s()),
+            wrap_v: wrap(sampler.wrap_t()),
+            nearest: matches!(
+                sampler.mag_filter(),
+                Some(gltf::texture::MagFilter::Nearest)
+            ),
+            tex_coord,
+            transform: transform.map_or(UvTransform::IDENTITY, |(t, _)| t),
+        }))
+    }
+
+    fn texture_for_image(&mut self, image: usize, space: ColorSpace) -> Result<usize, SceneError> {
+        if let Some(&index) = self.image_textures.get(&(image, space)) {
+            return Ok(index);
         }
-        let rgba8 = to_rgba8(data).ok_or_else(|| {
-            self.invalid(format!("image {image} has an unsupported pixel format"))
-        })?;
+        // The same image in the other colour space: decoded already, only relabelled.
+        let other = match space {
+            ColorSpace::Srgb => ColorSpace::Linear,
+            ColorSpace::Linear => ColorSpace::Srgb,
+        };
+        let (width, height, rgba8) = match self.image_textures.get(&(image, other)) {
+            Some(&index) => {
+                let t = &self.scene.textures[index];
+                (t.width, t.height, t.rgba8.clone())
+            }
+            None => self.decode_image(image)?,
+        };
         self.scene.textures.push(Texture {
             name: format!("image{image}"),
-            width: data.width,
-            height: data.height,
+            width,
+            height,
             rgba8,
+            color_space: space,
         });
         let index = self.scene.textures.len() - 1;
-        if let Some(slot) = self.image_to_texture.get_mut(image) {
-            *slot = Some(index);
-        }
+        self.image_textures.insert((image, space), index);
         Ok(index)
+    }
+
+    /// Decodes one image (PNG or JPEG, from a buffer view, a data URI or a file) to RGBA8,
+    /// refusing sizes past the texture limit before decoding the pixels.
+    fn decode_image(&self, image: usize) -> Result<(u32, u32, Vec<u8>), SceneError> {
+        let fail = |why: String| self.invalid(format!("image {image}: {why}"));
+        let gltf_image = self
+            .document
+            .images()
+            .nth(image)
+            .ok_or_else(|| fail("does not exist".into()))?;
+        let encoded: Vec<u8> = match gltf_image.source() {
+            gltf::image::Source::View { view, .. } => {
+                self.data.view_bytes(&view).map_err(&fail)?.to_vec()
+            }
+            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                let data = gltf::image::Data::from_source(gltf_image.source(), Some(self.base), &[])
+                    .map_err(|e| fail(e.to_string()))?;
+                let (w, h) = (data.width, data.height);
+                check_image_size(w, h).map_err(&fail)?;
+                let rgba8 = to_rgba8(&data)
+                    .ok_or_else(|| fail("has an unsupported pixel format".into()))?;
+                return Ok((w, h, rgba8));
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                let file = self.base.join(percent_decode(uri));
+                std::fs::read(&file).map_err(|e| fail(format!("{}: {e}", file.display())))?
+            }
+        };
+        let reader = image::ImageReader::new(std::io::Cursor::new(&encoded))
+            .with_guessed_format()
+            .map_err(|e| fail(e.to_string()))?;
+        let (w, h) = reader.into_dimensions().map_err(|e| fail(e.to_string()))?;
+        check_image_size(w, h).map_err(&fail)?;
+        let decoded = image::load_from_memory(&encoded).map_err(|e| fail(e.to_string()))?;
+        Ok((w, h, decoded.to_rgba8().into_raw()))
     }
 
     fn default_material(&mut self) -> usize {
         // Created lazily, once, for primitives without a material.
-        if self.material_index.len() < self.scene.materials.len() {
-            return self.scene.materials.len() - 1;
+        if let Some(index) = self.default_material {
+            return index;
         }
-        self.scene.add_material(Material::default())
+        let index = self.scene.add_material(Material::default());
+        self.default_material = Some(index);
+        index
+    }
+
+    /// `material` without the texture slots in `dropped` (a bit per slot): for primitives
+    /// that lack the coordinates or tangents those textures need. Created once per pair.
+    fn material_without(&mut self, material: usize, dropped: u32) -> usize {
+        if dropped == 0 {
+            return material;
+        }
+        if let Some(&index) = self.material_variants.get(&(material, dropped)) {
+            return index;
+        }
+        let mut variant = self.scene.materials[material].clone();
+        for (slot, texture) in variant.texture_slots_mut().into_iter().enumerate() {
+            if dropped & (1 << slot) != 0 {
+                *texture = None;
+            }
+        }
+        let index = self.scene.add_material(variant);
+        self.material_variants.insert((material, dropped), index);
+        index
     }
 
     fn visit_node(
@@ -297,77 +515,92 @@ impl Loader<'_> {
                 self.add_primitive(&primitive, world, &label)?;
             }
         }
+        if let Some(light) = node.light() {
+            self.add_light(&light, world);
+        }
+        if let Some(camera) = node.camera() {
+            let yfov = match camera.projection() {
+                gltf::camera::Projection::Perspective(p) => Some(p.yfov()),
+                gltf::camera::Projection::Orthographic(_) => None,
+            };
+            self.scene.cameras.push(Camera {
+                name: camera
+                    .name()
+                    .or(node.name())
+                    .map_or_else(|| format!("camera {}", camera.index()), str::to_owned),
+                position: world.transform_point3(Vec3::ZERO),
+                forward: world
+                    .transform_vector3(Vec3::NEG_Z)
+                    .try_normalize()
+                    .unwrap_or(Vec3::NEG_Z),
+                yfov,
+            });
+        }
         for child in node.children() {
             self.visit_node(&child, world, depth + 1)?;
         }
         Ok(())
     }
 
-    /// Checks that an accessor lies inside its buffer view and buffer, with the expected type.
-    fn check_accessor(
+    fn add_light(&mut self, light: &gltf::khr_lights_punctual::Light<'_>, world: Mat4) {
+        let kind = match light.kind() {
+            gltf::khr_lights_punctual::Kind::Directional => LightKind::Directional,
+            gltf::khr_lights_punctual::Kind::Point => LightKind::Point,
+            gltf::khr_lights_punctual::Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => LightKind::Spot {
+                inner_cone: inner_cone_angle.clamp(0.0, std::f32::consts::FRAC_PI_2),
+                outer_cone: outer_cone_angle.clamp(0.0, std::f32::consts::FRAC_PI_2),
+            },
+        };
+        let intensity = light.intensity().max(0.0);
+        let color = Vec3::from(light.color()).max(Vec3::ZERO) * intensity;
+        let range = light.range().filter(|r| r.is_finite() && *r > 0.0);
+        if !color.is_finite() {
+            self.warn(&format!("light {} has a non-finite intensity, skipped", light.index()));
+            return;
+        }
+        self.scene.lights.push(Light {
+            name: light
+                .name()
+                .map_or_else(|| format!("light {}", light.index()), str::to_owned),
+            kind,
+            position: world.transform_point3(Vec3::ZERO),
+            direction: world
+                .transform_vector3(Vec3::NEG_Z)
+                .try_normalize()
+                .unwrap_or(Vec3::NEG_Y),
+            color,
+            range,
+        });
+    }
+
+    /// Reads one attribute accessor with `N` components per element, checked to have one
+    /// element per vertex and only finite values.
+    fn attribute<const N: usize>(
         &self,
         accessor: &gltf::Accessor<'_>,
         what: &str,
-        dims: &[Dimensions],
-        types: &[DataType],
+        vertices: Option<usize>,
         label: &str,
-    ) -> Result<usize, SceneError> {
+    ) -> Result<Vec<[f32; N]>, SceneError> {
         let fail = |why: String| {
-            self.invalid(format!(
-                "{label}: {what} accessor {}: {why}",
-                accessor.index()
-            ))
+            self.invalid(format!("{label}: {what} accessor {}: {why}", accessor.index()))
         };
-        if !dims.contains(&accessor.dimensions()) || !types.contains(&accessor.data_type()) {
-            return Err(fail(format!(
-                "has type {:?} {:?}, expected one of {dims:?} × {types:?}",
-                accessor.dimensions(),
-                accessor.data_type()
-            )));
-        }
-        let count = accessor.count();
-        if count == 0 {
-            return Err(fail("has count 0".into()));
-        }
-        if accessor.sparse().is_some() {
-            return Err(fail("is sparse; sparse accessors are not supported".into()));
-        }
-        let view = accessor
-            .view()
-            .ok_or_else(|| fail("has no buffer view".into()))?;
-        let elem = accessor.size();
-        let stride = view.stride().unwrap_or(elem);
-        let end = stride
-            .checked_mul(count - 1)
-            .and_then(|n| n.checked_add(elem))
-            .and_then(|n| n.checked_add(accessor.offset()));
-        if end.is_none_or(|end| end > view.length()) {
-            return Err(fail(format!(
-                "{count} elements at offset {} with stride {stride} read past the end of buffer \
-                 view {} ({} bytes)",
-                accessor.offset(),
-                view.index(),
-                view.length()
-            )));
-        }
-        let buffer_len = self
-            .buffers
-            .get(view.buffer().index())
-            .map_or(0, |b| b.0.len());
-        if view
-            .offset()
-            .checked_add(view.length())
-            .is_none_or(|e| e > buffer_len)
+        let values = self.data.read_f32::<N>(accessor).map_err(fail)?;
+        if let Some(n) = vertices
+            && values.len() != n
         {
-            return Err(fail(format!(
-                "buffer view {} (offset {}, {} bytes) lies outside buffer {} ({buffer_len} bytes)",
-                view.index(),
-                view.offset(),
-                view.length(),
-                view.buffer().index()
+            return Err(self.invalid(format!(
+                "{label}: {what} has {} elements but POSITION has {n}",
+                values.len()
             )));
         }
-        Ok(count)
+        if values.iter().flatten().any(|c| !c.is_finite()) {
+            return Err(self.invalid(format!("{label}: {what} contains NaN or infinity")));
+        }
+        Ok(values)
     }
 
     fn add_primitive(
@@ -381,96 +614,48 @@ impl Loader<'_> {
             mode,
             Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
         ) {
-            tracing::warn!(
-                "{}: {label} is drawn as {mode:?}; only triangles are rendered, skipped",
-                self.path.display()
-            );
+            self.warn(&format!(
+                "{label} is drawn as {mode:?}; only triangles are rendered, skipped"
+            ));
             return Ok(());
         }
-        let buffers = self.buffers;
-        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        let unreadable = |what: &str| self.invalid(format!("{label}: cannot read {what}"));
-
         let pos_acc = primitive
             .get(&gltf::Semantic::Positions)
             .ok_or_else(|| self.invalid(format!("{label}: has no POSITION attribute")))?;
-        let n = self.check_accessor(
-            &pos_acc,
-            "POSITION",
-            &[Dimensions::Vec3],
-            &[DataType::F32],
-            label,
-        )?;
-        let positions: Vec<[f32; 3]> = reader
-            .read_positions()
-            .ok_or_else(|| unreadable("POSITION"))?
-            .collect();
-        if positions.iter().flatten().any(|c| !c.is_finite()) {
-            return Err(self.invalid(format!("{label}: POSITION contains NaN or infinity")));
-        }
-
-        let normals: Option<Vec<[f32; 3]>> = match primitive.get(&gltf::Semantic::Normals) {
-            Some(acc) => {
-                let m = self.check_accessor(
-                    &acc,
-                    "NORMAL",
-                    &[Dimensions::Vec3],
-                    &[DataType::F32],
-                    label,
-                )?;
-                if m != n {
-                    return Err(self.invalid(format!(
-                        "{label}: NORMAL has {m} elements but POSITION has {n}"
-                    )));
-                }
-                Some(
-                    reader
-                        .read_normals()
-                        .ok_or_else(|| unreadable("NORMAL"))?
-                        .collect(),
-                )
-            }
+        let positions = self.attribute::<3>(&pos_acc, "POSITION", None, label)?;
+        let n = positions.len();
+        let get = |semantic: gltf::Semantic| primitive.get(&semantic);
+        let normals = match get(gltf::Semantic::Normals) {
+            Some(acc) => Some(self.attribute::<3>(&acc, "NORMAL", Some(n), label)?),
+            None => None,
+        };
+        let tangents = match get(gltf::Semantic::Tangents) {
+            Some(acc) => Some(self.attribute::<4>(&acc, "TANGENT", Some(n), label)?),
+            None => None,
+        };
+        let uv0 = match get(gltf::Semantic::TexCoords(0)) {
+            Some(acc) => Some(self.attribute::<2>(&acc, "TEXCOORD_0", Some(n), label)?),
+            None => None,
+        };
+        let uv1 = match get(gltf::Semantic::TexCoords(1)) {
+            Some(acc) => Some(self.attribute::<2>(&acc, "TEXCOORD_1", Some(n), label)?),
+            None => None,
+        };
+        let colors: Option<Vec<[f32; 4]>> = match get(gltf::Semantic::Colors(0)) {
+            Some(acc) if acc.dimensions() == Dimensions::Vec3 => Some(
+                self.attribute::<3>(&acc, "COLOR_0", Some(n), label)?
+                    .into_iter()
+                    .map(|[r, g, b]| [r, g, b, 1.0])
+                    .collect(),
+            ),
+            Some(acc) => Some(self.attribute::<4>(&acc, "COLOR_0", Some(n), label)?),
             None => None,
         };
 
-        let uvs: Vec<[f32; 2]> = match primitive.get(&gltf::Semantic::TexCoords(0)) {
-            Some(acc) => {
-                let m = self.check_accessor(
-                    &acc,
-                    "TEXCOORD_0",
-                    &[Dimensions::Vec2],
-                    &[DataType::F32, DataType::U8, DataType::U16],
-                    label,
-                )?;
-                if m != n {
-                    return Err(self.invalid(format!(
-                        "{label}: TEXCOORD_0 has {m} elements but POSITION has {n}"
-                    )));
-                }
-                reader
-                    .read_tex_coords(0)
-                    .ok_or_else(|| unreadable("TEXCOORD_0"))?
-                    .into_f32()
-                    .collect()
-            }
-            None => vec![[0.0; 2]; n],
-        };
-
         let raw_indices: Vec<u32> = match primitive.indices() {
-            Some(acc) => {
-                self.check_accessor(
-                    &acc,
-                    "indices",
-                    &[Dimensions::Scalar],
-                    &[DataType::U8, DataType::U16, DataType::U32],
-                    label,
-                )?;
-                reader
-                    .read_indices()
-                    .ok_or_else(|| unreadable("indices"))?
-                    .into_u32()
-                    .collect()
-            }
+            Some(acc) => self.data.read_u32(&acc).map_err(|why| {
+                self.invalid(format!("{label}: indices accessor {}: {why}", acc.index()))
+            })?,
             None => (0..n as u32).collect(),
         };
         if let Some(bad) = raw_indices.iter().find(|&&i| i as usize >= n) {
@@ -483,29 +668,6 @@ impl Loader<'_> {
             return Ok(());
         }
 
-        let normals = normals.unwrap_or_else(|| generate_normals(&positions, &indices));
-        // Normals transform with the inverse transpose; a mirroring transform flips winding.
-        let linear = Mat3::from_mat4(world);
-        let normal_matrix = linear.inverse().transpose();
-        if linear.determinant() < 0.0 {
-            for tri in indices.chunks_exact_mut(3) {
-                tri.swap(1, 2);
-            }
-        }
-        let vertices: Vec<Vertex> = positions
-            .iter()
-            .zip(&normals)
-            .zip(&uvs)
-            .map(|((p, nrm), uv)| Vertex {
-                position: world.transform_point3(Vec3::from(*p)).to_array(),
-                normal: (normal_matrix * Vec3::from(*nrm))
-                    .try_normalize()
-                    .unwrap_or(Vec3::Y)
-                    .to_array(),
-                uv: *uv,
-            })
-            .collect();
-
         let material = match primitive.material().index() {
             Some(i) => *self
                 .material_index
@@ -513,9 +675,154 @@ impl Loader<'_> {
                 .ok_or_else(|| self.invalid(format!("{label}: refers to missing material {i}")))?,
             None => self.default_material(),
         };
+        // Textures whose coordinates this primitive lacks are not sampled at all (sampling
+        // one texel everywhere is not what the author made, and at constant coordinates
+        // some drivers return black).
+        let mut dropped = 0u32;
+        let slots = self.scene.materials[material].texture_slots();
+        for (slot, texture) in slots.iter().enumerate() {
+            if let Some(t) = texture {
+                let present = if t.tex_coord == 0 { uv0.is_some() } else { uv1.is_some() };
+                if !present {
+                    dropped |= 1 << slot;
+                }
+            }
+        }
+        if dropped != 0 {
+            let names: Vec<String> = (0..TEXTURE_SLOTS)
+                .filter(|s| dropped & (1 << s) != 0)
+                .map(|s| {
+                    format!(
+                        "{} (TEXCOORD_{})",
+                        TEXTURE_SLOT_NAMES[s],
+                        slots[s].map_or(0, |t| t.tex_coord)
+                    )
+                })
+                .collect();
+            self.warn(&format!(
+                "{label} has no texture coordinates for {}: drawn without {}",
+                names.join(", "),
+                if names.len() == 1 { "it" } else { "them" }
+            ));
+        }
+
+        let normals = normals.unwrap_or_else(|| generate_normals(&positions, &indices));
+        let uvs = uv0.unwrap_or_else(|| vec![[0.0; 2]; n]);
+        let uvs1 = uv1.unwrap_or_else(|| vec![[0.0; 2]; n]);
+        let colors = colors.unwrap_or_else(|| vec![[1.0; 4]; n]);
+        // A normal map needs tangents: the file's, else MikkTSpace's on the map's coordinates.
+        let normal_map = slots[NORMAL_SLOT].filter(|_| dropped & (1 << NORMAL_SLOT) == 0);
+        let tangents = match (tangents, normal_map) {
+            (Some(t), _) => t,
+            (None, Some(map)) => {
+                let coords = if map.tex_coord == 0 { &uvs } else { &uvs1 };
+                match generate_tangents(&positions, &normals, coords, &indices) {
+                    Some(t) => t,
+                    None => {
+                        self.warn(&format!(
+                            "{label}: tangents cannot be generated (degenerate texture \
+                             coordinates): drawn without its normal map"
+                        ));
+                        dropped |= 1 << NORMAL_SLOT;
+                        vec![[0.0; 4]; n]
+                    }
+                }
+            }
+            (None, None) => vec![[0.0; 4]; n],
+        };
+        let material = self.material_without(material, dropped);
+
+        // Normals transform with the inverse transpose; a mirroring transform flips winding
+        // and the bitangent's handedness.
+        let linear = Mat3::from_mat4(world);
+        let normal_matrix = linear.inverse().transpose();
+        let mirrored = linear.determinant() < 0.0;
+        if mirrored {
+            for tri in indices.chunks_exact_mut(3) {
+                tri.swap(1, 2);
+            }
+        }
+        let vertices: Vec<Vertex> = (0..n)
+            .map(|i| {
+                let t = Vec3::from_slice(&tangents[i][..3]);
+                let tangent = match (linear * t).try_normalize() {
+                    Some(t) => {
+                        let w = if tangents[i][3] < 0.0 { -1.0 } else { 1.0 };
+                        [t.x, t.y, t.z, if mirrored { -w } else { w }]
+                    }
+                    None => [0.0; 4],
+                };
+                Vertex {
+                    position: world.transform_point3(Vec3::from(positions[i])).to_array(),
+                    normal: (normal_matrix * Vec3::from(normals[i]))
+                        .try_normalize()
+                        .unwrap_or(Vec3::Y)
+                        .to_array(),
+                    uv: uvs[i],
+                    uv1: uvs1[i],
+                    color: colors[i],
+                    tangent,
+                }
+            })
+            .collect();
         self.scene.add_mesh(&vertices, &indices, material);
         Ok(())
     }
+}
+
+/// The slot of the normal map in [`Material::texture_slots`].
+const NORMAL_SLOT: usize = 2;
+
+/// Refuses image sizes the renderer cannot hold, before their pixels are decoded.
+fn check_image_size(width: u32, height: u32) -> Result<(), String> {
+    if width == 0 || height == 0 || width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE {
+        return Err(format!(
+            "is {width}×{height}; sides must be 1..={MAX_TEXTURE_SIDE}"
+        ));
+    }
+    Ok(())
+}
+
+/// `KHR_texture_transform`: the transform and the coordinate set it overrides, if any.
+fn parse_texture_transform(
+    value: &serde_json::Value,
+) -> Result<(UvTransform, Option<u32>), String> {
+    let pair = |name: &str, default: [f32; 2]| -> Result<[f32; 2], String> {
+        match value.get(name) {
+            None => Ok(default),
+            Some(v) => {
+                let a = v.as_array().filter(|a| a.len() == 2);
+                let nums: Option<Vec<f32>> =
+                    a.map(|a| a.iter().filter_map(|x| x.as_f64()).map(|x| x as f32).collect());
+                match nums {
+                    Some(n) if n.len() == 2 && n.iter().all(|x| x.is_finite()) => Ok([n[0], n[1]]),
+                    _ => Err(format!("{name} must be two finite numbers")),
+                }
+            }
+        }
+    };
+    let offset = pair("offset", [0.0, 0.0])?;
+    let scale = pair("scale", [1.0, 1.0])?;
+    let rotation = match value.get("rotation") {
+        None => 0.0,
+        Some(r) => r
+            .as_f64()
+            .map(|r| r as f32)
+            .filter(|r| r.is_finite())
+            .ok_or("rotation must be a finite number")?,
+    };
+    let tex_coord = match value.get("texCoord") {
+        None => None,
+        Some(t) => Some(
+            t.as_u64()
+                .and_then(|t| u32::try_from(t).ok())
+                .ok_or("texCoord must be a non-negative integer")?,
+        ),
+    };
+    Ok((
+        UvTransform::from_offset_rotation_scale(offset, rotation, scale),
+        tex_coord,
+    ))
 }
 
 /// Converts strips and fans to a plain triangle list (degenerate triangles dropped).

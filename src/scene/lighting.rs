@@ -13,3 +13,17 @@ pub struct Lighting {
     pub point_color: Vec3,
     pub point_range: f32,
 }
+
+/// How surfaces are shaded: the glTF metallic-roughness model, or the simple Blinn-Phong model
+/// omnicave used before it (cheaper; base colour and emission only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Shading {
+    #[default]
+    Pbr,
+    Simple,
+}
+
+crate::named_enum!(Shading {
+    Self::Pbr => "pbr",
+    Self::Simple => "simple",
+});

@@ -132,6 +132,7 @@ pub fn test_frame<'a>(
         eye_separation: 0.064,
         world_from_cave: Mat4::IDENTITY,
         lighting: Lighting::default(),
+        shading: omnicave::scene::Shading::Pbr,
         background: BACKGROUND_SRGB,
         omni,
         tess,
