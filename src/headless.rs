@@ -32,6 +32,10 @@ pub enum HeadlessError {
 pub struct Overrides {
     pub scene: Option<PathBuf>,
     pub mode: Option<RenderMode>,
+    pub shading: Option<crate::scene::Shading>,
+    pub fit: Option<crate::scene::SceneFit>,
+    pub size_m: Option<f32>,
+    pub double_sided: bool,
     pub head: Option<glam::Vec3>,
     pub head_yaw_degrees: Option<f32>,
     pub eye_separation: Option<f32>,
@@ -66,6 +70,16 @@ impl Overrides {
         if let Some(mode) = self.mode {
             settings.render.mode = mode;
         }
+        if let Some(shading) = self.shading {
+            settings.render.shading = shading;
+        }
+        if let Some(fit) = self.fit {
+            settings.scene.fit = fit;
+        }
+        if let Some(size) = self.size_m {
+            settings.scene.size_m = size;
+        }
+        settings.scene.double_sided |= self.double_sided;
         if let Some(p) = self.head {
             settings.head.position = p.to_array();
         }

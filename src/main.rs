@@ -16,6 +16,7 @@ use omnicave::cave::omni::{PoleMerge, WarpVariant};
 use omnicave::config::AppMode;
 use omnicave::headless::{self, Overrides};
 use omnicave::output::formats::StereoFormat;
+use omnicave::scene::{SceneFit, Shading};
 use omnicave::sky::SkyMode;
 use omnicave::tess::{Criterion, MAX_DEPTH_LIMIT, parse_criterion};
 use omnicave::tracking::sim::{Pattern, SimForm, SimOptions};
@@ -228,6 +229,18 @@ struct RenderArgs {
     /// Render mode; default: the config's.
     #[arg(long, value_enum)]
     mode: Option<RenderMode>,
+    /// Surface shading; default: the config's.
+    #[arg(long, value_enum)]
+    shading: Option<Shading>,
+    /// Where the model goes: as-authored, or floor (centred on the CAVE's floor).
+    #[arg(long, value_enum)]
+    fit: Option<SceneFit>,
+    /// Scale the model so that its largest side is this many metres (0: the file's units).
+    #[arg(long)]
+    size_m: Option<f32>,
+    /// Draw every material double-sided (content wound the wrong way).
+    #[arg(long)]
+    double_sided: bool,
     /// Head position in CAVE space, metres: X,Y,Z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     head: Option<Vec3>,
@@ -618,6 +631,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let overrides = Overrides {
                 scene: args.scene,
                 mode: args.mode,
+                shading: args.shading,
+                fit: args.fit,
+                size_m: args.size_m,
+                double_sided: args.double_sided,
                 head: args.head,
                 head_yaw_degrees: args.head_yaw,
                 eye_separation: args.ipd,

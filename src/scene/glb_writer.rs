@@ -13,11 +13,89 @@ pub struct MaterialDesc {
     pub base_color: [f32; 4],
     /// Index returned by [`GlbWriter::add_png_texture`].
     pub texture: Option<usize>,
+    /// `KHR_texture_transform` on the base colour texture: offset, rotation, scale.
+    pub texture_transform: Option<([f32; 2], f32, [f32; 2])>,
     pub emissive: [f32; 3],
     pub roughness: f32,
     pub metallic: f32,
+    pub maps: MaterialMaps,
     pub unlit: bool,
     pub double_sided: bool,
+    /// `alphaMode: BLEND`.
+    pub alpha_blend: bool,
+}
+
+/// A material's other texture maps (texture indices).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MaterialMaps {
+    pub metallic_roughness: Option<usize>,
+    pub normal: Option<usize>,
+    pub occlusion: Option<usize>,
+    pub emissive: Option<usize>,
+}
+
+/// How a mesh's vertex data is stored, as different exporters write it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AttributeEncoding {
+    /// 32-bit floats (Blender's default).
+    #[default]
+    Float,
+    /// `KHR_mesh_quantization` as gltfpack writes it: positions as 16-bit integers in units of
+    /// [`quantization_step`] (the node must scale by it), normals as normalized bytes, texture
+    /// coordinates as normalized unsigned shorts, colours as normalized unsigned bytes.
+    Quantized,
+    /// Positions as a sparse accessor: the first half of the vertices stored as zeros and
+    /// substituted by the sparse values.
+    Sparse,
+    /// `EXT_meshopt_compression` on every vertex and index buffer view (gltfpack `-c`).
+    Meshopt,
+}
+
+/// Which attributes a mesh is written with, and how.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshOptions {
+    pub encoding: AttributeEncoding,
+    /// `TEXCOORD_0` (CAD exports often have none).
+    pub uvs: bool,
+    /// `COLOR_0` from the vertices' colours.
+    pub colors: bool,
+    /// `TANGENT` from the vertices' tangents.
+    pub tangents: bool,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        Self {
+            encoding: AttributeEncoding::Float,
+            uvs: true,
+            colors: false,
+            tangents: false,
+        }
+    }
+}
+
+/// The step (metres per integer unit) of quantized positions: the largest coordinate maps to
+/// 32 767.
+pub fn quantization_step(mesh: &MeshData) -> f32 {
+    let largest = mesh
+        .vertices
+        .iter()
+        .flat_map(|v| v.position)
+        .fold(0.0f32, |m, c| m.max(c.abs()));
+    if largest > 0.0 { largest / 32767.0 } else { 1.0 }
+}
+
+/// A punctual light (`KHR_lights_punctual`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightDesc {
+    pub name: String,
+    /// "directional", "point" or "spot".
+    pub kind: &'static str,
+    pub color: [f32; 3],
+    pub intensity: f32,
+    pub range: Option<f32>,
+    /// Spot: inner and outer cone half-angles, radians.
+    pub cone: Option<(f32, f32)>,
 }
 
 impl MaterialDesc {
@@ -27,11 +105,14 @@ impl MaterialDesc {
             name: name.into(),
             base_color: [rgb[0], rgb[1], rgb[2], 1.0],
             texture: None,
+            texture_transform: None,
             emissive: [0.0; 3],
             roughness,
             metallic: 0.0,
+            maps: MaterialMaps::default(),
             unlit: false,
             double_sided: false,
+            alpha_blend: false,
         }
     }
 }
@@ -41,6 +122,8 @@ impl MaterialDesc {
 pub struct NodeDesc {
     pub name: String,
     pub mesh: Option<usize>,
+    /// Index returned by [`GlbWriter::add_light`].
+    pub light: Option<usize>,
     pub translation: Vec3,
     pub rotation: Quat,
     pub scale: Vec3,
@@ -52,6 +135,7 @@ impl NodeDesc {
         Self {
             name: name.into(),
             mesh: None,
+            light: None,
             translation: Vec3::ZERO,
             rotation: Quat::IDENTITY,
             scale: Vec3::ONE,
@@ -61,6 +145,11 @@ impl NodeDesc {
 
     pub fn with_mesh(mut self, mesh: usize) -> Self {
         self.mesh = Some(mesh);
+        self
+    }
+
+    pub fn with_light(mut self, light: usize) -> Self {
+        self.light = Some(light);
         self
     }
 
@@ -90,6 +179,9 @@ const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
 const UNSIGNED_SHORT: u32 = 5123;
+const SHORT: u32 = 5122;
+const BYTE: u32 = 5120;
+const UNSIGNED_BYTE: u32 = 5121;
 
 /// Accumulates glTF objects and one binary buffer, then writes a `.glb`.
 #[derive(Debug, Default)]
@@ -102,7 +194,11 @@ pub struct GlbWriter {
     materials: Vec<Value>,
     meshes: Vec<Value>,
     nodes: Vec<Value>,
-    uses_unlit: bool,
+    lights: Vec<Value>,
+    extensions_used: std::collections::BTreeSet<&'static str>,
+    extensions_required: std::collections::BTreeSet<&'static str>,
+    /// Decoded size of the meshopt fallback buffer (0: none).
+    fallback_len: usize,
 }
 
 impl GlbWriter {
@@ -154,82 +250,285 @@ impl GlbWriter {
             "roughnessFactor": m.roughness,
         });
         if let Some(t) = m.texture {
-            pbr["baseColorTexture"] = json!({ "index": t });
+            let mut info = json!({ "index": t });
+            if let Some((offset, rotation, scale)) = m.texture_transform {
+                info["extensions"] = json!({ "KHR_texture_transform": {
+                    "offset": offset, "rotation": rotation, "scale": scale,
+                }});
+                self.extensions_used.insert("KHR_texture_transform");
+            }
+            pbr["baseColorTexture"] = info;
+        }
+        if let Some(t) = m.maps.metallic_roughness {
+            pbr["metallicRoughnessTexture"] = json!({ "index": t });
         }
         let mut mat = json!({
             "name": m.name,
             "pbrMetallicRoughness": pbr,
         });
+        if let Some(t) = m.maps.normal {
+            mat["normalTexture"] = json!({ "index": t });
+        }
+        if let Some(t) = m.maps.occlusion {
+            mat["occlusionTexture"] = json!({ "index": t });
+        }
+        if let Some(t) = m.maps.emissive {
+            mat["emissiveTexture"] = json!({ "index": t });
+        }
         if m.emissive.iter().any(|&c| c > 0.0) {
             mat["emissiveFactor"] = json!(m.emissive);
         }
         if m.double_sided {
             mat["doubleSided"] = json!(true);
         }
+        if m.alpha_blend {
+            mat["alphaMode"] = json!("BLEND");
+        }
         if m.unlit {
             mat["extensions"] = json!({ "KHR_materials_unlit": {} });
-            self.uses_unlit = true;
+            self.extensions_used.insert("KHR_materials_unlit");
         }
         self.materials.push(mat);
         self.materials.len() - 1
     }
 
-    /// Adds a mesh with one primitive per (geometry, material) pair; returns the mesh index.
+    /// Adds a punctual light; attach it to a node with [`NodeDesc::with_light`].
+    pub fn add_light(&mut self, light: &LightDesc) -> usize {
+        let mut v = json!({
+            "name": light.name,
+            "type": light.kind,
+            "color": light.color,
+            "intensity": light.intensity,
+        });
+        if let Some(range) = light.range {
+            v["range"] = json!(range);
+        }
+        if let Some((inner, outer)) = light.cone {
+            v["spot"] = json!({ "innerConeAngle": inner, "outerConeAngle": outer });
+        }
+        self.extensions_used.insert("KHR_lights_punctual");
+        self.lights.push(v);
+        self.lights.len() - 1
+    }
+
+    /// Adds a mesh with one primitive per (geometry, material) pair, float attributes with
+    /// texture coordinates; returns the mesh index.
     pub fn add_mesh(&mut self, name: &str, primitives: &[(&MeshData, usize)]) -> usize {
+        self.add_mesh_with(name, primitives, &MeshOptions::default())
+    }
+
+    /// Adds one vertex attribute: a buffer view (meshopt-compressed if asked) and its
+    /// accessor.
+    fn push_attribute(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        stride: usize,
+        accessor: Value,
+        encoding: AttributeEncoding,
+    ) -> usize {
+        let view = if encoding == AttributeEncoding::Meshopt {
+            self.push_meshopt_view(bytes, count, stride, "ATTRIBUTES", Some(ARRAY_BUFFER))
+        } else {
+            self.push_view(bytes, Some(ARRAY_BUFFER))
+        };
+        let mut accessor = accessor;
+        accessor["bufferView"] = json!(view);
+        accessor["count"] = json!(count);
+        let components = match accessor["type"].as_str() {
+            Some("VEC2") => 2,
+            Some("VEC3") => 3,
+            Some("VEC4") => 4,
+            _ => 1,
+        };
+        let component_size = match accessor["componentType"].as_u64().map(|t| t as u32) {
+            Some(BYTE | UNSIGNED_BYTE) => 1,
+            Some(SHORT | UNSIGNED_SHORT) => 2,
+            _ => 4,
+        };
+        if encoding == AttributeEncoding::Meshopt || stride != components * component_size {
+            // Padded elements (quantized VEC3s are padded to 4 bytes), and meshopt views,
+            // which need their stride.
+            self.buffer_views[view]["byteStride"] = json!(stride);
+        }
+        self.push_accessor(accessor)
+    }
+
+    /// A buffer view compressed with meshoptimizer: its data in the binary chunk, the view in
+    /// the (uninitialised) fallback buffer.
+    fn push_meshopt_view(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        stride: usize,
+        mode: &str,
+        target: Option<u32>,
+    ) -> usize {
+        let encoded = meshopt_encode(bytes, count, stride, mode);
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(&encoded);
+        let mut view = json!({
+            "buffer": 1,
+            "byteOffset": self.fallback_len,
+            "byteLength": bytes.len(),
+            "extensions": { "EXT_meshopt_compression": {
+                "buffer": 0,
+                "byteOffset": offset,
+                "byteLength": encoded.len(),
+                "byteStride": stride,
+                "count": count,
+                "mode": mode,
+            }},
+        });
+        if let Some(t) = target {
+            view["target"] = json!(t);
+        }
+        self.fallback_len += padded_to_4(bytes.len());
+        self.extensions_used.insert("EXT_meshopt_compression");
+        self.extensions_required.insert("EXT_meshopt_compression");
+        self.buffer_views.push(view);
+        self.buffer_views.len() - 1
+    }
+
+    /// As [`Self::add_mesh`], with the attributes and encoding `options` asks for.
+    pub fn add_mesh_with(
+        &mut self,
+        name: &str,
+        primitives: &[(&MeshData, usize)],
+        options: &MeshOptions,
+    ) -> usize {
+        let enc = options.encoding;
+        let quantized = enc == AttributeEncoding::Quantized;
+        if quantized {
+            self.extensions_used.insert("KHR_mesh_quantization");
+            self.extensions_required.insert("KHR_mesh_quantization");
+        }
         let mut prims = Vec::new();
         for (mesh, material) in primitives {
             let n = mesh.vertices.len();
+            let step = quantization_step(mesh);
             let mut lo = [f32::INFINITY; 3];
             let mut hi = [f32::NEG_INFINITY; 3];
             let mut pos = Vec::with_capacity(n * 12);
             let mut nrm = Vec::with_capacity(n * 12);
             let mut uv = Vec::with_capacity(n * 8);
+            let mut col = Vec::with_capacity(n * 16);
+            let mut tan = Vec::with_capacity(n * 16);
             for v in &mesh.vertices {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(v.position[k]);
-                    hi[k] = hi[k].max(v.position[k]);
-                }
-                pos.extend(v.position.iter().flat_map(|c| c.to_le_bytes()));
-                // Re-normalise so the validator's unit-length check passes after f32 round-off.
+                // Re-normalise so the validator's unit-length check passes after round-off.
                 let unit = Vec3::from(v.normal).normalize_or(Vec3::Y);
-                nrm.extend(unit.to_array().iter().flat_map(|c| c.to_le_bytes()));
-                uv.extend(v.uv.iter().flat_map(|c| c.to_le_bytes()));
+                if quantized {
+                    // Positions on the integer grid (the node scales by the step), padded to
+                    // 4-byte elements as the specification requires.
+                    let q = v.position.map(|c| (c / step).round() as i16);
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(f32::from(q[k]));
+                        hi[k] = hi[k].max(f32::from(q[k]));
+                    }
+                    pos.extend(q.iter().flat_map(|c| c.to_le_bytes()));
+                    pos.extend_from_slice(&[0, 0]);
+                    let b = unit.to_array().map(|c| (c * 127.0).round() as i8 as u8);
+                    nrm.extend_from_slice(&[b[0], b[1], b[2], 0]);
+                    uv.extend(
+                        v.uv.iter()
+                            .flat_map(|c| ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes()),
+                    );
+                    col.extend(v.color.iter().map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8));
+                } else {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(v.position[k]);
+                        hi[k] = hi[k].max(v.position[k]);
+                    }
+                    pos.extend(v.position.iter().flat_map(|c| c.to_le_bytes()));
+                    nrm.extend(unit.to_array().iter().flat_map(|c| c.to_le_bytes()));
+                    uv.extend(v.uv.iter().flat_map(|c| c.to_le_bytes()));
+                    col.extend(v.color.iter().flat_map(|c| c.to_le_bytes()));
+                }
+                tan.extend(v.tangent.iter().flat_map(|c| c.to_le_bytes()));
             }
-            let pv = self.push_view(&pos, Some(ARRAY_BUFFER));
-            let pa = self.push_accessor(json!({
-                "bufferView": pv, "componentType": FLOAT, "count": n, "type": "VEC3",
-                "min": lo, "max": hi,
-            }));
-            let nv = self.push_view(&nrm, Some(ARRAY_BUFFER));
-            let na = self.push_accessor(json!({
-                "bufferView": nv, "componentType": FLOAT, "count": n, "type": "VEC3",
-            }));
-            let uvv = self.push_view(&uv, Some(ARRAY_BUFFER));
-            let uva = self.push_accessor(json!({
-                "bufferView": uvv, "componentType": FLOAT, "count": n, "type": "VEC2",
-            }));
+            let mut attributes = serde_json::Map::new();
+            let pa = if quantized {
+                self.push_attribute(&pos, n, 8, json!({
+                    "componentType": SHORT, "type": "VEC3", "min": lo, "max": hi,
+                }), enc)
+            } else if enc == AttributeEncoding::Sparse {
+                self.push_sparse_positions(&pos, n, lo, hi)
+            } else {
+                self.push_attribute(&pos, n, 12, json!({
+                    "componentType": FLOAT, "type": "VEC3", "min": lo, "max": hi,
+                }), enc)
+            };
+            attributes.insert("POSITION".into(), json!(pa));
+            let na = if quantized {
+                self.push_attribute(&nrm, n, 4, json!({
+                    "componentType": BYTE, "normalized": true, "type": "VEC3",
+                }), enc)
+            } else {
+                self.push_attribute(&nrm, n, 12, json!({ "componentType": FLOAT, "type": "VEC3" }), enc)
+            };
+            attributes.insert("NORMAL".into(), json!(na));
+            if options.uvs {
+                let ua = if quantized {
+                    self.push_attribute(&uv, n, 4, json!({
+                        "componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC2",
+                    }), enc)
+                } else {
+                    self.push_attribute(&uv, n, 8, json!({ "componentType": FLOAT, "type": "VEC2" }), enc)
+                };
+                attributes.insert("TEXCOORD_0".into(), json!(ua));
+            }
+            if options.colors {
+                let ca = if quantized {
+                    self.push_attribute(&col, n, 4, json!({
+                        "componentType": UNSIGNED_BYTE, "normalized": true, "type": "VEC4",
+                    }), enc)
+                } else {
+                    self.push_attribute(&col, n, 16, json!({ "componentType": FLOAT, "type": "VEC4" }), enc)
+                };
+                attributes.insert("COLOR_0".into(), json!(ca));
+            }
+            if options.tangents {
+                let ta = self.push_attribute(&tan, n, 16, json!({ "componentType": FLOAT, "type": "VEC4" }), enc);
+                attributes.insert("TANGENT".into(), json!(ta));
+            }
             // 16-bit indices where they fit: smaller files, and exercises both loader paths.
-            let (bytes, ctype): (Vec<u8>, u32) = if n <= u16::MAX as usize {
-                (
-                    mesh.indices
-                        .iter()
-                        .flat_map(|&i| (i as u16).to_le_bytes())
-                        .collect(),
-                    UNSIGNED_SHORT,
+            let (bytes, ctype, size): (Vec<u8>, u32, usize) =
+                if n <= u16::MAX as usize && enc != AttributeEncoding::Meshopt {
+                    (
+                        mesh.indices
+                            .iter()
+                            .flat_map(|&i| (i as u16).to_le_bytes())
+                            .collect(),
+                        UNSIGNED_SHORT,
+                        2,
+                    )
+                } else {
+                    (
+                        mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+                        UNSIGNED_INT,
+                        4,
+                    )
+                };
+            let iv = if enc == AttributeEncoding::Meshopt {
+                self.push_meshopt_view(
+                    &bytes,
+                    mesh.indices.len(),
+                    size,
+                    "TRIANGLES",
+                    Some(ELEMENT_ARRAY_BUFFER),
                 )
             } else {
-                (
-                    mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
-                    UNSIGNED_INT,
-                )
+                self.push_view(&bytes, Some(ELEMENT_ARRAY_BUFFER))
             };
-            let iv = self.push_view(&bytes, Some(ELEMENT_ARRAY_BUFFER));
             let ia = self.push_accessor(json!({
                 "bufferView": iv, "componentType": ctype, "count": mesh.indices.len(),
                 "type": "SCALAR",
             }));
             prims.push(json!({
-                "attributes": { "POSITION": pa, "NORMAL": na, "TEXCOORD_0": uva },
+                "attributes": attributes,
                 "indices": ia,
                 "material": material,
             }));
@@ -239,10 +538,36 @@ impl GlbWriter {
         self.meshes.len() - 1
     }
 
+    /// Float positions whose first half is stored as zeros and restored by a sparse accessor.
+    fn push_sparse_positions(&mut self, pos: &[u8], n: usize, lo: [f32; 3], hi: [f32; 3]) -> usize {
+        let replaced = n.div_ceil(2);
+        let mut base = pos.to_vec();
+        base[..replaced * 12].fill(0);
+        let base_view = self.push_view(&base, Some(ARRAY_BUFFER));
+        let indices: Vec<u8> = (0..replaced as u32).flat_map(|i| i.to_le_bytes()).collect();
+        let index_view = self.push_view(&indices, None);
+        let value_view = self.push_view(&pos[..replaced * 12], None);
+        // The bounds hold the substituted values and the stored zeros alike.
+        let lo = lo.map(|c| c.min(0.0));
+        let hi = hi.map(|c| c.max(0.0));
+        self.push_accessor(json!({
+            "bufferView": base_view, "componentType": FLOAT, "count": n, "type": "VEC3",
+            "min": lo, "max": hi,
+            "sparse": {
+                "count": replaced,
+                "indices": { "bufferView": index_view, "componentType": UNSIGNED_INT },
+                "values": { "bufferView": value_view },
+            },
+        }))
+    }
+
     pub fn add_node(&mut self, node: NodeDesc) -> usize {
         let mut v = json!({ "name": node.name });
         if let Some(m) = node.mesh {
             v["mesh"] = json!(m);
+        }
+        if let Some(l) = node.light {
+            v["extensions"] = json!({ "KHR_lights_punctual": { "light": l } });
         }
         if node.translation != Vec3::ZERO {
             v["translation"] = json!(node.translation.to_array());
@@ -273,6 +598,17 @@ impl GlbWriter {
             "bufferViews": self.buffer_views,
             "buffers": [ { "byteLength": padded_to_4(self.bin.len()) } ],
         });
+        if self.fallback_len > 0 {
+            doc["buffers"].as_array_mut().map(|b| {
+                b.push(json!({
+                    "byteLength": self.fallback_len,
+                    "extensions": { "EXT_meshopt_compression": { "fallback": true } },
+                }))
+            });
+        }
+        if !self.lights.is_empty() {
+            doc["extensions"] = json!({ "KHR_lights_punctual": { "lights": self.lights } });
+        }
         if !self.textures.is_empty() {
             doc["textures"] = json!(self.textures);
             doc["images"] = json!(self.images);
@@ -280,8 +616,11 @@ impl GlbWriter {
                 "magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497
             }]);
         }
-        if self.uses_unlit {
-            doc["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+        if !self.extensions_used.is_empty() {
+            doc["extensionsUsed"] = json!(self.extensions_used);
+        }
+        if !self.extensions_required.is_empty() {
+            doc["extensionsRequired"] = json!(self.extensions_required);
         }
         doc
     }
@@ -311,4 +650,28 @@ impl GlbWriter {
 
 fn padded_to_4(len: usize) -> usize {
     len.div_ceil(4) * 4
+}
+
+/// meshoptimizer's encoders for one view: vertex data of `stride` bytes, or triangle indices.
+fn meshopt_encode(bytes: &[u8], count: usize, stride: usize, mode: &str) -> Vec<u8> {
+    let words: Vec<u32> = bytes
+        .chunks_exact(4)
+        .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        .collect();
+    if mode == "TRIANGLES" {
+        let vertex_count = words.iter().max().map_or(0, |&m| m as usize + 1);
+        return meshopt::encoding::encode_index_buffer(&words, vertex_count).unwrap_or_default();
+    }
+    macro_rules! by_stride {
+        ($($w:literal)+) => {
+            match stride / 4 {
+                $($w => meshopt::encoding::encode_vertex_buffer(
+                    bytemuck::cast_slice::<u32, [u32; $w]>(&words[..count * $w]),
+                ),)+
+                // The writer's views are at most 16 bytes per element.
+                _ => Ok(Vec::new()),
+            }
+        };
+    }
+    by_stride!(1 2 3 4 5 6 7 8).unwrap_or_default()
 }
