@@ -35,6 +35,7 @@ pub struct Overrides {
     pub shading: Option<crate::scene::Shading>,
     pub fit: Option<crate::scene::SceneFit>,
     pub size_m: Option<f32>,
+    pub offset_m: Option<glam::Vec3>,
     pub double_sided: bool,
     pub head: Option<glam::Vec3>,
     pub head_yaw_degrees: Option<f32>,
@@ -78,6 +79,9 @@ impl Overrides {
         }
         if let Some(size) = self.size_m {
             settings.scene.size_m = size;
+        }
+        if let Some(offset) = self.offset_m {
+            settings.scene.offset_m = offset.to_array();
         }
         settings.scene.double_sided |= self.double_sided;
         if let Some(p) = self.head {

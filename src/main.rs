@@ -238,6 +238,9 @@ struct RenderArgs {
     /// Scale the model so that its largest side is this many metres (0: the file's units).
     #[arg(long)]
     size_m: Option<f32>,
+    /// Then move the model by X,Y,Z metres (e.g. 0,0.9,-1: on a table ahead).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    scene_offset: Option<glam::Vec3>,
     /// Draw every material double-sided (content wound the wrong way).
     #[arg(long)]
     double_sided: bool,
@@ -634,6 +637,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 shading: args.shading,
                 fit: args.fit,
                 size_m: args.size_m,
+                offset_m: args.scene_offset,
                 double_sided: args.double_sided,
                 head: args.head,
                 head_yaw_degrees: args.head_yaw,

@@ -64,14 +64,17 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
     }
     let _loading = tracing::info_span!("loading scene", file = %path.display()).entered();
     let mut scene = load_gltf(path)?;
-    let fit = scene.fit_transform(settings.scene.fit, settings.scene.size_m);
+    let placed = &settings.scene;
+    let fit = Mat4::from_translation(glam::Vec3::from(placed.offset_m))
+        * scene.fit_transform(placed.fit, placed.size_m);
     if fit != Mat4::IDENTITY {
         scene.transform(fit);
         tracing::info!(
-            "scene {}: fitted ({}, {} m): scaled ×{:.4}",
+            "scene {}: placed (fit {}, size {} m, offset {:?} m): scaled ×{:.4}",
             path.display(),
-            settings.scene.fit,
-            settings.scene.size_m,
+            placed.fit,
+            placed.size_m,
+            placed.offset_m,
             fit.x_axis.x
         );
     }

@@ -755,3 +755,64 @@ fn the_sky_shows_behind_the_panorama_where_its_beacons_are() {
         }
     }
 }
+
+#[test]
+fn image_and_geometric_routes_agree_on_back_faces() {
+    // Single-sided squares all around the head, half facing it and half facing away: both
+    // routes draw exactly the facing ones (the image route's rasteriser culls by winding in
+    // each cube face, the geometric route in its vertex shader), and a double-sided square
+    // facing away is drawn by both.
+    let mut pano = settings(Projection::Equirectangular, PanoRoute::Image, [360.0, 180.0]);
+    pano.size = [360, 180];
+    let mut scene = Scene::default();
+    let mut expected = Vec::new();
+    for (k, (lon, lat)) in [(0.0, 0.0), (70.0, 10.0), (-120.0, -20.0), (160.0, 30.0), (20.0, 60.0)]
+        .into_iter()
+        .enumerate()
+    {
+        for (facing, double_sided, dlon) in [(true, false, 0.0), (false, false, 12.0), (false, true, -12.0)] {
+            let centre = point_at(&pano, lon + dlon, lat, 2.0);
+            let to_head = (HEAD - centre).normalize();
+            let normal = if facing { to_head } else { -to_head };
+            let right = Vec3::Y.cross(normal).normalize_or(Vec3::X) * 0.15;
+            let up = normal.cross(right).normalize() * 0.15;
+            let corners = [
+                centre - right - up,
+                centre + right - up,
+                centre + right + up,
+                centre - right + up,
+            ];
+            let rgb = [200, 40 * k as u8, if double_sided { 250 } else { 0 }];
+            let mut material =
+                Material::unlit("square", rgb.map(|v| f32::from(v) / 255.0));
+            material.double_sided = double_sided;
+            let m = scene.add_material(material);
+            let vertices: Vec<Vertex> = corners
+                .iter()
+                .map(|p| Vertex::new(p.to_array(), normal.to_array(), [0.0, 0.0]))
+                .collect();
+            scene.add_mesh(&vertices, &[0, 1, 2, 0, 2, 3], m);
+            expected.push((lon + dlon, lat, facing || double_sided));
+        }
+    }
+    let mut images = Vec::new();
+    for route in [PanoRoute::Image, PanoRoute::Geometric] {
+        pano.route = route;
+        let [image, _] = render(&scene, &pano, TessSettings::default());
+        keep(&format!("back-faces-{}", route.name()), &image);
+        images.push(image);
+    }
+    for (lon, lat, drawn) in expected {
+        let dir = direction(lon.to_radians(), lat.to_radians());
+        let at = cpu_pixel(&pano, dir).unwrap();
+        let seen: Vec<bool> = images
+            .iter()
+            .map(|img| img.get_pixel(at.x as u32, at.y as u32)[0] > 100)
+            .collect();
+        assert_eq!(
+            seen,
+            vec![drawn, drawn],
+            "square at longitude {lon}, latitude {lat}: image and geometric routes"
+        );
+    }
+}

@@ -6,6 +6,7 @@ use super::devices::TrackingInfo;
 use super::keys::KEY_MAP;
 use super::state::{AppState, CriterionKind, MAX_EYE_SEPARATION};
 use super::stats::StatsSummary;
+use crate::scene::Shading;
 use crate::cave::RenderMode;
 use crate::cave::omni::WarpVariant;
 use crate::gamepad::GamepadMode;
@@ -150,6 +151,13 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         &mut s.render.mode,
         &RenderMode::ALL,
         RenderMode::name,
+    );
+    combo(
+        ui,
+        "Shading",
+        &mut s.render.shading,
+        &Shading::ALL,
+        Shading::name,
     );
     let o = &mut s.omnistereo;
     combo(

@@ -25,6 +25,12 @@ pub enum BenchError {
     },
     #[error("cannot write the table {path}: {message}")]
     Csv { path: PathBuf, message: String },
+    #[error(
+        "the reference render of scene {scene} is one flat colour {colour:?} on every wall and \
+         eye: every method would read 0 % of pixels off it; is the model in view, lit and \
+         placed (see [scene] fit)?"
+    )]
+    DegenerateRender { scene: String, colour: [u8; 3] },
     #[error("cannot draw the chart {path}: {message}")]
     Chart { path: PathBuf, message: String },
 }

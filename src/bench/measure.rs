@@ -91,6 +91,7 @@ pub(super) fn measure(
         p.mode = m.mode;
         p.tess = m.tess;
         p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
+        p.shading = m.shading;
         p
     };
     // One warm-up frame per method (first-use costs), then round-robin so that any drift of the
@@ -140,6 +141,7 @@ pub(super) fn measure(
     if scene.is_some() {
         renderer.render(&params(&reference_method()))?;
         let reference = renderer.read_images()?;
+        check_reference(scene_name, &reference)?;
         for (i, m) in methods.iter().enumerate() {
             let base = methods[..i]
                 .iter()
@@ -189,6 +191,31 @@ pub(super) fn measure(
 /// by a few levels at most).
 pub const VISIBLE_DIFFERENCE: u8 = 24;
 
+/// The one colour every pixel of `images` has (within 2 levels), if so: a render with nothing
+/// to compare (a model out of view, unlit or drawn black).
+pub fn uniform_colour(images: &[WallImages]) -> Option<[u8; 3]> {
+    let mut pixels = images
+        .iter()
+        .flat_map(|w| [&w.left, &w.right])
+        .flat_map(|img| img.pixels());
+    let first = pixels.next()?;
+    let same = |p: &image::Rgba<u8>| (0..3).all(|c| p.0[c].abs_diff(first.0[c]) <= 2);
+    pixels
+        .all(|p| same(p))
+        .then_some([first.0[0], first.0[1], first.0[2]])
+}
+
+/// Refuses a reference render of one flat colour: every method would read 0 % off it.
+pub fn check_reference(scene_name: &str, reference: &[WallImages]) -> Result<(), BenchError> {
+    match uniform_colour(reference) {
+        Some(colour) => Err(BenchError::DegenerateRender {
+            scene: scene_name.to_owned(),
+            colour,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Share (%) of pixels of `images` that differ visibly from `reference`.
 pub fn image_difference_pct(images: &[WallImages], reference: &[WallImages]) -> f64 {
     let mut total = 0usize;
@@ -209,6 +236,30 @@ pub fn image_difference_pct(images: &[WallImages], reference: &[WallImages]) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn walls(colour: impl Fn(u32, u32) -> [u8; 3]) -> Vec<WallImages> {
+        let img = image::RgbaImage::from_fn(8, 6, |x, y| {
+            let [r, g, b] = colour(x, y);
+            image::Rgba([r, g, b, 255])
+        });
+        vec![WallImages {
+            wall: "front".into(),
+            left: img.clone(),
+            right: img,
+        }]
+    }
+
+    #[test]
+    fn a_flat_reference_is_refused_instead_of_reading_zero_percent_off() {
+        let black = walls(|_, _| [0, 0, 0]);
+        // The comparison alone would call any flat render identical to it.
+        assert_eq!(image_difference_pct(&black, &black), 0.0);
+        let err = check_reference("city", &black).unwrap_err().to_string();
+        assert!(err.contains("city") && err.contains("[0, 0, 0]"), "{err}");
+        // Shading noise within 2 levels is still flat; one visible feature is not.
+        assert!(check_reference("city", &walls(|x, _| [(x % 2) as u8, 0, 0])).is_err());
+        assert!(check_reference("city", &walls(|x, y| [u8::from(x == 3 && y == 2) * 200, 0, 0])).is_ok());
+    }
 
     #[test]
     fn percentiles_interpolate() {

@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 
 use crate::cave::RenderMode;
+use crate::scene::Shading;
 use crate::sky::SkyMode;
 use crate::tess::{Criterion, TessSettings};
 
@@ -14,6 +15,7 @@ pub struct Method {
     pub tess: TessSettings,
     /// `None`: no sky.
     pub sky: Option<SkyMode>,
+    pub shading: Shading,
 }
 
 /// Parameters of each tessellation criterion the bench sweeps (a full run; `--quick` takes
@@ -45,6 +47,7 @@ pub fn methods(quick: bool) -> Vec<Method> {
             mode,
             tess,
             sky,
+            shading: Shading::Pbr,
         }
     };
     let none = TessSettings::default();
@@ -52,8 +55,15 @@ pub fn methods(quick: bool) -> Vec<Method> {
         criterion: Some(c),
         ..TessSettings::default()
     };
+    // What the physically based shading costs: stereo with the simple model it replaced.
+    let simple = Method {
+        name: "stereo + shading simple".into(),
+        shading: Shading::Simple,
+        ..m(RenderMode::Stereo, none, None)
+    };
     let mut out = vec![
         m(RenderMode::Stereo, none, None),
+        simple,
         m(RenderMode::Mono, none, None),
         m(RenderMode::Stereo, none, Some(SkyMode::Offaxis)),
         m(RenderMode::OmniOnAxis, none, None),
@@ -80,6 +90,9 @@ pub fn methods(quick: bool) -> Vec<Method> {
 /// The methods' family for the chart: render mode and criterion kind (a series whose points
 /// are the criterion's parameters).
 pub fn family(m: &Method) -> String {
+    if m.shading != Shading::Pbr {
+        return m.name.clone();
+    }
     match m.tess.criterion {
         None => m.mode.name().to_owned(),
         Some(c) => {
@@ -103,6 +116,7 @@ pub fn reference_method() -> Method {
             ..TessSettings::default()
         },
         sky: None,
+        shading: Shading::Pbr,
     }
 }
 

@@ -11,6 +11,7 @@ use super::measure::{Row, VISIBLE_DIFFERENCE, percentile};
 use super::methods::{Method, family};
 use super::options::BenchOptions;
 use crate::cave::RenderMode;
+use crate::scene::Shading;
 use crate::config::Config;
 use crate::sky::SkyMode;
 
@@ -73,13 +74,19 @@ pub(super) fn write_outputs(
     // would be a bare clear.
     let reference = |r: &Row| {
         find(rows, r, |m| {
-            m.mode == RenderMode::Stereo && m.sky.is_none() && m.tess.criterion.is_none()
+            m.mode == RenderMode::Stereo
+                && m.sky.is_none()
+                && m.tess.criterion.is_none()
+                && m.shading == Shading::Pbr
         })
         .filter(|o| o.input_triangles > 0)
     };
     let without_sky = |r: &Row| {
         find(rows, r, |m| {
-            m.mode == r.method.mode && m.tess == r.method.tess && m.sky.is_none()
+            m.mode == r.method.mode
+                && m.tess == r.method.tess
+                && m.sky.is_none()
+                && m.shading == r.method.shading
         })
     };
 

@@ -11,7 +11,7 @@ use glam::{Mat4, Vec3};
 use image::{Rgba, RgbaImage};
 
 use omnicave::scene::build::{MeshData, cuboid, frustum_shell, grid, uv_sphere};
-use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, NodeDesc};
+use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, MaterialMaps, MeshOptions, NodeDesc};
 use omnicave::sky::bundled;
 use omnicave::sky::cubemap::{equirect_direction, equirect_taps, linear_to_srgb, srgb_to_linear};
 
@@ -122,6 +122,29 @@ fn parquet_texture() -> RgbaImage {
     })
 }
 
+/// The parquet's normal map (tangent space, +y up the image): the joints are grooves 2 px
+/// wide whose sides face out of them, and the planks' grain ripples slightly.
+fn parquet_normal_map() -> RgbaImage {
+    let parquet = parquet_texture();
+    let size = parquet.width();
+    // Height: 0 in a joint, 1 on a plank (the joint colour marks them), plus a faint grain.
+    let height = |x: u32, y: u32| {
+        let p = parquet.get_pixel(x % size, y % size);
+        let joint = p.0[..3] == [60, 38, 22];
+        let grain = 0.02 * ((x as f32 * 0.9).sin());
+        if joint { 0.0 } else { 1.0 + grain }
+    };
+    RgbaImage::from_fn(size, size, |x, y| {
+        // Central differences, wrapping (the texture tiles); image rows grow downwards, so
+        // the tangent-space y (up the image) is minus the row slope.
+        let dx = height(x + 1, y) - height(x + size - 1, y);
+        let dy = height(x, y + size - 1) - height(x, y + 1);
+        let n = Vec3::new(-dx * 0.35, -dy * 0.35, 1.0).normalize();
+        let c = (n * 0.5 + 0.5) * 255.0;
+        Rgba([c.x.round() as u8, c.y.round() as u8, c.z.round() as u8, 255])
+    })
+}
+
 /// Wallpaper: soft vertical stripes with a small diamond pattern.
 fn wallpaper_texture() -> RgbaImage {
     RgbaImage::from_fn(128, 128, |x, y| {
@@ -169,13 +192,20 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         texture: Some(texture),
         ..MaterialDesc::plain(name, [1.0; 3], roughness)
     };
-    let m_floor = w.add_material(&textured("parquet", parquet, 0.35));
+    let parquet_normals = w.add_png_texture("parquet normals", &png(&parquet_normal_map())?);
+    let m_floor = w.add_material(&MaterialDesc {
+        maps: MaterialMaps {
+            normal: Some(parquet_normals),
+            ..MaterialMaps::default()
+        },
+        ..textured("parquet", parquet, 0.35)
+    });
     let m_wall = w.add_material(&textured("wallpaper", wallpaper, 0.9));
     let m_ceiling = w.add_material(&MaterialDesc::plain("ceiling", [0.92, 0.92, 0.9], 0.95));
     let m_wood = w.add_material(&MaterialDesc::plain("dark wood", [0.30, 0.17, 0.08], 0.45));
     let m_sofa = w.add_material(&textured("sofa fabric", fabric, 0.85));
     let m_metal = w.add_material(&MaterialDesc {
-        metallic: 0.9,
+        metallic: 1.0,
         ..MaterialDesc::plain("brass", [0.8, 0.62, 0.3], 0.3)
     });
     let m_shade = w.add_material(&MaterialDesc {
@@ -254,11 +284,23 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         1,
         1.2,
     )); // right
-    let room_mesh = w.add_mesh(
-        "room",
-        &[(&floor, m_floor), (&walls, m_wall), (&ceiling, m_ceiling)],
+    let room_mesh = w.add_mesh("room", &[(&walls, m_wall), (&ceiling, m_ceiling)]);
+    // The floor with tangents for its normal map: u along +x, v (image rows) towards +z,
+    // which is −(n × t) for n = +y, t = +x.
+    let mut floor = floor;
+    for v in &mut floor.vertices {
+        v.tangent = [1.0, 0.0, 0.0, -1.0];
+    }
+    let floor_mesh = w.add_mesh_with(
+        "floor",
+        &[(&floor, m_floor)],
+        &MeshOptions {
+            tangents: true,
+            ..MeshOptions::default()
+        },
     );
     let room = w.add_node(NodeDesc::new("room").with_mesh(room_mesh));
+    let floor_node = w.add_node(NodeDesc::new("floor").with_mesh(floor_mesh));
 
     // Sofa against the left room wall, facing +x.
     let mut sofa = MeshData::default();
@@ -465,7 +507,7 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         n_picture,
         n_ceiling_lamp,
     ]));
-    Ok(w.to_glb(&[room, furniture]))
+    Ok(w.to_glb(&[room, floor_node, furniture]))
 }
 
 /// City ground: one 40 m cell = a 30 m block of pavement and half a 10 m street on each side.
@@ -498,10 +540,24 @@ fn street_texture() -> RgbaImage {
     })
 }
 
+/// Whether a facade texel is glass.
+fn facade_window(x: u32, y: u32) -> bool {
+    (12..52).contains(&x) && (14..46).contains(&y)
+}
+
+/// The facade's metallic-roughness map (green: roughness, blue: metallic): smooth glass,
+/// rough render.
+fn facade_metallic_roughness() -> RgbaImage {
+    RgbaImage::from_fn(64, 64, |x, y| {
+        let roughness = if facade_window(x, y) { 20 } else { 255 };
+        Rgba([0, roughness, 0, 255])
+    })
+}
+
 /// Facade: one tile = 4 m × 4 m with a window.
 fn facade_texture() -> RgbaImage {
     RgbaImage::from_fn(64, 64, |x, y| {
-        let window = (12..52).contains(&x) && (14..46).contains(&y);
+        let window = facade_window(x, y);
         if window {
             let sky = 0.8 + 0.4 * (y as f32 / 64.0);
             shade([70, 95, 120], sky)
@@ -515,6 +571,10 @@ fn city() -> anyhow::Result<Vec<u8>> {
     let mut w = GlbWriter::new();
     let streets = w.add_png_texture("streets", &png(&street_texture())?);
     let facade = w.add_png_texture("facade", &png(&facade_texture())?);
+    let facade_mr = w.add_png_texture(
+        "facade metallic-roughness",
+        &png(&facade_metallic_roughness())?,
+    );
     let m_ground = w.add_material(&MaterialDesc {
         texture: Some(streets),
         ..MaterialDesc::plain("streets", [1.0; 3], 0.9)
@@ -531,7 +591,11 @@ fn city() -> anyhow::Result<Vec<u8>> {
         .map(|(i, c)| {
             w.add_material(&MaterialDesc {
                 texture: Some(facade),
-                ..MaterialDesc::plain(&format!("facade {i}"), *c, 0.7)
+                maps: MaterialMaps {
+                    metallic_roughness: Some(facade_mr),
+                    ..MaterialMaps::default()
+                },
+                ..MaterialDesc::plain(&format!("facade {i}"), *c, 1.0)
             })
         })
         .collect();

@@ -391,6 +391,9 @@ pub struct SceneSection {
     /// (0: keep the file's units, metres in glTF).
     #[schemars(range(min = 0.0, max = 1e5))]
     pub size_m: f32,
+    /// Then moved by this much (metres, scene space): e.g. [0, 0.9, -1] sets a model fitted
+    /// to the floor on a 0.9 m table 1 m ahead of the CAVE's centre.
+    pub offset_m: [f32; 3],
     pub world_from_cave: PlacementSection,
 }
 
