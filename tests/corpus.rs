@@ -23,7 +23,10 @@ fn corpus() -> Option<PathBuf> {
         return Some(dir);
     }
     let msg = format!("SKIPPED: {} not found (the shared corpus)", dir.display());
-    assert!(std::env::var_os("CI").is_none(), "{msg}, and CI must not skip");
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "{msg}, and CI must not skip"
+    );
     println!("{msg}");
     None
 }
@@ -57,8 +60,15 @@ fn every_corpus_model_loads_with_what_its_exporter_wrote() {
         "DamagedHelmet: every map read: {m:?}"
     );
     // No tangents in the file: generated for its normal map.
-    let with_tangents = helmet.vertices.iter().filter(|v| v.tangent[3] != 0.0).count();
-    println!("DamagedHelmet: {with_tangents} of {} vertices have tangents", helmet.vertices.len());
+    let with_tangents = helmet
+        .vertices
+        .iter()
+        .filter(|v| v.tangent[3] != 0.0)
+        .count();
+    println!(
+        "DamagedHelmet: {with_tangents} of {} vertices have tangents",
+        helmet.vertices.len()
+    );
     // One vertex that no triangle uses gets none (MikkTSpace works per face corner).
     assert!(with_tangents + 1 >= helmet.vertices.len());
 
@@ -148,7 +158,10 @@ fn every_corpus_model_renders_as_a_model_in_stereo_and_tessellated_omnistereo() 
                 buckets.len()
             );
             keep(&format!("{name}-{}", mode.name()), image);
-            assert!(model_pixels.len() > 2000, "{name} {mode:?}: too few pixels drawn");
+            assert!(
+                model_pixels.len() > 2000,
+                "{name} {mode:?}: too few pixels drawn"
+            );
             assert!(
                 buckets.len() >= min_buckets,
                 "{name} {mode:?}: degenerate (flat) rendering"

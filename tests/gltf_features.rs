@@ -203,7 +203,11 @@ fn file_without_uvs(cad: bool) -> PathBuf {
     let b = w.add_mesh_with("right", &[(&square(0.45, -1.0), right)], &options);
     let na = w.add_node(NodeDesc::new("a").with_mesh(a));
     let nb = w.add_node(NodeDesc::new("b").with_mesh(b));
-    let name = if cad { "no-uvs" } else { "invalid-texture-without-uvs" };
+    let name = if cad {
+        "no-uvs"
+    } else {
+        "invalid-texture-without-uvs"
+    };
     write(name, &w, &[na, nb])
 }
 
@@ -331,9 +335,13 @@ fn file_normal_map() -> PathBuf {
         },
     );
     let b = w.add_mesh("generated tangents", &[(&square(0.45, -1.0), mat)]);
-    let c = w.add_mesh("flat", &[(&square(0.0, -1.3).transformed(
-        glam::Mat4::from_translation(Vec3::new(0.0, 0.95, 0.0)),
-    ), flat)]);
+    let c = w.add_mesh(
+        "flat",
+        &[(
+            &square(0.0, -1.3).transformed(glam::Mat4::from_translation(Vec3::new(0.0, 0.95, 0.0))),
+            flat,
+        )],
+    );
     let roots = [a, b, c].map(|m| w.add_node(NodeDesc::new("square").with_mesh(m)));
     write("normal-map", &w, &roots)
 }
@@ -463,7 +471,11 @@ fn a_primitive_without_texture_coordinates_is_its_colour_not_black() {
             println!(
                 "{} ({}): left {a:?}, right {b:?}, CPU twin {want:?}",
                 route.name,
-                if cad { "CAD export" } else { "texture without coordinates" }
+                if cad {
+                    "CAD export"
+                } else {
+                    "texture without coordinates"
+                }
             );
             // Lit orange as the CPU twin shades it (4 levels: the pixel's point is not
             // exactly the one the twin shades), and both squares alike (2 levels: they are
@@ -489,7 +501,11 @@ fn vertex_colours_are_drawn_in_every_route_and_encoding() {
                 let c = route.at(&cave, p);
                 // Near each corner its own colour dominates (interpolation leaves at least
                 // 80 % of it there).
-                let others = (0..3).filter(|&k| k != channel).map(|k| c[k]).max().unwrap();
+                let others = (0..3)
+                    .filter(|&k| k != channel)
+                    .map(|k| c[k])
+                    .max()
+                    .unwrap();
                 assert!(
                     c[channel] > 200 && others < c[channel] / 2 + 40,
                     "{encoding:?} {}: near corner of channel {channel}: {c:?}",
@@ -529,8 +545,17 @@ fn quantized_sparse_and_meshopt_attributes_land_where_their_float_twins_do() {
         for (a, b) in scene.vertices.iter().zip(&float.vertices) {
             let d = (Vec3::from(a.position) - Vec3::from(b.position)).length();
             // Exact for sparse and meshopt; half a step per axis for 16-bit positions.
-            let allowed = if encoding == AttributeEncoding::Quantized { step } else { 0.0 };
-            assert!(d <= allowed, "{encoding:?}: {:?} vs {:?}", a.position, b.position);
+            let allowed = if encoding == AttributeEncoding::Quantized {
+                step
+            } else {
+                0.0
+            };
+            assert!(
+                d <= allowed,
+                "{encoding:?}: {:?} vs {:?}",
+                a.position,
+                b.position
+            );
         }
         let image = routes(&scene, Lighting::default()).remove(0).image;
         let differing = image
@@ -595,9 +620,21 @@ fn a_normal_map_bends_the_shading_as_the_cpu_twin_says() {
         );
         // 4 levels: the map's 8-bit texel, and the pixel's point is not exactly the one the
         // twin shades (a matte surface: the shade varies by less than a level across it).
-        assert!(close(a, want_bent, 4), "{}: {a:?} vs {want_bent:?}", route.name);
-        assert!(close(b, want_bent, 4), "{}: {b:?} vs {want_bent:?}", route.name);
-        assert!(close(f, want_flat, 4), "{}: {f:?} vs {want_flat:?}", route.name);
+        assert!(
+            close(a, want_bent, 4),
+            "{}: {a:?} vs {want_bent:?}",
+            route.name
+        );
+        assert!(
+            close(b, want_bent, 4),
+            "{}: {b:?} vs {want_bent:?}",
+            route.name
+        );
+        assert!(
+            close(f, want_flat, 4),
+            "{}: {f:?} vs {want_flat:?}",
+            route.name
+        );
         // And the map matters: the bent normal faces the light more.
         assert!(a[0] > f[0] + 20, "{}: {a:?} vs flat {f:?}", route.name);
     }
@@ -611,8 +648,16 @@ fn an_emissive_map_glows_only_where_it_is_bright() {
         let bright = route.at(&cave, Vec3::new(-0.2, 1.6, -1.0));
         let dark_half = route.at(&cave, Vec3::new(0.2, 1.6, -1.0));
         println!("{}: glowing {bright:?}, dark {dark_half:?}", route.name);
-        assert!(close(bright, [255, 255, 255], 2), "{}: {bright:?}", route.name);
-        assert!(close(dark_half, [0, 0, 0], 2), "{}: {dark_half:?}", route.name);
+        assert!(
+            close(bright, [255, 255, 255], 2),
+            "{}: {bright:?}",
+            route.name
+        );
+        assert!(
+            close(dark_half, [0, 0, 0], 2),
+            "{}: {dark_half:?}",
+            route.name
+        );
     }
 }
 
@@ -641,12 +686,18 @@ fn blended_quads_compose_back_to_front_in_every_eye() {
         let frame = test_frame(&cave, Head::at(HEAD), mode, OmniSettings::default(), tess);
         renderer.render(&frame).expect("render");
         let images = renderer.read_images().expect("read back");
-        for (eye, image) in [("left", &images[front].left), ("right", &images[front].right)] {
+        for (eye, image) in [
+            ("left", &images[front].left),
+            ("right", &images[front].right),
+        ] {
             let p = cave.walls[front].pixel_of_ray(HEAD, overlap).unwrap();
             let px = image.get_pixel(p.x as u32, p.y as u32);
             let got = [px[0], px[1], px[2]];
             println!("{mode:?} {eye}: overlap {got:?} (back to front {want:?}, wrong {wrong:?})");
-            assert!(close(got, want, 3), "{mode:?} {eye}: {got:?}, want {want:?}");
+            assert!(
+                close(got, want, 3),
+                "{mode:?} {eye}: {got:?}, want {want:?}"
+            );
         }
     }
     let route = routes(&scene, dark()).pop().unwrap();
@@ -659,13 +710,20 @@ fn a_spot_light_from_the_file_lights_its_cone_only() {
     let scene = load_gltf(&file_spot_light()).unwrap();
     assert_eq!(scene.lights.len(), 1);
     let light = &scene.lights[0];
-    assert!((light.direction - Vec3::NEG_Y).length() < 1e-5, "{:?}", light.direction);
+    assert!(
+        (light.direction - Vec3::NEG_Y).length() < 1e-5,
+        "{:?}",
+        light.direction
+    );
     let cave = cave();
     for route in routes(&scene, dark()) {
         let under = route.at(&cave, Vec3::new(0.0, 0.8, -1.3));
         // 0.9 m aside: 24° off the axis, outside the 20° cone.
         let aside = route.at(&cave, Vec3::new(0.9, 0.8, -1.3));
-        println!("{}: under the spot {under:?}, outside its cone {aside:?}", route.name);
+        println!(
+            "{}: under the spot {under:?}, outside its cone {aside:?}",
+            route.name
+        );
         assert!(under[0] > 100, "{}: {under:?}", route.name);
         assert!(aside[0] <= 2, "{}: {aside:?}", route.name);
     }
@@ -686,7 +744,10 @@ fn draco_and_unknown_required_extensions_are_refused_by_name() {
         std::fs::write(&path, json).unwrap();
         let err = load_gltf(&path).unwrap_err().to_string();
         println!("{err}");
-        assert!(err.contains(expect) && err.contains(&*path.to_string_lossy()), "{err}");
+        assert!(
+            err.contains(expect) && err.contains(&*path.to_string_lossy()),
+            "{err}"
+        );
     }
 }
 
@@ -711,7 +772,10 @@ fn every_generated_file_passes_the_khronos_validator() {
     if !tool.join("node_modules/gltf-validator").is_dir() {
         let msg = "SKIPPED: the Khronos validator is not installed (scripts/test.sh installs it: \
                    cd tools/gltf-validator && npm install)";
-        assert!(std::env::var_os("CI").is_none(), "{msg}, and CI must not skip");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "{msg}, and CI must not skip"
+        );
         println!("{msg}");
         return;
     }
@@ -723,5 +787,9 @@ fn every_generated_file_passes_the_khronos_validator() {
         .expect("node runs");
     let report = String::from_utf8_lossy(&out.stdout);
     println!("{report}");
-    assert!(out.status.success(), "{report}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{report}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }

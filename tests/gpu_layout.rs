@@ -7,10 +7,10 @@ use std::mem::{offset_of, size_of};
 
 use omnicave::render::panorama::ResolveUniforms;
 use omnicave::render::present::PresentUniforms;
+use omnicave::render::scene_pass::GpuVertex;
 use omnicave::render::shaders::{self, compose};
 use omnicave::render::sky_pass::SkyUniforms;
 use omnicave::render::tessellator::{GpuTessEntry, TessUniforms};
-use omnicave::render::scene_pass::GpuVertex;
 use omnicave::render::uniforms::{FrameUniforms, GpuLight, MaterialUniforms, ViewUniforms};
 
 /// A Rust struct's size and, for each WGSL member by name, the Rust offset of its data.
@@ -96,7 +96,6 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "cone" => cone,
             ),
         ),
-
         (
             shaders::SCENE,
             "ViewUniforms",

@@ -762,15 +762,29 @@ fn image_and_geometric_routes_agree_on_back_faces() {
     // routes draw exactly the facing ones (the image route's rasteriser culls by winding in
     // each cube face, the geometric route in its vertex shader), and a double-sided square
     // facing away is drawn by both.
-    let mut pano = settings(Projection::Equirectangular, PanoRoute::Image, [360.0, 180.0]);
+    let mut pano = settings(
+        Projection::Equirectangular,
+        PanoRoute::Image,
+        [360.0, 180.0],
+    );
     pano.size = [360, 180];
     let mut scene = Scene::default();
     let mut expected = Vec::new();
-    for (k, (lon, lat)) in [(0.0, 0.0), (70.0, 10.0), (-120.0, -20.0), (160.0, 30.0), (20.0, 60.0)]
-        .into_iter()
-        .enumerate()
+    for (k, (lon, lat)) in [
+        (0.0, 0.0),
+        (70.0, 10.0),
+        (-120.0, -20.0),
+        (160.0, 30.0),
+        (20.0, 60.0),
+    ]
+    .into_iter()
+    .enumerate()
     {
-        for (facing, double_sided, dlon) in [(true, false, 0.0), (false, false, 12.0), (false, true, -12.0)] {
+        for (facing, double_sided, dlon) in [
+            (true, false, 0.0),
+            (false, false, 12.0),
+            (false, true, -12.0),
+        ] {
             let centre = point_at(&pano, lon + dlon, lat, 2.0);
             let to_head = (HEAD - centre).normalize();
             let normal = if facing { to_head } else { -to_head };
@@ -783,8 +797,7 @@ fn image_and_geometric_routes_agree_on_back_faces() {
                 centre - right + up,
             ];
             let rgb = [200, 40 * k as u8, if double_sided { 250 } else { 0 }];
-            let mut material =
-                Material::unlit("square", rgb.map(|v| f32::from(v) / 255.0));
+            let mut material = Material::unlit("square", rgb.map(|v| f32::from(v) / 255.0));
             material.double_sided = double_sided;
             let m = scene.add_material(material);
             let vertices: Vec<Vertex> = corners

@@ -30,7 +30,10 @@ fn every_wgsl_file_validates() {
         let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
         let text = std::fs::read_to_string(&path).unwrap();
         if let Some((_, shared)) = SHARED.iter().find(|(name, _)| *name == stem) {
-            assert_eq!(text, *shared, "{stem}.wgsl differs from the compiled-in copy");
+            assert_eq!(
+                text, *shared,
+                "{stem}.wgsl differs from the compiled-in copy"
+            );
             continue;
         }
         let (_, built_in) = FEATURES

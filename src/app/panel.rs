@@ -6,12 +6,12 @@ use super::devices::TrackingInfo;
 use super::keys::KEY_MAP;
 use super::state::{AppState, CriterionKind, MAX_EYE_SEPARATION};
 use super::stats::StatsSummary;
-use crate::scene::Shading;
 use crate::cave::RenderMode;
 use crate::cave::omni::WarpVariant;
 use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
 use crate::pano::{PanoRoute, PanoStereoKind, Projection};
+use crate::scene::Shading;
 use crate::sky::SkyMode;
 use crate::tracking::TrackingStatus;
 

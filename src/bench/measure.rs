@@ -201,7 +201,7 @@ pub fn uniform_colour(images: &[WallImages]) -> Option<[u8; 3]> {
     let first = pixels.next()?;
     let same = |p: &image::Rgba<u8>| (0..3).all(|c| p.0[c].abs_diff(first.0[c]) <= 2);
     pixels
-        .all(|p| same(p))
+        .all(same)
         .then_some([first.0[0], first.0[1], first.0[2]])
 }
 
@@ -258,7 +258,13 @@ mod tests {
         assert!(err.contains("city") && err.contains("[0, 0, 0]"), "{err}");
         // Shading noise within 2 levels is still flat; one visible feature is not.
         assert!(check_reference("city", &walls(|x, _| [(x % 2) as u8, 0, 0])).is_err());
-        assert!(check_reference("city", &walls(|x, y| [u8::from(x == 3 && y == 2) * 200, 0, 0])).is_ok());
+        assert!(
+            check_reference(
+                "city",
+                &walls(|x, y| [u8::from(x == 3 && y == 2) * 200, 0, 0])
+            )
+            .is_ok()
+        );
     }
 
     #[test]

@@ -11,8 +11,8 @@ use super::measure::{Row, VISIBLE_DIFFERENCE, percentile};
 use super::methods::{Method, family};
 use super::options::BenchOptions;
 use crate::cave::RenderMode;
-use crate::scene::Shading;
 use crate::config::Config;
+use crate::scene::Shading;
 use crate::sky::SkyMode;
 
 /// Writes a CSV table: a header and rows of cells (quoted where a cell needs it, so a scene

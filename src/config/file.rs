@@ -16,8 +16,8 @@ use crate::cave::RenderMode;
 use crate::cave::omni::{PoleMerge, WarpVariant};
 use crate::gamepad::{GamepadMode, GamepadSettings};
 use crate::output::formats::StereoFormat;
-use crate::scene::{SceneFit, Shading};
 use crate::pano::{PanoRoute, PanoStereoKind, Projection, VOLUME_DEFAULT_PARAMS};
+use crate::scene::{SceneFit, Shading};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
 use crate::tess::{Criterion, TessSettings};
 use crate::tracking::{

@@ -29,8 +29,8 @@ use view_set::ViewSet;
 use crate::cave::omni::OmniSettings;
 use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
 use crate::pano::{PanoRoute, PanoSettings};
-use crate::scene::{Lighting, Shading};
 use crate::scene::Scene;
+use crate::scene::{Lighting, Shading};
 use crate::sky::{CubeMap, SkyMode, SkySettings};
 use crate::tess::{TessSettings, TessStats};
 
@@ -479,8 +479,7 @@ impl Renderer {
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
         let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
-        let frame_uniforms =
-            self.prepare_frame(frame, frame.mode.is_omni().then_some(frame.omni));
+        let frame_uniforms = self.prepare_frame(frame, frame.mode.is_omni().then_some(frame.omni));
         self.walls.write_uniforms(
             &self.queue,
             &frame_uniforms,

@@ -172,7 +172,8 @@ mod tests {
     fn a_white_furnace_conserves_energy() {
         // Integrated over the hemisphere of light directions, BRDF × cos stays about 1 for a
         // white surface (no energy is made), for any roughness, metal or not, from any view.
-        for &(metallic, roughness) in &[(0.0, 0.05), (0.0, 0.5), (0.0, 1.0), (1.0, 0.2), (1.0, 1.0)] {
+        for &(metallic, roughness) in &[(0.0, 0.05), (0.0, 0.5), (0.0, 1.0), (1.0, 0.2), (1.0, 1.0)]
+        {
             let mut s = surface(metallic, roughness);
             s.base_color = Vec3::ONE;
             for &view_angle in &[0.0f32, 0.6, 1.2] {
@@ -183,7 +184,11 @@ mod tests {
                     let theta = (i as f32 + 0.5) / n_theta as f32 * std::f32::consts::FRAC_PI_2;
                     for j in 0..n_phi {
                         let phi = (j as f32 + 0.5) / n_phi as f32 * std::f32::consts::TAU;
-                        let l = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+                        let l = Vec3::new(
+                            theta.sin() * phi.cos(),
+                            theta.cos(),
+                            theta.sin() * phi.sin(),
+                        );
                         let d_omega = theta.sin()
                             * (std::f32::consts::FRAC_PI_2 / n_theta as f32)
                             * (std::f32::consts::TAU / n_phi as f32);

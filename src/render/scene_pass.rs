@@ -9,10 +9,10 @@ use wgpu::util::DeviceExt;
 use super::shaders;
 use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
 use super::uniforms::{MaterialUniforms, UNIFORM_STRIDE};
-use crate::sky::cubemap::{linear_to_srgb, srgb_to_linear};
 use crate::scene::{
     AlphaMode, ColorSpace, Light, Scene, TEXTURE_SLOTS, Texture, TextureRef, Vertex, Wrap,
 };
+use crate::sky::cubemap::{linear_to_srgb, srgb_to_linear};
 
 /// Vertex layout on the GPU. Keep in sync with `VertexInput` in shaders/scene.wgsl and with
 /// `VERTEX_FLOATS` in shaders/common.wgsl (the tessellator reads it as storage).

@@ -41,7 +41,10 @@ impl GpuLight {
                 outer_cone,
             } => {
                 let (cos_outer, cos_inner) = (outer_cone.cos(), inner_cone.cos());
-                (2.0, [cos_outer, 1.0 / (cos_inner - cos_outer).max(1e-4), 0.0, 0.0])
+                (
+                    2.0,
+                    [cos_outer, 1.0 / (cos_inner - cos_outer).max(1e-4), 0.0, 0.0],
+                )
             }
         };
         let direction = cave_from_world

@@ -82,7 +82,11 @@ pub fn quantization_step(mesh: &MeshData) -> f32 {
         .iter()
         .flat_map(|v| v.position)
         .fold(0.0f32, |m, c| m.max(c.abs()));
-    if largest > 0.0 { largest / 32767.0 } else { 1.0 }
+    if largest > 0.0 {
+        largest / 32767.0
+    } else {
+        1.0
+    }
 }
 
 /// A punctual light (`KHR_lights_punctual`).
@@ -432,11 +436,14 @@ impl GlbWriter {
                     pos.extend_from_slice(&[0, 0]);
                     let b = unit.to_array().map(|c| (c * 127.0).round() as i8 as u8);
                     nrm.extend_from_slice(&[b[0], b[1], b[2], 0]);
-                    uv.extend(
-                        v.uv.iter()
-                            .flat_map(|c| ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes()),
+                    uv.extend(v.uv.iter().flat_map(|c| {
+                        ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes()
+                    }));
+                    col.extend(
+                        v.color
+                            .iter()
+                            .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8),
                     );
-                    col.extend(v.color.iter().map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8));
                 } else {
                     for k in 0..3 {
                         lo[k] = lo[k].min(v.position[k]);
@@ -451,47 +458,101 @@ impl GlbWriter {
             }
             let mut attributes = serde_json::Map::new();
             let pa = if quantized {
-                self.push_attribute(&pos, n, 8, json!({
-                    "componentType": SHORT, "type": "VEC3", "min": lo, "max": hi,
-                }), enc)
+                self.push_attribute(
+                    &pos,
+                    n,
+                    8,
+                    json!({
+                        "componentType": SHORT, "type": "VEC3", "min": lo, "max": hi,
+                    }),
+                    enc,
+                )
             } else if enc == AttributeEncoding::Sparse {
                 self.push_sparse_positions(&pos, n, lo, hi)
             } else {
-                self.push_attribute(&pos, n, 12, json!({
-                    "componentType": FLOAT, "type": "VEC3", "min": lo, "max": hi,
-                }), enc)
+                self.push_attribute(
+                    &pos,
+                    n,
+                    12,
+                    json!({
+                        "componentType": FLOAT, "type": "VEC3", "min": lo, "max": hi,
+                    }),
+                    enc,
+                )
             };
             attributes.insert("POSITION".into(), json!(pa));
             let na = if quantized {
-                self.push_attribute(&nrm, n, 4, json!({
-                    "componentType": BYTE, "normalized": true, "type": "VEC3",
-                }), enc)
+                self.push_attribute(
+                    &nrm,
+                    n,
+                    4,
+                    json!({
+                        "componentType": BYTE, "normalized": true, "type": "VEC3",
+                    }),
+                    enc,
+                )
             } else {
-                self.push_attribute(&nrm, n, 12, json!({ "componentType": FLOAT, "type": "VEC3" }), enc)
+                self.push_attribute(
+                    &nrm,
+                    n,
+                    12,
+                    json!({ "componentType": FLOAT, "type": "VEC3" }),
+                    enc,
+                )
             };
             attributes.insert("NORMAL".into(), json!(na));
             if options.uvs {
                 let ua = if quantized {
-                    self.push_attribute(&uv, n, 4, json!({
-                        "componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC2",
-                    }), enc)
+                    self.push_attribute(
+                        &uv,
+                        n,
+                        4,
+                        json!({
+                            "componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC2",
+                        }),
+                        enc,
+                    )
                 } else {
-                    self.push_attribute(&uv, n, 8, json!({ "componentType": FLOAT, "type": "VEC2" }), enc)
+                    self.push_attribute(
+                        &uv,
+                        n,
+                        8,
+                        json!({ "componentType": FLOAT, "type": "VEC2" }),
+                        enc,
+                    )
                 };
                 attributes.insert("TEXCOORD_0".into(), json!(ua));
             }
             if options.colors {
                 let ca = if quantized {
-                    self.push_attribute(&col, n, 4, json!({
-                        "componentType": UNSIGNED_BYTE, "normalized": true, "type": "VEC4",
-                    }), enc)
+                    self.push_attribute(
+                        &col,
+                        n,
+                        4,
+                        json!({
+                            "componentType": UNSIGNED_BYTE, "normalized": true, "type": "VEC4",
+                        }),
+                        enc,
+                    )
                 } else {
-                    self.push_attribute(&col, n, 16, json!({ "componentType": FLOAT, "type": "VEC4" }), enc)
+                    self.push_attribute(
+                        &col,
+                        n,
+                        16,
+                        json!({ "componentType": FLOAT, "type": "VEC4" }),
+                        enc,
+                    )
                 };
                 attributes.insert("COLOR_0".into(), json!(ca));
             }
             if options.tangents {
-                let ta = self.push_attribute(&tan, n, 16, json!({ "componentType": FLOAT, "type": "VEC4" }), enc);
+                let ta = self.push_attribute(
+                    &tan,
+                    n,
+                    16,
+                    json!({ "componentType": FLOAT, "type": "VEC4" }),
+                    enc,
+                );
                 attributes.insert("TANGENT".into(), json!(ta));
             }
             // 16-bit indices where they fit: smaller files, and exercises both loader paths.
@@ -598,13 +659,13 @@ impl GlbWriter {
             "bufferViews": self.buffer_views,
             "buffers": [ { "byteLength": padded_to_4(self.bin.len()) } ],
         });
-        if self.fallback_len > 0 {
-            doc["buffers"].as_array_mut().map(|b| {
-                b.push(json!({
-                    "byteLength": self.fallback_len,
-                    "extensions": { "EXT_meshopt_compression": { "fallback": true } },
-                }))
-            });
+        if self.fallback_len > 0
+            && let Some(buffers) = doc["buffers"].as_array_mut()
+        {
+            buffers.push(json!({
+                "byteLength": self.fallback_len,
+                "extensions": { "EXT_meshopt_compression": { "fallback": true } },
+            }));
         }
         if !self.lights.is_empty() {
             doc["extensions"] = json!({ "KHR_lights_punctual": { "lights": self.lights } });

@@ -126,7 +126,9 @@ impl BinaryData {
         }
         let ty = accessor.data_type();
         if !matches!(ty, DataType::U8 | DataType::U16 | DataType::U32) {
-            return Err(format!("has component type {ty:?}, expected an unsigned integer"));
+            return Err(format!(
+                "has component type {ty:?}, expected an unsigned integer"
+            ));
         }
         let mut out = vec![0u32; accessor.count()];
         self.read_elements(accessor, |i, element| out[i] = read_uint(ty, element))?;
@@ -246,7 +248,11 @@ fn component_f32(ty: DataType, normalized: bool, b: &[u8]) -> f32 {
         }
         DataType::I16 => {
             let v = f32::from(i16::from_le_bytes([b[0], b[1]]));
-            if normalized { (v / 32767.0).max(-1.0) } else { v }
+            if normalized {
+                (v / 32767.0).max(-1.0)
+            } else {
+                v
+            }
         }
         DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
     }
@@ -269,8 +275,16 @@ fn decode_meshopt_view(
     let filter = ext.get("filter").and_then(|m| m.as_str()).unwrap_or("NONE");
     let source = buffers
         .get(buffer)
-        .and_then(|b| offset.checked_add(length).and_then(|end| b.get(offset..end)))
-        .ok_or_else(|| fail(format!("its {length} bytes at {offset} lie outside buffer {buffer}")))?;
+        .and_then(|b| {
+            offset
+                .checked_add(length)
+                .and_then(|end| b.get(offset..end))
+        })
+        .ok_or_else(|| {
+            fail(format!(
+                "its {length} bytes at {offset} lie outside buffer {buffer}"
+            ))
+        })?;
     let size = count
         .checked_mul(stride)
         .filter(|&size| size <= MAX_DECODED_VIEW_BYTES)
@@ -281,8 +295,10 @@ fn decode_meshopt_view(
         })?;
     let decoded = match mode {
         "ATTRIBUTES" => {
-            if stride == 0 || stride % 4 != 0 || stride > 256 {
-                return Err(fail(format!("byteStride {stride} is not a multiple of 4 up to 256")));
+            if stride == 0 || !stride.is_multiple_of(4) || stride > 256 {
+                return Err(fail(format!(
+                    "byteStride {stride} is not a multiple of 4 up to 256"
+                )));
             }
             let mut out = meshopt_decode::vertices(source, count, stride)
                 .map_err(|e| fail(format!("cannot decode vertex data ({e})")))?;
@@ -293,8 +309,10 @@ fn decode_meshopt_view(
             if stride != 2 && stride != 4 {
                 return Err(fail(format!("index byteStride {stride} is not 2 or 4")));
             }
-            if mode == "TRIANGLES" && count % 3 != 0 {
-                return Err(fail(format!("TRIANGLES count {count} is not a multiple of 3")));
+            if mode == "TRIANGLES" && !count.is_multiple_of(3) {
+                return Err(fail(format!(
+                    "TRIANGLES count {count} is not a multiple of 3"
+                )));
             }
             meshopt_decode::indices(source, count, stride, mode == "TRIANGLES")
                 .map_err(|e| fail(format!("cannot decode index data ({e})")))?
@@ -344,14 +362,21 @@ mod meshopt_decode {
         let wide: Vec<u32> = meshopt::encoding::decode_index_buffer::<u32>(source, count)
             .map_err(|e| e.to_string())?;
         Ok(if stride == 2 {
-            wide.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect()
+            wide.iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect()
         } else {
             wide.iter().flat_map(|&i| i.to_le_bytes()).collect()
         })
     }
 
     /// Undoes the extension's filter in place (its Appendix B).
-    pub fn filter(data: &mut [u8], count: usize, stride: usize, filter: &str) -> Result<(), String> {
+    pub fn filter(
+        data: &mut [u8],
+        count: usize,
+        stride: usize,
+        filter: &str,
+    ) -> Result<(), String> {
         match filter {
             "NONE" => Ok(()),
             "OCTAHEDRAL" => match stride {
@@ -464,7 +489,12 @@ mod meshopt_decode {
         fn octahedral_normals_decode_to_unit_vectors() {
             // Encoded as the extension's encoder does: octahedral map of the unit vector,
             // z stores 1.0 (127) at the same bit count.
-            for n in [[0.0f32, 0.0, 1.0], [0.6, 0.0, -0.8], [-0.48, 0.6, 0.64], [0.0, -1.0, 0.0]] {
+            for n in [
+                [0.0f32, 0.0, 1.0],
+                [0.6, 0.0, -0.8],
+                [-0.48, 0.6, 0.64],
+                [0.0, -1.0, 0.0],
+            ] {
                 let sum = n[0].abs() + n[1].abs() + n[2].abs();
                 let (mut u, mut v) = (n[0] / sum, n[1] / sum);
                 if n[2] < 0.0 {
@@ -489,7 +519,8 @@ mod meshopt_decode {
 
         #[test]
         fn exponential_values_decode_to_mantissa_times_two_to_the_exponent() {
-            let encode = |m: i32, e: i32| (((e as u32) << 24) | (m as u32 & 0x00ff_ffff)).to_le_bytes();
+            let encode =
+                |m: i32, e: i32| (((e as u32) << 24) | (m as u32 & 0x00ff_ffff)).to_le_bytes();
             let mut data = [encode(3, -1), encode(-5, 2), encode(1000, 0)].concat();
             exponential(&mut data);
             let got: Vec<f32> = data

@@ -115,7 +115,7 @@ fn parse_document(
     }
     // Checked above: the crate would refuse what it does not itself decode.
     root.extensions_required.clear();
-    let document = gltf::Document::from_json(root).map_err(|e| gltf_err(gltf::Error::from(e)))?;
+    let document = gltf::Document::from_json(root).map_err(gltf_err)?;
     Ok((document, blob))
 }
 
@@ -436,8 +436,9 @@ impl Loader<'_> {
                 self.data.view_bytes(&view).map_err(&fail)?.to_vec()
             }
             gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                let data = gltf::image::Data::from_source(gltf_image.source(), Some(self.base), &[])
-                    .map_err(|e| fail(e.to_string()))?;
+                let data =
+                    gltf::image::Data::from_source(gltf_image.source(), Some(self.base), &[])
+                        .map_err(|e| fail(e.to_string()))?;
                 let (w, h) = (data.width, data.height);
                 check_image_size(w, h).map_err(&fail)?;
                 let rgba8 = to_rgba8(&data)
@@ -558,7 +559,10 @@ impl Loader<'_> {
         let color = Vec3::from(light.color()).max(Vec3::ZERO) * intensity;
         let range = light.range().filter(|r| r.is_finite() && *r > 0.0);
         if !color.is_finite() {
-            self.warn(&format!("light {} has a non-finite intensity, skipped", light.index()));
+            self.warn(&format!(
+                "light {} has a non-finite intensity, skipped",
+                light.index()
+            ));
             return;
         }
         self.scene.lights.push(Light {
@@ -586,7 +590,10 @@ impl Loader<'_> {
         label: &str,
     ) -> Result<Vec<[f32; N]>, SceneError> {
         let fail = |why: String| {
-            self.invalid(format!("{label}: {what} accessor {}: {why}", accessor.index()))
+            self.invalid(format!(
+                "{label}: {what} accessor {}: {why}",
+                accessor.index()
+            ))
         };
         let values = self.data.read_f32::<N>(accessor).map_err(fail)?;
         if let Some(n) = vertices
@@ -682,7 +689,11 @@ impl Loader<'_> {
         let slots = self.scene.materials[material].texture_slots();
         for (slot, texture) in slots.iter().enumerate() {
             if let Some(t) = texture {
-                let present = if t.tex_coord == 0 { uv0.is_some() } else { uv1.is_some() };
+                let present = if t.tex_coord == 0 {
+                    uv0.is_some()
+                } else {
+                    uv1.is_some()
+                };
                 if !present {
                     dropped |= 1 << slot;
                 }
@@ -792,8 +803,12 @@ fn parse_texture_transform(
             None => Ok(default),
             Some(v) => {
                 let a = v.as_array().filter(|a| a.len() == 2);
-                let nums: Option<Vec<f32>> =
-                    a.map(|a| a.iter().filter_map(|x| x.as_f64()).map(|x| x as f32).collect());
+                let nums: Option<Vec<f32>> = a.map(|a| {
+                    a.iter()
+                        .filter_map(|x| x.as_f64())
+                        .map(|x| x as f32)
+                        .collect()
+                });
                 match nums {
                     Some(n) if n.len() == 2 && n.iter().all(|x| x.is_finite()) => Ok([n[0], n[1]]),
                     _ => Err(format!("{name} must be two finite numbers")),

@@ -12,8 +12,8 @@ mod tangents;
 
 pub use gltf_data::MAX_DECODED_VIEW_BYTES;
 pub use gltf_loader::{SceneError, load_gltf};
-pub use tangents::generate_tangents;
 pub use lighting::{Lighting, Shading};
+pub use tangents::generate_tangents;
 
 use glam::{Mat3, Mat4, Vec3};
 
@@ -390,7 +390,9 @@ impl Scene {
         let linear = Mat3::from_mat4(transform);
         let normal_matrix = linear.inverse().transpose();
         for v in &mut self.vertices {
-            v.position = transform.transform_point3(Vec3::from(v.position)).to_array();
+            v.position = transform
+                .transform_point3(Vec3::from(v.position))
+                .to_array();
             v.normal = (normal_matrix * Vec3::from(v.normal))
                 .try_normalize()
                 .unwrap_or(Vec3::Y)
@@ -408,7 +410,9 @@ impl Scene {
         }
         for light in &mut self.lights {
             light.position = transform.transform_point3(light.position);
-            light.direction = (linear * light.direction).try_normalize().unwrap_or(Vec3::NEG_Y);
+            light.direction = (linear * light.direction)
+                .try_normalize()
+                .unwrap_or(Vec3::NEG_Y);
             if let Some(range) = &mut light.range {
                 // A uniform scale scales the range with the scene; a non-uniform one by its
                 // mean.
@@ -417,7 +421,9 @@ impl Scene {
         }
         for camera in &mut self.cameras {
             camera.position = transform.transform_point3(camera.position);
-            camera.forward = (linear * camera.forward).try_normalize().unwrap_or(Vec3::NEG_Z);
+            camera.forward = (linear * camera.forward)
+                .try_normalize()
+                .unwrap_or(Vec3::NEG_Z);
         }
     }
 

@@ -76,7 +76,12 @@ mod tests {
     fn a_quad_mapped_along_x_has_tangents_along_x() {
         // A floor quad whose u grows with x and v with −z (image rows go down): tangent +x,
         // bitangent (n × t · w) along the direction of growing v.
-        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, -1.0], [0.0, 0.0, -1.0]];
+        let positions = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, -1.0],
+            [0.0, 0.0, -1.0],
+        ];
         let normals = [[0.0, 1.0, 0.0]; 4];
         let coords = [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
         let indices = [0, 1, 2, 0, 2, 3];
