@@ -12,10 +12,15 @@ struct Light {
     color: vec4<f32>,
     // Spot: x cos(outer cone), y 1 / (cos(inner) − cos(outer)).
     cone: vec4<f32>,
+    // x: its first shadow-map layer (< 0: casts no shadow); y: layers (1, or 6 for a point
+    // light); z: texel size at 1 m (perspective maps); w: texel size (orthographic maps).
+    shadow: vec4<f32>,
 }
 
 // Lights a frame holds at most (the config's and the scene file's, in that order).
 const MAX_LIGHTS: u32 = 8u;
+// Shadow-map layers. Keep in sync with `MAX_SHADOW_LAYERS` in src/render/shadow_pass.rs.
+const MAX_SHADOW_LAYERS: u32 = 8u;
 
 // Per-frame data, CAVE space. Keep in sync with `FrameUniforms` in src/render/uniforms.rs.
 struct FrameUniforms {
@@ -34,7 +39,12 @@ struct FrameUniforms {
     // 0: physically based (shaders/pbr.wgsl); 1: the simple Blinn-Phong model.
     shading: u32,
     frame_pad: vec2<u32>,
+    // x: normal offset of shadow look-ups, texels; y: 1 for 3×3 filtering; z: 1 / map size;
+    // w: 1 when shadows are on.
+    shadow_params: vec4<f32>,
     lights: array<Light, MAX_LIGHTS>,
+    // CAVE space → each shadow-map layer's clip space.
+    shadow_from_cave: array<mat4x4<f32>, MAX_SHADOW_LAYERS>,
 }
 
 // One wall seen from one eye. Keep in sync with `ViewUniforms` in src/render/uniforms.rs.

@@ -111,13 +111,19 @@ fn env_brdf_approx(f0: vec3<f32>, roughness: f32, n_dot_v: f32) -> vec3<f32> {
     return f0 * ab.x + ab.y;
 }
 
-// The lit colour of a surface point seen from `eye` (emission is added by the caller).
-fn shade_pbr(frame: FrameUniforms, s: SurfacePoint, eye: vec3<f32>) -> vec3<f32> {
+// The lit colour of a surface point seen from `eye` (emission is added by the caller);
+// `visibility[k]` is how much of light k reaches the point (shadows: 0 to 1).
+fn shade_pbr(
+    frame: FrameUniforms,
+    s: SurfacePoint,
+    eye: vec3<f32>,
+    visibility: array<f32, MAX_LIGHTS>,
+) -> vec3<f32> {
     let v = normalize(eye - s.position);
     var color = vec3<f32>(0.0);
     for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
         let inc = light_incoming(frame.lights[k], s.position);
-        color += brdf_cos(s, v, inc.direction) * inc.radiance;
+        color += brdf_cos(s, v, inc.direction) * inc.radiance * visibility[k];
     }
     // Ambient light as an even radiance from every direction: diffuse c_diff·L, specular the
     // environment BRDF, both occluded.
@@ -130,7 +136,12 @@ fn shade_pbr(frame: FrameUniforms, s: SurfacePoint, eye: vec3<f32>) -> vec3<f32>
 
 // The simple model: Blinn-Phong with an exponent and strength fitted to the roughness and
 // metallic factors, on the base colour (maps other than base colour and emission unused).
-fn shade_simple(frame: FrameUniforms, s: SurfacePoint, eye: vec3<f32>) -> vec3<f32> {
+fn shade_simple(
+    frame: FrameUniforms,
+    s: SurfacePoint,
+    eye: vec3<f32>,
+    visibility: array<f32, MAX_LIGHTS>,
+) -> vec3<f32> {
     let v = normalize(eye - s.position);
     let roughness = max(s.roughness, 0.02);
     let a = roughness * roughness;
@@ -144,7 +155,7 @@ fn shade_simple(frame: FrameUniforms, s: SurfacePoint, eye: vec3<f32>) -> vec3<f
         if n_dot_l > 0.0 {
             // Light colours carry π (a white matte surface facing a light of intensity 1 is
             // white in the physically based model): the simple model takes it out.
-            let e = inc.radiance * INV_PI;
+            let e = inc.radiance * INV_PI * visibility[k];
             diffuse += n_dot_l * e;
             let h = normalize(inc.direction + v);
             specular += pow(max(dot(s.normal, h), 0.0), shininess) * e;
@@ -154,9 +165,14 @@ fn shade_simple(frame: FrameUniforms, s: SurfacePoint, eye: vec3<f32>) -> vec3<f
 }
 
 // The lit colour in the frame's shading model.
-fn shade_surface(frame: FrameUniforms, s: SurfacePoint, eye: vec3<f32>) -> vec3<f32> {
+fn shade_surface(
+    frame: FrameUniforms,
+    s: SurfacePoint,
+    eye: vec3<f32>,
+    visibility: array<f32, MAX_LIGHTS>,
+) -> vec3<f32> {
     if frame.shading == 1u {
-        return shade_simple(frame, s, eye);
+        return shade_simple(frame, s, eye, visibility);
     }
-    return shade_pbr(frame, s, eye);
+    return shade_pbr(frame, s, eye, visibility);
 }

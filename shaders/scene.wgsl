@@ -38,6 +38,10 @@ struct MaterialUniforms {
 @group(1) @binding(8) var normal_sampler: sampler;
 @group(1) @binding(9) var occlusion_sampler: sampler;
 @group(1) @binding(10) var emissive_sampler: sampler;
+// The lights' shadow maps (src/render/shadow_pass.rs), one layer per directional or spot
+// light, six per point light.
+@group(3) @binding(0) var shadow_maps: texture_depth_2d_array;
+@group(3) @binding(1) var shadow_sampler: sampler_comparison;
 
 // Keep in sync with `GpuVertex` in src/render/scene_pass.rs.
 struct VertexInput {
@@ -668,6 +672,53 @@ fn shading_normal(in: SurfaceInput, ddx: vec4<f32>, ddy: vec4<f32>, front_facing
     return select(n, normalize(bent), dot(bent, bent) > 1e-12);
 }
 
+// How much of light k reaches CAVE-space point `p` with unit normal `n` (on the viewer's
+// side): 1 where its shadow maps do not see it occluded, 0 where they do, between at a
+// filtered edge. Shadows depend only on the point, not on the eye: exact in every mode.
+fn light_visibility(k: u32, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let light = frame.lights[k];
+    if frame.shadow_params.w < 0.5 || light.shadow.x < 0.0 {
+        return 1.0;
+    }
+    // Off the surface by a few texels of the map at this point (against self-shadowing).
+    let distance = length(light.position.xyz - p);
+    let texel = light.shadow.w + light.shadow.z * distance;
+    let lifted = p + n * frame.shadow_params.x * texel;
+    let first = u32(light.shadow.x);
+    let count = u32(light.shadow.y);
+    for (var i = 0u; i < count; i++) {
+        let layer = first + i;
+        let clip = frame.shadow_from_cave[layer] * vec4<f32>(lifted, 1.0);
+        if clip.w <= 0.0 {
+            continue;
+        }
+        let ndc = clip.xyz / clip.w;
+        if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 || ndc.z < 0.0 {
+            continue;
+        }
+        if ndc.z > 1.0 {
+            // Beyond the map's far plane: nothing there casts onto it.
+            return 1.0;
+        }
+        let uv = vec2<f32>(0.5 * ndc.x + 0.5, 0.5 - 0.5 * ndc.y);
+        if frame.shadow_params.y < 0.5 {
+            return textureSampleCompareLevel(shadow_maps, shadow_sampler, uv, layer, ndc.z);
+        }
+        // 3×3 percentage-closer filtering, each tap a bilinear comparison.
+        var lit = 0.0;
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let offset = vec2<f32>(f32(dx), f32(dy)) * frame.shadow_params.z;
+                lit += textureSampleCompareLevel(
+                    shadow_maps, shadow_sampler, uv + offset, layer, ndc.z,
+                );
+            }
+        }
+        return lit / 9.0;
+    }
+    return 1.0;
+}
+
 // The lit colour of a surface point seen from `eye`; alpha < 0 where the material's alpha
 // cutoff removes it.
 fn surface_color(
@@ -699,7 +750,13 @@ fn surface_color(
     s.metallic = clamp(material.metallic * mr.b, 0.0, 1.0);
     s.roughness = clamp(material.roughness * mr.g, 0.0, 1.0);
     s.occlusion = 1.0 + material.occlusion_strength * (occlusion - 1.0);
-    return vec4<f32>(shade_surface(frame, s, eye) + material.emissive * emissive, alpha);
+    var visibility: array<f32, MAX_LIGHTS>;
+    let facing_n = select(-1.0, 1.0, front_facing) * normalize(in.normal);
+    for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
+        visibility[k] = light_visibility(k, in.position, facing_n);
+    }
+    let lit = shade_surface(frame, s, eye, visibility);
+    return vec4<f32>(lit + material.emissive * emissive, alpha);
 }
 
 @fragment

@@ -30,6 +30,7 @@ pub fn frame_params_from<'a>(
         world_from_cave,
         lighting: settings.lighting(),
         shading: settings.render.shading,
+        shadows: settings.shadows(),
         background: settings.render.background,
         omni: settings.omni(),
         tess: settings.tess(),

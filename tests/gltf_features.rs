@@ -16,7 +16,7 @@ use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Cave, Head, RenderMode};
 use omnicave::pano::{PanoRoute, PanoSettings, Projection};
 use omnicave::render::Renderer;
-use omnicave::render::pbr::{SurfacePoint, shade_pbr};
+use omnicave::render::pbr::{LIT, SurfacePoint, shade_pbr};
 use omnicave::render::uniforms::{FrameLights, FrameUniforms};
 use omnicave::scene::build::{MeshData, grid, uv_sphere};
 use omnicave::scene::glb_writer::{
@@ -73,6 +73,8 @@ fn dark() -> Lighting {
         point_position: Vec3::ZERO,
         point_color: Vec3::ZERO,
         point_range: 1.0,
+        sun_shadows: true,
+        point_shadows: true,
     }
 }
 
@@ -440,6 +442,7 @@ fn a_primitive_without_texture_coordinates_is_its_colour_not_black() {
             shading: Shading::Pbr,
         },
         None,
+        None,
     );
     let cave = cave();
     let (left, right) = (Vec3::new(-0.45, 1.6, -1.0), Vec3::new(0.45, 1.6, -1.0));
@@ -455,6 +458,7 @@ fn a_primitive_without_texture_coordinates_is_its_colour_not_black() {
                 occlusion: 1.0,
             },
             HEAD,
+            &LIT,
         ))
     };
     for cad in [true, false] {
@@ -587,6 +591,7 @@ fn a_normal_map_bends_the_shading_as_the_cpu_twin_says() {
             shading: Shading::Pbr,
         },
         None,
+        None,
     );
     let bent = Vec3::new(0.5, 0.0, 1.0).normalize();
     let expected = |p: Vec3, normal: Vec3| {
@@ -601,6 +606,7 @@ fn a_normal_map_bends_the_shading_as_the_cpu_twin_says() {
                 occlusion: 1.0,
             },
             HEAD,
+            &LIT,
         ))
     };
     let cave = cave();

@@ -8,6 +8,7 @@ use std::mem::{offset_of, size_of};
 use omnicave::render::panorama::ResolveUniforms;
 use omnicave::render::present::PresentUniforms;
 use omnicave::render::scene_pass::GpuVertex;
+use omnicave::render::shadow_pass::ShadowLayerUniforms;
 use omnicave::render::shaders::{self, compose};
 use omnicave::render::sky_pass::SkyUniforms;
 use omnicave::render::tessellator::{GpuTessEntry, TessUniforms};
@@ -83,7 +84,9 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "light_count" => light_count,
                 "shading" => shading,
                 "frame_pad" => frame_pad,
+                "shadow_params" => shadow_params,
                 "lights" => lights,
+                "shadow_from_cave" => shadow_from_cave,
             ),
         ),
         (
@@ -94,6 +97,14 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "direction" => direction,
                 "color" => color,
                 "cone" => cone,
+                "shadow" => shadow,
+            ),
+        ),
+        (
+            shaders::SHADOW,
+            "ShadowLayerUniforms",
+            layout!(ShadowLayerUniforms,
+                "shadow_from_world" => shadow_from_world,
             ),
         ),
         (
@@ -275,6 +286,10 @@ fn the_vertex_stride_and_light_count_match() {
     assert_eq!(
         wgsl_u32_const(&source, "MAX_LIGHTS") as usize,
         omnicave::render::uniforms::MAX_LIGHTS
+    );
+    assert_eq!(
+        wgsl_u32_const(&source, "MAX_SHADOW_LAYERS") as usize,
+        omnicave::render::shadow_pass::MAX_SHADOW_LAYERS
     );
     // Each attribute where the storage reads expect it (offsets in floats).
     let floats = |bytes: usize| bytes / 4;

@@ -136,6 +136,7 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
 const POLE_MERGE_START: &str = "omnistereo.pole_merge_start_degrees";
 const PANO_H_FOV: &str = "panorama.h_fov_degrees";
 const PANO_V_FOV: &str = "panorama.v_fov_degrees";
+const SHADOW_OFFSET: &str = "shadows.normal_offset_texels";
 
 /// The model's range of the setting at `path` (the one declared beside it in the config's
 /// settings model), for a slider (a test checks every path used here has one).
@@ -186,6 +187,17 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             &mut s.skybox.mode,
             &SkyMode::ALL,
             SkyMode::name,
+        );
+    });
+    let shadows = &mut s.shadows;
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut shadows.enabled, "Shadows");
+        ui.add_enabled(shadows.enabled, egui::Checkbox::new(&mut shadows.pcf, "soft edges"));
+    });
+    ui.add_enabled_ui(shadows.enabled, |ui| {
+        let range = model_range(SHADOW_OFFSET);
+        ui.add(
+            Slider::new(&mut shadows.normal_offset_texels, range).text("shadow offset texels"),
         );
     });
     ui.checkbox(&mut s.render.wireframe, "Wireframe");
@@ -485,7 +497,7 @@ mod tests {
 
     #[test]
     fn every_slider_range_comes_from_the_model() {
-        for path in [POLE_MERGE_START, PANO_H_FOV, PANO_V_FOV] {
+        for path in [POLE_MERGE_START, PANO_H_FOV, PANO_V_FOV, SHADOW_OFFSET] {
             assert!(crate::config::bounds(path).is_some(), "{path} has no range");
         }
     }

@@ -2,6 +2,7 @@
 //! sky and panorama settings, the CAVE's placement in the scene and the lights. Validation,
 //! the application and the render command all build them here, so each is built once.
 
+use crate::render::shadow_pass::ShadowSettings;
 use glam::{Mat4, Quat, Vec3};
 
 use super::file::{ConfigFile, LightingSection};
@@ -92,6 +93,18 @@ impl ConfigFile {
         self.lighting.to_lighting()
     }
 
+    /// The shadow maps' settings.
+    pub fn shadows(&self) -> ShadowSettings {
+        let s = &self.shadows;
+        ShadowSettings {
+            enabled: s.enabled,
+            map_size: s.map_size,
+            normal_offset_texels: s.normal_offset_texels,
+            pcf: s.pcf,
+            distance_m: s.distance_m,
+        }
+    }
+
     /// The tracker's One Euro filter (`None`: off).
     pub fn tracking_filter(&self) -> Option<OneEuroParams> {
         let f = &self.tracking.filter;
@@ -112,6 +125,8 @@ impl LightingSection {
             point_position: Vec3::from(self.point.position),
             point_color: Vec3::from(self.point.color) * self.point.intensity,
             point_range: self.point.range,
+            sun_shadows: self.directional.cast_shadows,
+            point_shadows: self.point.cast_shadows,
         }
     }
 }

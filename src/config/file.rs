@@ -36,6 +36,7 @@ pub struct ConfigFile {
     pub render: RenderSection,
     pub scene: SceneSection,
     pub lighting: LightingSection,
+    pub shadows: ShadowsSection,
     pub omnistereo: OmnistereoSection,
     pub tessellation: TessellationSection,
     pub skybox: SkyboxSection,
@@ -418,6 +419,40 @@ impl Default for PlacementSection {
     }
 }
 
+/// Shadow maps from the lights (the config's and the scene file's; eight layers in all: a
+/// directional or spot light takes one, a point light six).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct ShadowsSection {
+    pub enabled: bool,
+    /// Side of each shadow map, texels (memory: side² × 4 bytes × 8 layers).
+    #[schemars(range(min = 64, max = 4096))]
+    pub map_size: u32,
+    /// Look-ups move this many map texels along the surface normal (against shadow acne;
+    /// larger detaches shadows from their casters).
+    #[schemars(range(min = 0.0, max = 10.0))]
+    pub normal_offset_texels: f32,
+    /// 3×3 percentage-closer filtering: soft edges a texel or two wide.
+    pub pcf: bool,
+    /// Directional lights shadow this far around the CAVE, metres (a scene smaller than this
+    /// is covered whole).
+    #[schemars(range(min = 1.0, max = 10000.0))]
+    pub distance_m: f32,
+}
+
+impl Default for ShadowsSection {
+    fn default() -> Self {
+        let d = crate::render::shadow_pass::ShadowSettings::default();
+        Self {
+            enabled: d.enabled,
+            map_size: d.map_size,
+            normal_offset_texels: d.normal_offset_texels,
+            pcf: d.pcf,
+            distance_m: d.distance_m,
+        }
+    }
+}
+
 /// The lights, in scene space.
 #[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
@@ -446,6 +481,9 @@ pub struct DirectionalLightSection {
     pub color: [f32; 3],
     #[schemars(range(min = 0.0, max = 100.0))]
     pub intensity: f32,
+    /// Casts shadows (when `[shadows] enabled`). A closed room's ceiling shadows the whole
+    /// floor: there the sun is a fill light, false.
+    pub cast_shadows: bool,
 }
 
 impl Default for DirectionalLightSection {
@@ -454,6 +492,7 @@ impl Default for DirectionalLightSection {
             direction: [-0.4, -1.0, -0.3],
             color: [1.0, 0.97, 0.9],
             intensity: 0.6,
+            cast_shadows: true,
         }
     }
 }
@@ -469,6 +508,8 @@ pub struct PointLightSection {
     /// Distance (metres) at which the light has faded to zero.
     #[schemars(range(min = 1e-3, max = 1e6))]
     pub range: f32,
+    /// Casts shadows (when `[shadows] enabled`; six shadow-map layers).
+    pub cast_shadows: bool,
 }
 
 impl Default for PointLightSection {
@@ -478,6 +519,7 @@ impl Default for PointLightSection {
             color: [1.0, 0.9, 0.75],
             intensity: 0.8,
             range: 12.0,
+            cast_shadows: true,
         }
     }
 }

@@ -8,6 +8,7 @@ pub mod present;
 pub mod readback;
 pub mod scene_pass;
 pub mod shaders;
+pub mod shadow_pass;
 pub mod sky_pass;
 pub mod targets;
 pub mod tessellator;
@@ -62,6 +63,8 @@ pub struct FrameParams<'a> {
     pub lighting: Lighting,
     /// The shading model.
     pub shading: Shading,
+    /// Shadow maps from the lights.
+    pub shadows: shadow_pass::ShadowSettings,
     /// Clear colour, sRGB 0..1.
     pub background: [f32; 3],
     /// Warp variant and pole merge (used by the omnistereo modes).
@@ -230,6 +233,7 @@ impl Renderer {
             self.scene_pass
                 .upload_scene(&self.device, &self.queue, scene),
         );
+        self.scene_pass.shadows.invalidate();
         self.walls.drop_tessellation();
         self.pano_set.drop_tessellation();
     }
@@ -453,10 +457,12 @@ impl Renderer {
         }
     }
 
-    /// The frame's uniforms (the config's and the scene's lights, the shading model), with the
-    /// scene's blended draws sorted back to front from the head.
+    /// The frame's uniforms (the config's and the scene's lights, the shading model, the
+    /// shadow maps' layers), with the scene's blended draws sorted back to front from the
+    /// head; records the shadow maps into `encoder` when they changed.
     fn prepare_frame(
         &mut self,
+        encoder: &mut wgpu::CommandEncoder,
         frame: &FrameParams<'_>,
         omni: Option<OmniSettings>,
     ) -> FrameUniforms {
@@ -470,7 +476,23 @@ impl Renderer {
             scene: scene_lights,
             shading: frame.shading,
         };
-        FrameUniforms::new(frame.world_from_cave, lights, omni)
+        let centre = frame.world_from_cave.transform_point3(glam::Vec3::ZERO);
+        let bounds = self.scene.as_ref().and_then(|s| s.bounds);
+        let plan = shadow_pass::plan_shadows(&lights.all(), bounds, centre, &frame.shadows);
+        self.scene_pass.shadows.prepare(
+            &self.device,
+            &self.queue,
+            &plan,
+            frame.shadows.map_size,
+        );
+        if let Some(scene) = &self.scene {
+            self.scene_pass.shadows.encode(encoder, scene);
+        }
+        let shadows = uniforms::FrameShadows {
+            settings: &frame.shadows,
+            plan: &plan,
+        };
+        FrameUniforms::new(frame.world_from_cave, lights, Some(shadows), omni)
     }
 
     /// Renders every view of the frame and submits the work (no CPU read-back).
@@ -479,7 +501,19 @@ impl Renderer {
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
         let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
-        let frame_uniforms = self.prepare_frame(frame, frame.mode.is_omni().then_some(frame.omni));
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("Renderer::frame"),
+            });
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, 0);
+        }
+        let frame_uniforms = self.prepare_frame(
+            &mut encoder,
+            frame,
+            frame.mode.is_omni().then_some(frame.omni),
+        );
         self.walls.write_uniforms(
             &self.queue,
             &frame_uniforms,
@@ -528,14 +562,6 @@ impl Renderer {
         let rounds = tessellator::rounds(&frame.tess);
         let clear = srgb_to_linear_color(frame.background);
         let wireframe = self.settings.wireframe && self.wireframe_supported;
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("Renderer::frame"),
-            });
-        if let Some(timer) = &self.timer {
-            encoder.write_timestamp(&timer.queries, 0);
-        }
         self.walls
             .set_tessellated_views(if tessellate { views.len() } else { 0 });
         for (index, view) in views.iter().enumerate() {
@@ -683,7 +709,7 @@ impl Renderer {
             PanoRoute::Image => {
                 self.pano
                     .ensure_cube(&self.device, face_size, self.settings.msaa);
-                let frame_uniforms = self.prepare_frame(frame, None);
+                let frame_uniforms = self.prepare_frame(&mut encoder, frame, None);
                 let faces = (0..6).map(|f| ViewUniforms {
                     clip_from_cave: panorama::face_clip_from_cave(f, head, face_size, near, far)
                         .to_cols_array_2d(),
@@ -715,7 +741,8 @@ impl Renderer {
                     &[None]
                 };
                 let omni = matches!(pano.stereo, crate::pano::PanoStereo::Omni);
-                let frame_uniforms = self.prepare_frame(frame, omni.then_some(frame.omni));
+                let frame_uniforms =
+                    self.prepare_frame(&mut encoder, frame, omni.then_some(frame.omni));
                 let msaa = self.settings.msaa;
                 let views = eyes.iter().map(|&eye| {
                     panorama::pano_view_uniforms(

@@ -106,13 +106,22 @@ fn lights(frame: &FrameUniforms) -> &[GpuLight] {
     &frame.lights[..(frame.light_count as usize).min(MAX_LIGHTS)]
 }
 
-/// The physically based colour of a surface point seen from `eye` (without emission).
-pub fn shade_pbr(frame: &FrameUniforms, s: &SurfacePoint, eye: Vec3) -> Vec3 {
+/// Every light reaching the point fully (no shadow).
+pub const LIT: [f32; MAX_LIGHTS] = [1.0; MAX_LIGHTS];
+
+/// The physically based colour of a surface point seen from `eye` (without emission);
+/// `visibility[k]`: how much of light k reaches it.
+pub fn shade_pbr(
+    frame: &FrameUniforms,
+    s: &SurfacePoint,
+    eye: Vec3,
+    visibility: &[f32; MAX_LIGHTS],
+) -> Vec3 {
     let v = (eye - s.position).normalize();
     let mut color = Vec3::ZERO;
-    for light in lights(frame) {
+    for (light, seen) in lights(frame).iter().zip(visibility) {
         let (l, radiance) = light_incoming(light, s.position);
-        color += brdf_cos(s, v, l) * radiance;
+        color += brdf_cos(s, v, l) * radiance * *seen;
     }
     let f0 = mix(Vec3::splat(0.04), s.base_color, s.metallic);
     let c_diff = mix(s.base_color, Vec3::ZERO, s.metallic);
@@ -123,7 +132,12 @@ pub fn shade_pbr(frame: &FrameUniforms, s: &SurfacePoint, eye: Vec3) -> Vec3 {
 }
 
 /// The simple Blinn-Phong colour (mirrors `shade_simple`).
-pub fn shade_simple(frame: &FrameUniforms, s: &SurfacePoint, eye: Vec3) -> Vec3 {
+pub fn shade_simple(
+    frame: &FrameUniforms,
+    s: &SurfacePoint,
+    eye: Vec3,
+    visibility: &[f32; MAX_LIGHTS],
+) -> Vec3 {
     let v = (eye - s.position).normalize();
     let roughness = s.roughness.max(0.02);
     let a = roughness * roughness;
@@ -131,11 +145,11 @@ pub fn shade_simple(frame: &FrameUniforms, s: &SurfacePoint, eye: Vec3) -> Vec3 
     let strength = 0.04 + 0.5 * (1.0 - roughness) + 0.4 * s.metallic;
     let mut diffuse = Vec3::from_slice(&frame.ambient[..3]);
     let mut specular = Vec3::ZERO;
-    for light in lights(frame) {
+    for (light, seen) in lights(frame).iter().zip(visibility) {
         let (l, radiance) = light_incoming(light, s.position);
         let n_dot_l = s.normal.dot(l);
         if n_dot_l > 0.0 {
-            let e = radiance * INV_PI;
+            let e = radiance * INV_PI * *seen;
             diffuse += n_dot_l * e;
             let h = (l + v).normalize();
             specular += s.normal.dot(h).max(0.0).powf(shininess) * e;
@@ -145,11 +159,16 @@ pub fn shade_simple(frame: &FrameUniforms, s: &SurfacePoint, eye: Vec3) -> Vec3 
 }
 
 /// The lit colour in the frame's shading model (mirrors `shade_surface`).
-pub fn shade_surface(frame: &FrameUniforms, s: &SurfacePoint, eye: Vec3) -> Vec3 {
+pub fn shade_surface(
+    frame: &FrameUniforms,
+    s: &SurfacePoint,
+    eye: Vec3,
+    visibility: &[f32; MAX_LIGHTS],
+) -> Vec3 {
     if frame.shading == 1 {
-        shade_simple(frame, s, eye)
+        shade_simple(frame, s, eye, visibility)
     } else {
-        shade_pbr(frame, s, eye)
+        shade_pbr(frame, s, eye, visibility)
     }
 }
 

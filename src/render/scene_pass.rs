@@ -7,6 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::shaders;
+use super::shadow_pass::{ShadowPass, ShadowSettings};
 use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
 use super::uniforms::{MaterialUniforms, UNIFORM_STRIDE};
 use crate::scene::{
@@ -81,6 +82,8 @@ pub struct ScenePass {
     /// Pipelines built so far (switching settings must not build any).
     pub(crate) pipelines_built: u64,
     msaa: u32,
+    /// The shadow maps every draw looks up (group 3).
+    pub(crate) shadows: ShadowPass,
 }
 
 /// A scene uploaded to the GPU.
@@ -96,6 +99,8 @@ pub struct SceneGpu {
     opaque_count: usize,
     /// The scene file's lights (scene space), for the frame uniforms.
     pub(crate) lights: Vec<Light>,
+    /// Axis-aligned bounds (scene space), for the shadow maps' extent.
+    pub(crate) bounds: Option<(glam::Vec3, glam::Vec3)>,
     /// Per source triangle: its draw index (or `NO_DRAW`), bit 31 set when double-sided.
     pub(crate) tri_info: Vec<u32>,
     material_bind_groups: Vec<wgpu::BindGroup>,
@@ -112,12 +117,24 @@ struct GpuDraw {
     material: usize,
     double_sided: bool,
     blend: bool,
+    /// Drawn into the shadow maps: not blended (glass) and not emitting light (a bulb around
+    /// its own light must not shadow the room).
+    casts_shadow: bool,
     /// Centre of the draw's bounding box (scene space): blended draws are sorted by its
     /// distance from the head.
     centre: glam::Vec3,
 }
 
 impl SceneGpu {
+    /// Records the shadow casters into a depth-only pass whose pipeline is bound.
+    pub(crate) fn draw_casters(&self, pass: &mut wgpu::RenderPass<'_>) {
+        pass.set_vertex_buffer(0, self.vertex_buffer.slice(..));
+        pass.set_index_buffer(self.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        for draw in self.draws.iter().filter(|d| d.casts_shadow) {
+            pass.draw_indexed(draw.first_index..draw.first_index + draw.index_count, 0, 0..1);
+        }
+    }
+
     /// Number of draws (materials runs) the scene is drawn with.
     pub fn draw_count(&self) -> usize {
         self.draws.len()
@@ -186,15 +203,26 @@ impl ScenePass {
             label: Some("ScenePass::material_layout"),
             entries: &material_entries,
         });
+        let shadows = ShadowPass::new(device, ShadowSettings::default().map_size);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("ScenePass::pipeline_layout"),
-            bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
+            bind_group_layouts: &[
+                Some(&frame_layout),
+                Some(&material_layout),
+                None,
+                Some(shadows.layout()),
+            ],
             immediate_size: 0,
         });
         let tess_pipeline_layout = tess_draw_layout.map(|layout| {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("ScenePass::tess_pipeline_layout"),
-                bind_group_layouts: &[Some(&frame_layout), Some(&material_layout), Some(layout)],
+                bind_group_layouts: &[
+                    Some(&frame_layout),
+                    Some(&material_layout),
+                    Some(layout),
+                    Some(shadows.layout()),
+                ],
                 immediate_size: 0,
             })
         });
@@ -208,6 +236,7 @@ impl ScenePass {
             pipelines: HashMap::new(),
             pipelines_built: 0,
             msaa,
+            shadows,
         };
         pass.build_pipelines(device, msaa);
         pass
@@ -455,6 +484,7 @@ impl ScenePass {
     ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
         pass.set_bind_group(0, views, &[view_offset]);
+        pass.set_bind_group(3, self.shadows.bind_group(), &[]);
         let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
         for &wire in layers {
             let mut bound: Option<PipelineKey> = None;
@@ -633,6 +663,8 @@ impl ScenePass {
                     material: d.material,
                     double_sided: material.double_sided,
                     blend: material.alpha_mode == AlphaMode::Blend,
+                    casts_shadow: material.alpha_mode != AlphaMode::Blend
+                        && material.emissive == [0.0; 3],
                     centre: 0.5 * (lo + hi),
                 }
             })
@@ -660,6 +692,7 @@ impl ScenePass {
             order,
             opaque_count,
             lights: scene.lights.clone(),
+            bounds: scene.bounds(),
             tri_info,
             material_bind_groups,
             _material_buffer: material_buffer,

@@ -13,6 +13,9 @@ pub const SHARED: &[(&str, &str)] = &[("common", COMMON), ("pbr", PBR)];
 /// Scene geometry (paired with `src/render/scene_pass.rs`).
 pub const SCENE: &str = include_str!("../../shaders/scene.wgsl");
 
+/// Shadow maps' depth pass (paired with `src/render/shadow_pass.rs`).
+pub const SHADOW: &str = include_str!("../../shaders/shadow.wgsl");
+
 /// Adaptive tessellation compute passes (paired with `src/render/tessellator.rs`).
 pub const TESSELLATE: &str = include_str!("../../shaders/tessellate.wgsl");
 
@@ -28,6 +31,7 @@ pub const PANORAMA: &str = include_str!("../../shaders/panorama.wgsl");
 /// Every feature shader by file stem, for validation.
 pub const FEATURES: &[(&str, &str)] = &[
     ("scene", SCENE),
+    ("shadow", SHADOW),
     ("tessellate", TESSELLATE),
     ("sky", SKY),
     ("present", PRESENT),

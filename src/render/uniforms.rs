@@ -3,6 +3,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
+use super::shadow_pass::{LightShadow, MAX_SHADOW_LAYERS, ShadowSettings};
 use crate::cave::ViewSetup;
 use crate::cave::omni::{OmniSettings, WarpVariant};
 use crate::scene::{
@@ -28,6 +29,9 @@ pub struct GpuLight {
     pub color: [f32; 4],
     /// Spot: x cos(outer cone), y 1 / (cos(inner) − cos(outer)).
     pub cone: [f32; 4],
+    /// x: first shadow-map layer (< 0: none); y: layers; z: texel size at 1 m (perspective);
+    /// w: texel size (orthographic).
+    pub shadow: [f32; 4],
 }
 
 impl GpuLight {
@@ -58,6 +62,7 @@ impl GpuLight {
             direction: direction.extend(kind).to_array(),
             color: light.color.extend(0.0).to_array(),
             cone,
+            shadow: [-1.0, 0.0, 0.0, 0.0],
         }
     }
 }
@@ -77,7 +82,12 @@ pub struct FrameUniforms {
     /// 0 physically based, 1 simple.
     pub shading: u32,
     pub frame_pad: [u32; 2],
+    /// x: normal offset of look-ups, texels; y: 1 for 3×3 filtering; z: 1 / map size; w: 1
+    /// when shadows are on.
+    pub shadow_params: [f32; 4],
     pub lights: [GpuLight; MAX_LIGHTS],
+    /// CAVE space → each shadow-map layer's clip space.
+    pub shadow_from_cave: [[[f32; 4]; 4]; MAX_SHADOW_LAYERS],
 }
 
 /// The lights of a frame: the config's directional and point light (when they shine) and
@@ -89,11 +99,34 @@ pub struct FrameLights<'a> {
     pub shading: Shading,
 }
 
+impl FrameLights<'_> {
+    /// Every light of the frame in order (scene space), at most [`MAX_LIGHTS`]: the ones past
+    /// it are left out.
+    pub fn all(&self) -> Vec<Light> {
+        let mut all = config_lights(self.config);
+        all.extend(self.scene.iter().cloned());
+        all.truncate(MAX_LIGHTS);
+        all
+    }
+}
+
+/// A frame's shadows: the settings and, per light of [`FrameLights::all`], its layers.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameShadows<'a> {
+    pub settings: &'a ShadowSettings,
+    pub plan: &'a [Option<LightShadow>],
+}
+
 impl FrameUniforms {
     /// Lighting is given in scene (world) space and moved into CAVE space here. `omni` is
     /// `Some` in the omnistereo modes. Lights past [`MAX_LIGHTS`] are left out (the loader
     /// warned about them).
-    pub fn new(world_from_cave: Mat4, lights: FrameLights<'_>, omni: Option<OmniSettings>) -> Self {
+    pub fn new(
+        world_from_cave: Mat4,
+        lights: FrameLights<'_>,
+        shadows: Option<FrameShadows<'_>>,
+        omni: Option<OmniSettings>,
+    ) -> Self {
         let cave_from_world = world_from_cave.inverse();
         // Normals transform with the inverse transpose of the linear part.
         let normal_from_world =
@@ -101,18 +134,30 @@ impl FrameUniforms {
         // Ranges are physical distances in the scene; CAVE metres differ by the placement scale.
         let scale = cave_from_world.transform_vector3(Vec3::X).length();
         let mut gpu_lights = [GpuLight::zeroed(); MAX_LIGHTS];
-        let mut count = 0;
-        for light in config_lights(lights.config).iter().chain(lights.scene) {
-            if count == MAX_LIGHTS {
-                break;
-            }
+        let mut shadow_from_cave = [[[0.0; 4]; 4]; MAX_SHADOW_LAYERS];
+        let all = lights.all();
+        for (k, light) in all.iter().enumerate() {
             let mut gpu = GpuLight::from_scene(light, cave_from_world, scale);
             if matches!(light.kind, LightKind::Point) && light.name == CONFIG_POINT_LIGHT {
                 gpu.color[3] = 1.0;
             }
-            gpu_lights[count] = gpu;
-            count += 1;
+            if let Some(Some(s)) = shadows.and_then(|f| f.plan.get(k)) {
+                // Texel sizes in CAVE metres.
+                gpu.shadow = [
+                    s.first_layer as f32,
+                    s.shadow_from_world.len() as f32,
+                    s.texel_per_metre,
+                    s.texel / scale.max(1e-6),
+                ];
+                for (i, m) in s.shadow_from_world.iter().enumerate() {
+                    if let Some(slot) = shadow_from_cave.get_mut(s.first_layer + i) {
+                        *slot = (*m * world_from_cave).to_cols_array_2d();
+                    }
+                }
+            }
+            gpu_lights[k] = gpu;
         }
+        let count = all.len();
         Self {
             cave_from_world: cave_from_world.to_cols_array_2d(),
             normal_from_world: normal_from_world.to_cols_array_2d(),
@@ -142,7 +187,17 @@ impl FrameUniforms {
                 Shading::Simple => 1,
             },
             frame_pad: [0; 2],
+            shadow_params: match shadows {
+                Some(f) if f.settings.enabled => [
+                    f.settings.normal_offset_texels,
+                    if f.settings.pcf { 1.0 } else { 0.0 },
+                    1.0 / f.settings.map_size.max(1) as f32,
+                    1.0,
+                ],
+                _ => [0.0; 4],
+            },
             lights: gpu_lights,
+            shadow_from_cave,
         }
     }
 }
@@ -165,6 +220,7 @@ fn config_lights(l: &Lighting) -> Vec<Light> {
             direction: l.sun_direction,
             color: l.sun_color * pi,
             range: None,
+            casts_shadows: l.sun_shadows,
         });
     }
     if l.point_color.max_element() > 0.0 && l.point_range > 0.0 {
@@ -175,6 +231,7 @@ fn config_lights(l: &Lighting) -> Vec<Light> {
             direction: Vec3::NEG_Y,
             color: l.point_color * pi,
             range: Some(l.point_range),
+            casts_shadows: l.point_shadows,
         });
     }
     lights

@@ -7,7 +7,11 @@ use std::path::Path;
 use gltf::accessor::{DataType, Dimensions};
 
 /// Largest decoded size of one compressed buffer view (the decoder's output budget).
-pub const MAX_DECODED_VIEW_BYTES: usize = 1 << 30;
+pub const MAX_DECODED_VIEW_BYTES: usize = 1 << 28;
+
+/// Most elements of an accessor without a buffer view (zeros plus sparse values): no file
+/// data bounds its count.
+pub const MAX_SPARSE_BASE_ELEMENTS: usize = 1 << 24;
 
 /// The file's buffers and the decoded contents of its compressed buffer views.
 pub struct BinaryData {
@@ -106,6 +110,7 @@ impl BinaryData {
         let ty = accessor.data_type();
         let normalized = accessor.normalized();
         let convert = |bytes: &[u8]| -> f32 { component_f32(ty, normalized, bytes) };
+        self.check_extent(accessor)?;
         let mut out = vec![[0.0f32; N]; accessor.count()];
         self.read_elements(accessor, |i, element| {
             let size = ty.size();
@@ -130,9 +135,46 @@ impl BinaryData {
                 "has component type {ty:?}, expected an unsigned integer"
             ));
         }
+        self.check_extent(accessor)?;
         let mut out = vec![0u32; accessor.count()];
         self.read_elements(accessor, |i, element| out[i] = read_uint(ty, element))?;
         Ok(out)
+    }
+
+    /// Checks, before anything is allocated for it, that an accessor's elements lie in its
+    /// buffer view (so that its count is backed by the file's bytes), or, for one made only of
+    /// sparse values, that its count is within [`MAX_SPARSE_BASE_ELEMENTS`].
+    fn check_extent(&self, accessor: &gltf::Accessor<'_>) -> Result<(), String> {
+        let count = accessor.count();
+        if count == 0 {
+            return Err("has count 0".into());
+        }
+        match accessor.view() {
+            Some(view) => {
+                let bytes = self.view_bytes(&view)?;
+                let elem = accessor.size();
+                let stride = view.stride().unwrap_or(elem).max(elem);
+                let end = stride
+                    .checked_mul(count - 1)
+                    .and_then(|n| n.checked_add(elem))
+                    .and_then(|n| n.checked_add(accessor.offset()));
+                if end.is_none_or(|end| end > bytes.len()) {
+                    return Err(format!(
+                        "{count} elements at offset {} with stride {stride} read past the end of \
+                         buffer view {} ({} bytes)",
+                        accessor.offset(),
+                        view.index(),
+                        bytes.len()
+                    ));
+                }
+                Ok(())
+            }
+            None if count > MAX_SPARSE_BASE_ELEMENTS => Err(format!(
+                "has {count} elements but no buffer view: more than the \
+                 {MAX_SPARSE_BASE_ELEMENTS} an accessor of sparse values alone may have"
+            )),
+            None => Ok(()),
+        }
     }
 
     /// Calls `put(index, element bytes)` for every element: the dense data (zeros without a

@@ -577,6 +577,7 @@ impl Loader<'_> {
                 .unwrap_or(Vec3::NEG_Y),
             color,
             range,
+            casts_shadows: true,
         });
     }
 

@@ -12,6 +12,9 @@ pub struct Lighting {
     pub point_position: Vec3,
     pub point_color: Vec3,
     pub point_range: f32,
+    /// Whether the directional and the point light cast shadows.
+    pub sun_shadows: bool,
+    pub point_shadows: bool,
 }
 
 /// How surfaces are shaded: the glTF metallic-roughness model, or the simple Blinn-Phong model

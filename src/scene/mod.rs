@@ -286,6 +286,8 @@ pub struct Light {
     pub color: Vec3,
     /// Distance where the light falls to zero (`None`: inverse square without a cut-off).
     pub range: Option<f32>,
+    /// Casts shadows (when shadows are on).
+    pub casts_shadows: bool,
 }
 
 /// A camera the scene file brings (a viewpoint), in scene space.

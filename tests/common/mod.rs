@@ -133,6 +133,7 @@ pub fn test_frame<'a>(
         world_from_cave: Mat4::IDENTITY,
         lighting: Lighting::default(),
         shading: omnicave::scene::Shading::Pbr,
+        shadows: omnicave::render::shadow_pass::ShadowSettings::default(),
         background: BACKGROUND_SRGB,
         omni,
         tess,

@@ -1,0 +1,210 @@
+//! Shadows fall where the light's geometry says, in every render mode: a cube above a floor,
+//! lit by the config's directional light from straight above, then by its point light; the
+//! floor under the cube is shaded as the CPU twin shades it with that light blocked, the floor
+//! beside the shadow as the twin shades it lit — on the walls, through tessellated
+//! omnistereo and in the panorama. Switching shadows off lights the floor under the cube.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+mod common;
+
+use common::*;
+use glam::{Mat4, Vec2, Vec3};
+use omnicave::cave::omni::OmniSettings;
+use omnicave::cave::{Head, RenderMode};
+use omnicave::pano::{PanoRoute, Projection};
+use omnicave::render::pbr::{SurfacePoint, shade_pbr};
+use omnicave::render::shadow_pass::ShadowSettings;
+use omnicave::render::uniforms::{FrameLights, FrameUniforms, MAX_LIGHTS};
+use omnicave::render::{FrameParams, Renderer};
+use omnicave::scene::build::{cuboid, grid};
+use omnicave::scene::{Lighting, Material, Scene, Shading};
+use omnicave::tess::{Criterion, TessSettings};
+
+const HEAD: Vec3 = Vec3::new(0.0, 1.6, 0.0);
+const FLOOR_Y: f32 = 0.6;
+/// The cube: 0.3 m, its centre 0.6 m above the floor, 1.2 m ahead.
+const CUBE: Vec3 = Vec3::new(0.0, 1.2, -1.2);
+
+fn scene() -> Scene {
+    let mut scene = Scene::default();
+    let grey = scene.add_material(Material {
+        base_color: [0.8, 0.8, 0.8, 1.0],
+        roughness: 1.0,
+        ..Material::default()
+    });
+    let floor = grid(
+        Vec3::new(-2.0, FLOOR_Y, 1.0),
+        Vec3::X * 4.0,
+        Vec3::NEG_Z * 4.0,
+        4,
+        4,
+        1.0,
+    );
+    scene.add_mesh(&floor.vertices, &floor.indices, grey);
+    let cube = cuboid(Vec3::splat(0.3), 1.0).transformed(Mat4::from_translation(CUBE));
+    scene.add_mesh(&cube.vertices, &cube.indices, grey);
+    scene
+}
+
+/// Only the light under test: the sun from straight above, or the point light 1.3 m above
+/// the cube.
+fn lighting(point: bool) -> Lighting {
+    let mut l = Lighting {
+        ambient: Vec3::splat(0.1),
+        sun_direction: Vec3::NEG_Y,
+        sun_color: Vec3::ZERO,
+        point_position: CUBE + Vec3::Y * 1.3,
+        point_color: Vec3::ZERO,
+        point_range: 10.0,
+        sun_shadows: true,
+        point_shadows: true,
+    };
+    if point {
+        l.point_color = Vec3::splat(1.5);
+    } else {
+        l.sun_color = Vec3::ONE;
+    }
+    l
+}
+
+/// The floor at `p` as the CPU twin shades it, the light reaching it (`lit`) or not.
+fn twin(lighting: &Lighting, p: Vec3, lit: bool) -> [u8; 3] {
+    let frame = FrameUniforms::new(
+        Mat4::IDENTITY,
+        FrameLights {
+            config: lighting,
+            scene: &[],
+            shading: Shading::Pbr,
+        },
+        None,
+        None,
+    );
+    let visibility = [if lit { 1.0 } else { 0.0 }; MAX_LIGHTS];
+    let c = shade_pbr(
+        &frame,
+        &SurfacePoint {
+            position: p,
+            normal: Vec3::Y,
+            base_color: Vec3::splat(0.8),
+            metallic: 0.0,
+            roughness: 1.0,
+            occlusion: 1.0,
+        },
+        HEAD,
+        &visibility,
+    );
+    c.to_array().map(omnicave::sky::cubemap::linear_to_srgb)
+}
+
+/// The front wall's left eye in `mode` (tessellated in omnistereo), and the panorama ahead;
+/// with a function from a CAVE-space point to its pixel in each.
+fn images(
+    lighting: Lighting,
+    shadows: ShadowSettings,
+) -> Vec<(String, image::RgbaImage, Box<dyn Fn(Vec3) -> Vec2>)> {
+    let cave = cave_at(320, 280);
+    let front = cave.wall_index("front").unwrap();
+    let scene = scene();
+    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+    renderer.set_scene(&scene);
+    let frame = |mode, tess| {
+        let mut f: FrameParams<'_> =
+            test_frame(&cave, Head::at(HEAD), mode, OmniSettings::default(), tess);
+        f.lighting = lighting;
+        f.shadows = shadows;
+        f
+    };
+    let mut out: Vec<(String, image::RgbaImage, Box<dyn Fn(Vec3) -> Vec2>)> = Vec::new();
+    for (mode, tess) in [
+        (RenderMode::Mono, TessSettings::default()),
+        (RenderMode::Stereo, TessSettings::default()),
+        (
+            RenderMode::OmniOffAxis,
+            TessSettings {
+                criterion: Some(Criterion::Error(0.5)),
+                ..TessSettings::default()
+            },
+        ),
+    ] {
+        renderer.render(&frame(mode, tess)).expect("render");
+        let images = renderer.read_images().expect("read back");
+        let wall = cave.walls[front].clone();
+        out.push((
+            mode.name().to_owned(),
+            images[front].left.clone(),
+            Box::new(move |p| wall.pixel_of_ray(HEAD, p).unwrap()),
+        ));
+    }
+    let mut pano = pano_settings(Projection::Perspective, PanoRoute::Geometric, [90.0, 100.0]);
+    pano.size = [280, 320];
+    renderer
+        .render_panorama(&frame(RenderMode::Mono, TessSettings::default()), &pano)
+        .expect("panorama");
+    let [image, _] = renderer.read_panorama().expect("read back");
+    out.push((
+        "panorama".into(),
+        image,
+        Box::new(move |p| {
+            let dir = pano.view_from_cave(HEAD).transform_vector3(p - HEAD);
+            let ndc = pano.fitted().project(dir).unwrap();
+            let [w, h] = pano.size.map(|v| v as f32);
+            Vec2::new((ndc.x + 1.0) * 0.5 * w, (1.0 - ndc.y) * 0.5 * h)
+        }),
+    ));
+    out
+}
+
+fn close(a: [u8; 3], b: [u8; 3], tolerance: u8) -> bool {
+    a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= tolerance)
+}
+
+#[test]
+fn a_shadow_falls_where_the_lights_geometry_says_in_every_render_mode() {
+    // Under the cube's centre (straight below it for both lights), and beside the shadow:
+    // the sun's shadow is the cube's 0.3 m square; the point light's is the top face
+    // projected from 1.3 m above it onto the floor 0.75 m further down, 0.52 m across.
+    let under = Vec3::new(0.0, FLOOR_Y, CUBE.z);
+    let beside = Vec3::new(0.45, FLOOR_Y, CUBE.z);
+    for point in [false, true] {
+        // The shadow's edge: 4 cm inside and outside it (the edge's filtering is a texel or
+        // two, 5.5 mm here).
+        let edge = if point { 0.15 * 1.9 / 1.15 } else { 0.15 };
+        let inside = Vec3::new(edge - 0.04, FLOOR_Y, CUBE.z);
+        let outside = Vec3::new(edge + 0.04, FLOOR_Y, CUBE.z);
+        let light = lighting(point);
+        let (want_dark, want_lit) = (twin(&light, under, false), twin(&light, beside, true));
+        for (name, image, pixel) in images(light, ShadowSettings::default()) {
+            let at = |p: Vec3| {
+                let q = pixel(p);
+                let px = image.get_pixel(q.x as u32, q.y as u32);
+                [px[0], px[1], px[2]]
+            };
+            let (dark, lit) = (at(under), at(beside));
+            println!(
+                "{} light, {name}: under the cube {dark:?} (twin, shadowed {want_dark:?}), beside \
+                 {lit:?} (twin, lit {want_lit:?})",
+                if point { "point" } else { "sun" }
+            );
+            // 4 levels: the pixel's point is not exactly the one the twin shades.
+            assert!(close(dark, want_dark, 4), "{name}: {dark:?} vs {want_dark:?}");
+            assert!(close(lit, want_lit, 4), "{name}: {lit:?} vs {want_lit:?}");
+            let (i, o) = (at(inside), at(outside));
+            let (want_i, want_o) = (twin(&light, inside, false), twin(&light, outside, true));
+            assert!(close(i, want_i, 4), "{name}: inside the edge {i:?} vs {want_i:?}");
+            assert!(close(o, want_o, 4), "{name}: outside the edge {o:?} vs {want_o:?}");
+        }
+    }
+    // Switched off, the floor under the cube is lit like the rest.
+    let light = lighting(false);
+    let off = ShadowSettings {
+        enabled: false,
+        ..ShadowSettings::default()
+    };
+    let want = twin(&light, under, true);
+    for (name, image, pixel) in images(light, off) {
+        let q = pixel(under);
+        let px = image.get_pixel(q.x as u32, q.y as u32);
+        let got = [px[0], px[1], px[2]];
+        assert!(close(got, want, 4), "shadows off, {name}: {got:?} vs {want:?}");
+    }
+}
