@@ -42,6 +42,13 @@ struct FrameUniforms {
     // x: normal offset of shadow look-ups, texels; y: 1 for 3×3 filtering; z: 1 / map size;
     // w: 1 when shadows are on.
     shadow_params: vec4<f32>,
+    // x: 1 when the sky lights the scene (its irradiance in sky_sh); yzw unused.
+    sky_params: vec4<f32>,
+    // CAVE → scene directions (the placement's rotation), for the sky's irradiance.
+    sky_from_cave: mat4x4<f32>,
+    // The sky's irradiance as 9 spherical-harmonic coefficients (rgb), light strength and
+    // exposure applied (src/sky/irradiance.rs).
+    sky_sh: array<vec4<f32>, 9>,
     lights: array<Light, MAX_LIGHTS>,
     // CAVE space → each shadow-map layer's clip space.
     shadow_from_cave: array<mat4x4<f32>, MAX_SHADOW_LAYERS>,

@@ -111,6 +111,32 @@ fn env_brdf_approx(f0: vec3<f32>, roughness: f32, n_dot_v: f32) -> vec3<f32> {
     return f0 * ab.x + ab.y;
 }
 
+// The even radiance that gives the irradiance arriving at a surface facing CAVE-space unit
+// direction `n`: the config's ambient plus the sky's light (E(n) / π).
+fn ambient_radiance(frame: FrameUniforms, n: vec3<f32>) -> vec3<f32> {
+    var l = frame.ambient.rgb;
+    if frame.sky_params.x > 0.5 {
+        let d = normalize((frame.sky_from_cave * vec4<f32>(n, 0.0)).xyz);
+        let y = array<f32, 9>(
+            0.282095,
+            0.488603 * d.y,
+            0.488603 * d.z,
+            0.488603 * d.x,
+            1.092548 * d.x * d.y,
+            1.092548 * d.y * d.z,
+            0.315392 * (3.0 * d.z * d.z - 1.0),
+            1.092548 * d.x * d.z,
+            0.546274 * (d.x * d.x - d.y * d.y),
+        );
+        var e = vec3<f32>(0.0);
+        for (var i = 0u; i < 9u; i++) {
+            e += frame.sky_sh[i].rgb * y[i];
+        }
+        l += max(e, vec3<f32>(0.0)) * INV_PI;
+    }
+    return l;
+}
+
 // The lit colour of a surface point seen from `eye` (emission is added by the caller);
 // `visibility[k]` is how much of light k reaches the point (shadows: 0 to 1).
 fn shade_pbr(
@@ -125,12 +151,15 @@ fn shade_pbr(
         let inc = light_incoming(frame.lights[k], s.position);
         color += brdf_cos(s, v, inc.direction) * inc.radiance * visibility[k];
     }
-    // Ambient light as an even radiance from every direction: diffuse c_diff·L, specular the
-    // environment BRDF, both occluded.
+    // Ambient light: diffuse c_diff·L(n), specular the environment BRDF times the light
+    // around the mirror direction (the sky's irradiance there: exact for rough surfaces, a
+    // blur of the sky for glossy ones), both occluded.
     let f0 = mix(vec3<f32>(0.04), s.base_color, s.metallic);
     let c_diff = mix(s.base_color, vec3<f32>(0.0), s.metallic);
     let n_dot_v = max(dot(s.normal, v), 1e-4);
-    let ambient = frame.ambient.rgb * (c_diff + env_brdf_approx(f0, s.roughness, n_dot_v));
+    let mirror = reflect(-v, s.normal);
+    let ambient = c_diff * ambient_radiance(frame, s.normal)
+        + env_brdf_approx(f0, s.roughness, n_dot_v) * ambient_radiance(frame, mirror);
     return color + ambient * s.occlusion;
 }
 
@@ -147,7 +176,7 @@ fn shade_simple(
     let a = roughness * roughness;
     let shininess = clamp(2.0 / (a * a) - 2.0, 1.0, 512.0);
     let strength = 0.04 + 0.5 * (1.0 - roughness) + 0.4 * s.metallic;
-    var diffuse = frame.ambient.rgb;
+    var diffuse = ambient_radiance(frame, s.normal);
     var specular = vec3<f32>(0.0);
     for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
         let inc = light_incoming(frame.lights[k], s.position);

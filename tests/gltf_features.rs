@@ -443,6 +443,7 @@ fn a_primitive_without_texture_coordinates_is_its_colour_not_black() {
         },
         None,
         None,
+        None,
     );
     let cave = cave();
     let (left, right) = (Vec3::new(-0.45, 1.6, -1.0), Vec3::new(0.45, 1.6, -1.0));
@@ -590,6 +591,7 @@ fn a_normal_map_bends_the_shading_as_the_cpu_twin_says() {
             scene: &[],
             shading: Shading::Pbr,
         },
+        None,
         None,
         None,
     );

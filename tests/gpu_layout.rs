@@ -8,8 +8,8 @@ use std::mem::{offset_of, size_of};
 use omnicave::render::panorama::ResolveUniforms;
 use omnicave::render::present::PresentUniforms;
 use omnicave::render::scene_pass::GpuVertex;
-use omnicave::render::shadow_pass::ShadowLayerUniforms;
 use omnicave::render::shaders::{self, compose};
+use omnicave::render::shadow_pass::ShadowLayerUniforms;
 use omnicave::render::sky_pass::SkyUniforms;
 use omnicave::render::tessellator::{GpuTessEntry, TessUniforms};
 use omnicave::render::uniforms::{FrameUniforms, GpuLight, MaterialUniforms, ViewUniforms};
@@ -85,6 +85,9 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "shading" => shading,
                 "frame_pad" => frame_pad,
                 "shadow_params" => shadow_params,
+                "sky_params" => sky_params,
+                "sky_from_cave" => sky_from_cave,
+                "sky_sh" => sky_sh,
                 "lights" => lights,
                 "shadow_from_cave" => shadow_from_cave,
             ),

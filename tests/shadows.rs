@@ -78,6 +78,7 @@ fn twin(lighting: &Lighting, p: Vec3, lit: bool) -> [u8; 3] {
         },
         None,
         None,
+        None,
     );
     let visibility = [if lit { 1.0 } else { 0.0 }; MAX_LIGHTS];
     let c = shade_pbr(
@@ -96,12 +97,12 @@ fn twin(lighting: &Lighting, p: Vec3, lit: bool) -> [u8; 3] {
     c.to_array().map(omnicave::sky::cubemap::linear_to_srgb)
 }
 
+/// A named image and where a CAVE-space point lands in it.
+type View = (String, image::RgbaImage, Box<dyn Fn(Vec3) -> Vec2>);
+
 /// The front wall's left eye in `mode` (tessellated in omnistereo), and the panorama ahead;
 /// with a function from a CAVE-space point to its pixel in each.
-fn images(
-    lighting: Lighting,
-    shadows: ShadowSettings,
-) -> Vec<(String, image::RgbaImage, Box<dyn Fn(Vec3) -> Vec2>)> {
+fn images(lighting: Lighting, shadows: ShadowSettings) -> Vec<View> {
     let cave = cave_at(320, 280);
     let front = cave.wall_index("front").unwrap();
     let scene = scene();
@@ -114,7 +115,7 @@ fn images(
         f.shadows = shadows;
         f
     };
-    let mut out: Vec<(String, image::RgbaImage, Box<dyn Fn(Vec3) -> Vec2>)> = Vec::new();
+    let mut out: Vec<View> = Vec::new();
     for (mode, tess) in [
         (RenderMode::Mono, TessSettings::default()),
         (RenderMode::Stereo, TessSettings::default()),
@@ -186,12 +187,21 @@ fn a_shadow_falls_where_the_lights_geometry_says_in_every_render_mode() {
                 if point { "point" } else { "sun" }
             );
             // 4 levels: the pixel's point is not exactly the one the twin shades.
-            assert!(close(dark, want_dark, 4), "{name}: {dark:?} vs {want_dark:?}");
+            assert!(
+                close(dark, want_dark, 4),
+                "{name}: {dark:?} vs {want_dark:?}"
+            );
             assert!(close(lit, want_lit, 4), "{name}: {lit:?} vs {want_lit:?}");
             let (i, o) = (at(inside), at(outside));
             let (want_i, want_o) = (twin(&light, inside, false), twin(&light, outside, true));
-            assert!(close(i, want_i, 4), "{name}: inside the edge {i:?} vs {want_i:?}");
-            assert!(close(o, want_o, 4), "{name}: outside the edge {o:?} vs {want_o:?}");
+            assert!(
+                close(i, want_i, 4),
+                "{name}: inside the edge {i:?} vs {want_i:?}"
+            );
+            assert!(
+                close(o, want_o, 4),
+                "{name}: outside the edge {o:?} vs {want_o:?}"
+            );
         }
     }
     // Switched off, the floor under the cube is lit like the rest.
@@ -205,6 +215,9 @@ fn a_shadow_falls_where_the_lights_geometry_says_in_every_render_mode() {
         let q = pixel(under);
         let px = image.get_pixel(q.x as u32, q.y as u32);
         let got = [px[0], px[1], px[2]];
-        assert!(close(got, want, 4), "shadows off, {name}: {got:?} vs {want:?}");
+        assert!(
+            close(got, want, 4),
+            "shadows off, {name}: {got:?} vs {want:?}"
+        );
     }
 }

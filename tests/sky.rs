@@ -623,3 +623,135 @@ fn the_sky_fills_only_the_background_in_every_render_mode() {
         }
     }
 }
+
+#[test]
+fn the_sky_lights_the_scene_as_its_irradiance_says() {
+    // A sky white above the horizon and black below, no other light: a floor facing up gets
+    // the sky's irradiance (about π: the whole bright hemisphere), a ceiling facing down
+    // almost none; both as the CPU twin shades them from the same spherical harmonics. With
+    // `light = 0` the floor is black.
+    use omnicave::render::pbr::{LIT, SurfacePoint, shade_pbr};
+    use omnicave::render::uniforms::{FrameLights, FrameUniforms, SkyLight};
+    use omnicave::scene::build::grid;
+    use omnicave::scene::{Lighting, Material, Scene, Shading};
+    use omnicave::sky::irradiance::SkyIrradiance;
+
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let path = dir.join("half-sky.png");
+    RgbaImage::from_fn(128, 64, |_, y| {
+        image::Rgba(if y < 32 {
+            [255, 255, 255, 255]
+        } else {
+            [0, 0, 0, 255]
+        })
+    })
+    .save(&path)
+    .unwrap();
+    let sky = load_sky(&path).unwrap();
+    let mut scene = Scene::default();
+    let grey = scene.add_material(Material {
+        base_color: [0.5, 0.5, 0.5, 1.0],
+        roughness: 1.0,
+        ..Material::default()
+    });
+    let (floor_y, ceiling_y) = (0.6, 2.4);
+    let floor = grid(
+        Vec3::new(-1.0, floor_y, -0.5),
+        Vec3::X * 2.0,
+        Vec3::NEG_Z * 1.0,
+        1,
+        1,
+        1.0,
+    );
+    let ceiling = grid(
+        Vec3::new(-1.0, ceiling_y, -1.5),
+        Vec3::X * 2.0,
+        Vec3::Z * 1.0,
+        1,
+        1,
+        1.0,
+    );
+    scene.add_mesh(&floor.vertices, &floor.indices, grey);
+    scene.add_mesh(&ceiling.vertices, &ceiling.indices, grey);
+    let dark = Lighting {
+        ambient: Vec3::ZERO,
+        sun_color: Vec3::ZERO,
+        point_color: Vec3::ZERO,
+        ..Lighting::default()
+    };
+    let head = Vec3::new(0.0, 1.6, 0.0);
+    let cave = cave_at(320, 280);
+    let front = cave.wall_index("front").unwrap();
+    let irradiance = SkyIrradiance::from_cube(&sky);
+    let twin = |p: Vec3, normal: Vec3| {
+        let frame = FrameUniforms::new(
+            glam::Mat4::IDENTITY,
+            FrameLights {
+                config: &dark,
+                scene: &[],
+                shading: Shading::Pbr,
+            },
+            None,
+            Some(SkyLight {
+                irradiance: &irradiance,
+                strength: 1.0,
+            }),
+            None,
+        );
+        let surface = SurfacePoint {
+            position: p,
+            normal,
+            base_color: Vec3::splat(0.5),
+            metallic: 0.0,
+            roughness: 1.0,
+            occlusion: 1.0,
+        };
+        shade_pbr(&frame, &surface, head, &LIT)
+            .to_array()
+            .map(omnicave::sky::cubemap::linear_to_srgb)
+    };
+    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+    renderer.set_scene(&scene);
+    renderer.set_sky(Some(&sky)).expect("sky");
+    let floor_point = Vec3::new(0.0, floor_y, -1.3);
+    let ceiling_point = Vec3::new(0.0, ceiling_y, -1.3);
+    let pixel_at = |image: &RgbaImage, p: Vec3| {
+        let q = cave.walls[front].pixel_of_ray(head, p).unwrap();
+        let px = image.get_pixel(q.x as u32, q.y as u32);
+        [px[0], px[1], px[2]]
+    };
+    for light in [1.0, 0.0] {
+        let mut frame = test_frame(
+            &cave,
+            Head::at(head),
+            RenderMode::Mono,
+            OmniSettings::default(),
+            TessSettings::default(),
+        );
+        frame.lighting = dark;
+        frame.sky.light = light;
+        renderer.render(&frame).expect("render");
+        let image = renderer.read_images().expect("read back")[front]
+            .left
+            .clone();
+        let (f, c) = (
+            pixel_at(&image, floor_point),
+            pixel_at(&image, ceiling_point),
+        );
+        println!("sky light {light}: floor {f:?}, ceiling {c:?}");
+        if light > 0.0 {
+            let (want_f, want_c) = (twin(floor_point, Vec3::Y), twin(ceiling_point, Vec3::NEG_Y));
+            println!("  CPU twin: floor {want_f:?}, ceiling {want_c:?}");
+            // 4 levels: the pixel's point is not the twin's exactly (a matte surface).
+            for (got, want) in [(f, want_f), (c, want_c)] {
+                assert!(
+                    got.iter().zip(want).all(|(a, b)| a.abs_diff(b) <= 4),
+                    "{got:?} vs {want:?}"
+                );
+            }
+            assert!(f[0] > 150 && c[0] < 60, "floor {f:?}, ceiling {c:?}");
+        } else {
+            assert!(f[0] <= 2, "no sky light: {f:?}");
+        }
+    }
+}

@@ -192,13 +192,14 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     let shadows = &mut s.shadows;
     ui.horizontal(|ui| {
         ui.checkbox(&mut shadows.enabled, "Shadows");
-        ui.add_enabled(shadows.enabled, egui::Checkbox::new(&mut shadows.pcf, "soft edges"));
+        ui.add_enabled(
+            shadows.enabled,
+            egui::Checkbox::new(&mut shadows.pcf, "soft edges"),
+        );
     });
     ui.add_enabled_ui(shadows.enabled, |ui| {
         let range = model_range(SHADOW_OFFSET);
-        ui.add(
-            Slider::new(&mut shadows.normal_offset_texels, range).text("shadow offset texels"),
-        );
+        ui.add(Slider::new(&mut shadows.normal_offset_texels, range).text("shadow offset texels"));
     });
     ui.checkbox(&mut s.render.wireframe, "Wireframe");
     ui.horizontal(|ui| {

@@ -60,6 +60,7 @@ impl ConfigFile {
             mode: k.mode,
             pixels_per_slice: k.pixels_per_slice,
             exposure: k.exposure,
+            light: k.light,
         }
     }
 

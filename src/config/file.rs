@@ -170,6 +170,10 @@ pub struct SkyboxSection {
     /// Multiplier on the sky's linear colour.
     #[schemars(range(min = 0.0, max = 1e4))]
     pub exposure: f32,
+    /// How much the sky lights the scene: image-based ambient light from its irradiance
+    /// (0: none, e.g. indoors, where walls would hide it; the sky light is not shadowed).
+    #[schemars(range(min = 0.0, max = 100.0))]
+    pub light: f32,
 }
 
 impl Default for SkyboxSection {
@@ -179,6 +183,7 @@ impl Default for SkyboxSection {
             mode: SkyMode::default(),
             pixels_per_slice: DEFAULT_PIXELS_PER_SLICE,
             exposure: 1.0,
+            light: 1.0,
         }
     }
 }

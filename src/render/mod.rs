@@ -133,6 +133,8 @@ pub struct Renderer {
     pano: panorama::PanoPass,
     /// Eye images in the last panorama (1 mono, 2 stereo).
     pano_views: usize,
+    /// The sky's irradiance (computed once per sky), for its light on the scene.
+    sky_irradiance: Option<crate::sky::irradiance::SkyIrradiance>,
 }
 
 /// Two timestamps around a frame's GPU work, resolved into a buffer that the read-back ring
@@ -222,6 +224,7 @@ impl Renderer {
             targets_generation: 0,
             pano,
             pano_views: 0,
+            sky_irradiance: None,
         };
         renderer.sync_walls(cave);
         Ok(renderer)
@@ -356,6 +359,7 @@ impl Renderer {
         match cube {
             Some(c) if c.size() > max => {
                 self.sky_pass.set_cube(&self.device, &self.queue, None);
+                self.sky_irradiance = None;
                 Err(RenderError::SkyTooLarge {
                     size: c.size(),
                     max,
@@ -363,6 +367,7 @@ impl Renderer {
             }
             _ => {
                 self.sky_pass.set_cube(&self.device, &self.queue, cube);
+                self.sky_irradiance = cube.map(crate::sky::irradiance::SkyIrradiance::from_cube);
                 Ok(())
             }
         }
@@ -479,12 +484,9 @@ impl Renderer {
         let centre = frame.world_from_cave.transform_point3(glam::Vec3::ZERO);
         let bounds = self.scene.as_ref().and_then(|s| s.bounds);
         let plan = shadow_pass::plan_shadows(&lights.all(), bounds, centre, &frame.shadows);
-        self.scene_pass.shadows.prepare(
-            &self.device,
-            &self.queue,
-            &plan,
-            frame.shadows.map_size,
-        );
+        self.scene_pass
+            .shadows
+            .prepare(&self.device, &self.queue, &plan, frame.shadows.map_size);
         if let Some(scene) = &self.scene {
             self.scene_pass.shadows.encode(encoder, scene);
         }
@@ -492,7 +494,15 @@ impl Renderer {
             settings: &frame.shadows,
             plan: &plan,
         };
-        FrameUniforms::new(frame.world_from_cave, lights, Some(shadows), omni)
+        let sky = self
+            .sky_irradiance
+            .as_ref()
+            .filter(|_| frame.sky.mode != SkyMode::Off)
+            .map(|irradiance| uniforms::SkyLight {
+                irradiance,
+                strength: frame.sky.light * frame.sky.exposure,
+            });
+        FrameUniforms::new(frame.world_from_cave, lights, Some(shadows), sky, omni)
     }
 
     /// Renders every view of the frame and submits the work (no CPU read-back).

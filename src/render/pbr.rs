@@ -102,6 +102,25 @@ pub fn env_brdf_approx(f0: Vec3, roughness: f32, n_dot_v: f32) -> Vec3 {
     f0 * ab[0] + Vec3::splat(ab[1])
 }
 
+/// Mirrors `ambient_radiance`: the config's ambient plus the sky's E(n) / π.
+pub fn ambient_radiance(frame: &FrameUniforms, n: Vec3) -> Vec3 {
+    let mut l = Vec3::from_slice(&frame.ambient[..3]);
+    if frame.sky_params[0] > 0.5 {
+        let d = glam::Mat4::from_cols_array_2d(&frame.sky_from_cave)
+            .transform_vector3(n)
+            .normalize();
+        let e: Vec3 = frame
+            .sky_sh
+            .iter()
+            .map(|c| Vec3::from_slice(&c[..3]))
+            .zip(crate::sky::irradiance::sh_basis(d))
+            .map(|(c, y)| c * y)
+            .sum();
+        l += e.max(Vec3::ZERO) * INV_PI;
+    }
+    l
+}
+
 fn lights(frame: &FrameUniforms) -> &[GpuLight] {
     &frame.lights[..(frame.light_count as usize).min(MAX_LIGHTS)]
 }
@@ -126,8 +145,9 @@ pub fn shade_pbr(
     let f0 = mix(Vec3::splat(0.04), s.base_color, s.metallic);
     let c_diff = mix(s.base_color, Vec3::ZERO, s.metallic);
     let n_dot_v = s.normal.dot(v).max(1e-4);
-    let ambient = Vec3::from_slice(&frame.ambient[..3])
-        * (c_diff + env_brdf_approx(f0, s.roughness, n_dot_v));
+    let mirror = (-v).reflect(s.normal);
+    let ambient = c_diff * ambient_radiance(frame, s.normal)
+        + env_brdf_approx(f0, s.roughness, n_dot_v) * ambient_radiance(frame, mirror);
     color + ambient * s.occlusion
 }
 
@@ -143,7 +163,7 @@ pub fn shade_simple(
     let a = roughness * roughness;
     let shininess = (2.0 / (a * a) - 2.0).clamp(1.0, 512.0);
     let strength = 0.04 + 0.5 * (1.0 - roughness) + 0.4 * s.metallic;
-    let mut diffuse = Vec3::from_slice(&frame.ambient[..3]);
+    let mut diffuse = ambient_radiance(frame, s.normal);
     let mut specular = Vec3::ZERO;
     for (light, seen) in lights(frame).iter().zip(visibility) {
         let (l, radiance) = light_incoming(light, s.position);

@@ -131,7 +131,11 @@ impl SceneGpu {
         pass.set_vertex_buffer(0, self.vertex_buffer.slice(..));
         pass.set_index_buffer(self.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
         for draw in self.draws.iter().filter(|d| d.casts_shadow) {
-            pass.draw_indexed(draw.first_index..draw.first_index + draw.index_count, 0, 0..1);
+            pass.draw_indexed(
+                draw.first_index..draw.first_index + draw.index_count,
+                0,
+                0..1,
+            );
         }
     }
 

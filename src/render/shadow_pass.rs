@@ -114,10 +114,16 @@ pub fn plan_shadows(
                 LightKind::Spot { outer_cone, .. } => {
                     let fov = (2.0 * outer_cone + 2f32.to_radians())
                         .clamp(2f32.to_radians(), 170f32.to_radians());
-                    let far = light.range.unwrap_or_else(|| reach(light.position)).max(0.2);
+                    let far = light
+                        .range
+                        .unwrap_or_else(|| reach(light.position))
+                        .max(0.2);
                     let dir = light.direction.normalize_or(Vec3::NEG_Y);
-                    let view =
-                        view::look_at_mat4(light.position, light.position + dir, any_perpendicular(dir));
+                    let view = view::look_at_mat4(
+                        light.position,
+                        light.position + dir,
+                        any_perpendicular(dir),
+                    );
                     LightShadow {
                         first_layer,
                         shadow_from_world: vec![
@@ -128,7 +134,10 @@ pub fn plan_shadows(
                     }
                 }
                 LightKind::Point => {
-                    let far = light.range.unwrap_or_else(|| reach(light.position)).max(0.2);
+                    let far = light
+                        .range
+                        .unwrap_or_else(|| reach(light.position))
+                        .max(0.2);
                     let projection = proj::directx::perspective(
                         // A hair over 90° so that neighbouring faces overlap at the edges.
                         91f32.to_radians(),

@@ -9,6 +9,7 @@ use crate::cave::omni::{OmniSettings, WarpVariant};
 use crate::scene::{
     AlphaMode, Light, LightKind, Lighting, Material, Shading, TEXTURE_SLOTS, UvTransform,
 };
+use crate::sky::irradiance::SkyIrradiance;
 
 /// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
 pub const UNIFORM_STRIDE: u64 = 256;
@@ -85,6 +86,12 @@ pub struct FrameUniforms {
     /// x: normal offset of look-ups, texels; y: 1 for 3×3 filtering; z: 1 / map size; w: 1
     /// when shadows are on.
     pub shadow_params: [f32; 4],
+    /// x: 1 when the sky lights the scene.
+    pub sky_params: [f32; 4],
+    /// CAVE → scene directions, for the sky's irradiance.
+    pub sky_from_cave: [[f32; 4]; 4],
+    /// The sky's irradiance (spherical harmonics, rgb), strength and exposure applied.
+    pub sky_sh: [[f32; 4]; 9],
     pub lights: [GpuLight; MAX_LIGHTS],
     /// CAVE space → each shadow-map layer's clip space.
     pub shadow_from_cave: [[[f32; 4]; 4]; MAX_SHADOW_LAYERS],
@@ -110,6 +117,13 @@ impl FrameLights<'_> {
     }
 }
 
+/// The sky's light on a frame: its irradiance and how strongly it counts (light × exposure).
+#[derive(Debug, Clone, Copy)]
+pub struct SkyLight<'a> {
+    pub irradiance: &'a SkyIrradiance,
+    pub strength: f32,
+}
+
 /// A frame's shadows: the settings and, per light of [`FrameLights::all`], its layers.
 #[derive(Debug, Clone, Copy)]
 pub struct FrameShadows<'a> {
@@ -125,6 +139,7 @@ impl FrameUniforms {
         world_from_cave: Mat4,
         lights: FrameLights<'_>,
         shadows: Option<FrameShadows<'_>>,
+        sky: Option<SkyLight<'_>>,
         omni: Option<OmniSettings>,
     ) -> Self {
         let cave_from_world = world_from_cave.inverse();
@@ -195,6 +210,28 @@ impl FrameUniforms {
                     1.0,
                 ],
                 _ => [0.0; 4],
+            },
+            sky_params: [
+                if sky.is_some_and(|s| s.strength > 0.0) {
+                    1.0
+                } else {
+                    0.0
+                },
+                0.0,
+                0.0,
+                0.0,
+            ],
+            // The placement's rotation without its scale (directions only).
+            sky_from_cave: Mat4::from_mat3(
+                glam::Mat3::from_mat4(world_from_cave) * (1.0 / scale.max(1e-12)),
+            )
+            .to_cols_array_2d(),
+            sky_sh: match sky {
+                Some(s) => s
+                    .irradiance
+                    .coefficients
+                    .map(|c| (c * s.strength).extend(0.0).to_array()),
+                None => [[0.0; 4]; 9],
             },
             lights: gpu_lights,
             shadow_from_cave,

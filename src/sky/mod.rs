@@ -3,6 +3,7 @@
 
 pub mod bundled;
 pub mod cubemap;
+pub mod irradiance;
 pub mod lookup;
 
 pub use cubemap::{CubeMap, SkyError, load_sky};
@@ -56,6 +57,8 @@ pub struct SkySettings {
     pub pixels_per_slice: f32,
     /// Multiplier on the sky's linear colour (for HDR skies).
     pub exposure: f32,
+    /// How much the sky lights the scene (image-based ambient light; 0: none).
+    pub light: f32,
 }
 
 /// One slice per 8 pixels (both directions where the eye varies with height): keeps the
@@ -71,6 +74,7 @@ impl Default for SkySettings {
             mode: SkyMode::Auto,
             pixels_per_slice: DEFAULT_PIXELS_PER_SLICE,
             exposure: 1.0,
+            light: 1.0,
         }
     }
 }
