@@ -37,6 +37,8 @@ pub struct Overrides {
     pub size_m: Option<f32>,
     pub offset_m: Option<glam::Vec3>,
     pub double_sided: bool,
+    /// Start at this camera of the scene (name or index).
+    pub camera: Option<String>,
     pub head: Option<glam::Vec3>,
     pub head_yaw_degrees: Option<f32>,
     pub eye_separation: Option<f32>,
@@ -84,6 +86,9 @@ impl Overrides {
             settings.scene.offset_m = offset.to_array();
         }
         settings.scene.double_sided |= self.double_sided;
+        if let Some(camera) = &self.camera {
+            settings.scene.camera = camera.clone();
+        }
         if let Some(p) = self.head {
             settings.head.position = p.to_array();
         }
@@ -182,6 +187,7 @@ pub fn render_to_dir(
         .or_else(|| config.scene_path.clone())
         .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
     let scene = load_scene(&config.settings, &scene_path)?;
+    crate::setup::place_at_camera(&mut config.settings, &scene)?;
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
     if overrides.panorama {

@@ -244,6 +244,9 @@ struct RenderArgs {
     /// Draw every material double-sided (content wound the wrong way).
     #[arg(long)]
     double_sided: bool,
+    /// Start at a camera of the scene file (its name or index): the head stands there.
+    #[arg(long)]
+    camera: Option<String>,
     /// Head position in CAVE space, metres: X,Y,Z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     head: Option<Vec3>,
@@ -639,6 +642,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 size_m: args.size_m,
                 offset_m: args.scene_offset,
                 double_sided: args.double_sided,
+                camera: args.camera,
                 head: args.head,
                 head_yaw_degrees: args.head_yaw,
                 eye_separation: args.ipd,

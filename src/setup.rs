@@ -104,6 +104,58 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
     Ok(scene)
 }
 
+/// Places the CAVE at the scene's camera that `settings.scene.camera` names (if any): the
+/// configured head at the camera, the front wall (−z) turned towards its horizontal view,
+/// scale kept. Refuses a name the scene has no camera of, listing those it has.
+pub fn place_at_camera(settings: &mut ConfigFile, scene: &Scene) -> Result<(), SceneError> {
+    let wanted = settings.scene.camera.trim();
+    if wanted.is_empty() {
+        return Ok(());
+    }
+    let camera = scene
+        .cameras
+        .iter()
+        .enumerate()
+        .find(|(i, c)| c.name == wanted || i.to_string() == wanted)
+        .map(|(_, c)| c.clone())
+        .ok_or_else(|| SceneError::Invalid {
+            path: "[scene] camera".into(),
+            what: format!(
+                "the scene has no camera {wanted:?}; it has {}",
+                if scene.cameras.is_empty() {
+                    "none".to_owned()
+                } else {
+                    scene
+                        .cameras
+                        .iter()
+                        .enumerate()
+                        .map(|(i, c)| format!("{i}: {:?}", c.name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            ),
+        })?;
+    let f = camera.forward;
+    // A camera looking straight up or down keeps the configured yaw.
+    let yaw = if f.x.abs() + f.z.abs() > 1e-6 {
+        (-f.x).atan2(-f.z)
+    } else {
+        settings.scene.world_from_cave.yaw_degrees.to_radians()
+    };
+    let placement = &mut settings.scene.world_from_cave;
+    let rotated = glam::Quat::from_rotation_y(yaw)
+        * (glam::Vec3::from(settings.head.position) * placement.scale);
+    placement.yaw_degrees = yaw.to_degrees();
+    placement.translation = (camera.position - rotated).to_array();
+    tracing::info!(
+        "starting at camera {:?}: CAVE placed at {:.2?}, turned {:.1}°",
+        camera.name,
+        placement.translation,
+        placement.yaw_degrees
+    );
+    Ok(())
+}
+
 /// Loads the config's sky, if it names one. A missing or malformed sky file is logged as an
 /// error naming the file, and the scene renders without a sky.
 pub fn load_config_sky(config: &Config) -> Option<CubeMap> {

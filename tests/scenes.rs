@@ -246,3 +246,46 @@ fn the_double_sided_setting_draws_content_wound_the_wrong_way() {
         "double_sided did not draw the back face"
     );
 }
+
+#[test]
+fn a_camera_of_the_file_gives_the_start_viewpoint() {
+    // A camera 3 m along +x and 4 m along −z, turned 90° to the left (looking along −x): with
+    // `[scene] camera`, the configured head stands there, looking where it looks.
+    let mut w = GlbWriter::new();
+    let m = w.add_material(&MaterialDesc::plain("grey", [0.5; 3], 1.0));
+    let mesh = w.add_mesh("box", &[(&cuboid(Vec3::ONE, 1.0), m)]);
+    let cam = w.add_camera("entrance", 1.0);
+    let b = w.add_node(NodeDesc::new("box").with_mesh(mesh));
+    let c = w.add_node(
+        NodeDesc::new("entrance camera")
+            .with_camera(cam)
+            .at(Vec3::new(3.0, 1.6, -4.0))
+            .rotated_y_degrees(90.0),
+    );
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("camera.glb");
+    std::fs::write(&path, w.to_glb(&[b, c])).unwrap();
+    let scene = load_gltf(&path).unwrap();
+    assert_eq!(scene.cameras.len(), 1);
+    assert_eq!(scene.cameras[0].name, "entrance");
+
+    let mut settings = omnicave::config::ConfigFile::default();
+    settings.head.position = [0.2, 1.7, 0.1];
+    for name in ["entrance", "0"] {
+        settings.scene.camera = name.into();
+        omnicave::setup::place_at_camera(&mut settings, &scene).unwrap();
+        let world_from_cave = settings.world_from_cave();
+        let head = world_from_cave.transform_point3(Vec3::from(settings.head.position));
+        let ahead = world_from_cave.transform_vector3(Vec3::NEG_Z);
+        println!("camera {name}: head at {head}, front wall towards {ahead}");
+        assert!((head - Vec3::new(3.0, 1.6, -4.0)).length() < 1e-5, "{head}");
+        assert!((ahead - Vec3::NEG_X).length() < 1e-5, "{ahead}");
+    }
+    settings.scene.camera = "balcony".into();
+    let err = omnicave::setup::place_at_camera(&mut settings, &scene)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("balcony") && err.contains("0: \"entrance\""),
+        "{err}"
+    );
+}

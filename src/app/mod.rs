@@ -72,6 +72,7 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         Some(path) => load_scene(&config.settings, &path)?,
         None => Scene::default(),
     };
+    crate::setup::place_at_camera(&mut config.settings, &scene)?;
     let sky = load_config_sky(&config);
     let quit = Arc::new(AtomicBool::new(false));
     {

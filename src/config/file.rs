@@ -400,6 +400,10 @@ pub struct SceneSection {
     /// Then moved by this much (metres, scene space): e.g. [0, 0.9, -1] sets a model fitted
     /// to the floor on a 0.9 m table 1 m ahead of the CAVE's centre.
     pub offset_m: [f32; 3],
+    /// Start at one of the file's cameras (its name, or its index in node order): the CAVE is
+    /// placed so that the configured head stands at the camera, the front wall towards its
+    /// view ("": the placement below).
+    pub camera: String,
     pub world_from_cave: PlacementSection,
 }
 

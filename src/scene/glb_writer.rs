@@ -128,6 +128,8 @@ pub struct NodeDesc {
     pub mesh: Option<usize>,
     /// Index returned by [`GlbWriter::add_light`].
     pub light: Option<usize>,
+    /// Index returned by [`GlbWriter::add_camera`].
+    pub camera: Option<usize>,
     pub translation: Vec3,
     pub rotation: Quat,
     pub scale: Vec3,
@@ -140,6 +142,7 @@ impl NodeDesc {
             name: name.into(),
             mesh: None,
             light: None,
+            camera: None,
             translation: Vec3::ZERO,
             rotation: Quat::IDENTITY,
             scale: Vec3::ONE,
@@ -149,6 +152,11 @@ impl NodeDesc {
 
     pub fn with_mesh(mut self, mesh: usize) -> Self {
         self.mesh = Some(mesh);
+        self
+    }
+
+    pub fn with_camera(mut self, camera: usize) -> Self {
+        self.camera = Some(camera);
         self
     }
 
@@ -199,6 +207,7 @@ pub struct GlbWriter {
     meshes: Vec<Value>,
     nodes: Vec<Value>,
     lights: Vec<Value>,
+    cameras: Vec<Value>,
     extensions_used: std::collections::BTreeSet<&'static str>,
     extensions_required: std::collections::BTreeSet<&'static str>,
     /// Decoded size of the meshopt fallback buffer (0: none).
@@ -294,6 +303,17 @@ impl GlbWriter {
         }
         self.materials.push(mat);
         self.materials.len() - 1
+    }
+
+    /// Adds a perspective camera (vertical field of view in radians); attach it to a node with
+    /// [`NodeDesc::with_camera`] (it looks along the node's −z).
+    pub fn add_camera(&mut self, name: &str, yfov: f32) -> usize {
+        self.cameras.push(json!({
+            "name": name,
+            "type": "perspective",
+            "perspective": { "yfov": yfov, "znear": 0.05 },
+        }));
+        self.cameras.len() - 1
     }
 
     /// Adds a punctual light; attach it to a node with [`NodeDesc::with_light`].
@@ -627,6 +647,9 @@ impl GlbWriter {
         if let Some(m) = node.mesh {
             v["mesh"] = json!(m);
         }
+        if let Some(c) = node.camera {
+            v["camera"] = json!(c);
+        }
         if let Some(l) = node.light {
             v["extensions"] = json!({ "KHR_lights_punctual": { "light": l } });
         }
@@ -666,6 +689,9 @@ impl GlbWriter {
                 "byteLength": self.fallback_len,
                 "extensions": { "EXT_meshopt_compression": { "fallback": true } },
             }));
+        }
+        if !self.cameras.is_empty() {
+            doc["cameras"] = json!(self.cameras);
         }
         if !self.lights.is_empty() {
             doc["extensions"] = json!({ "KHR_lights_punctual": { "lights": self.lights } });
