@@ -536,18 +536,33 @@ fn a_texture_transform_moves_the_texture_where_the_extension_says() {
 }
 
 #[test]
-fn quantized_sparse_and_meshopt_attributes_land_where_their_float_twins_do() {
+fn quantized_sparse_meshopt_and_draco_attributes_land_where_their_float_twins_do() {
     let float = load_gltf(&file_sphere(AttributeEncoding::Float)).unwrap();
     let float_image = routes(&float, Lighting::default()).remove(0).image;
     for encoding in [
         AttributeEncoding::Quantized,
         AttributeEncoding::Sparse,
         AttributeEncoding::Meshopt,
+        AttributeEncoding::Draco,
     ] {
         let scene = load_gltf(&file_sphere(encoding)).unwrap();
-        assert_eq!(scene.vertices.len(), float.vertices.len());
+        if encoding == AttributeEncoding::Draco {
+            // Draco renumbers (and may merge) points: the same shape, 14-bit positions (a
+            // 0.7 m sphere: 43 µm steps).
+            let (lo, hi) = scene.bounds().unwrap();
+            let (flo, fhi) = float.bounds().unwrap();
+            assert!((lo - flo).abs().max_element() < 1e-4 && (hi - fhi).abs().max_element() < 1e-4);
+            assert_eq!(scene.triangle_count(), float.triangle_count());
+        } else {
+            assert_eq!(scene.vertices.len(), float.vertices.len());
+        }
         let step = quantization_step(&uv_sphere(0.35, 24, 48));
-        for (a, b) in scene.vertices.iter().zip(&float.vertices) {
+        for (a, b) in scene
+            .vertices
+            .iter()
+            .zip(&float.vertices)
+            .filter(|_| encoding != AttributeEncoding::Draco)
+        {
             let d = (Vec3::from(a.position) - Vec3::from(b.position)).length();
             // Exact for sparse and meshopt; half a step per axis for 16-bit positions.
             let allowed = if encoding == AttributeEncoding::Quantized {
@@ -570,8 +585,10 @@ fn quantized_sparse_and_meshopt_attributes_land_where_their_float_twins_do() {
             .count();
         println!("{encoding:?}: {differing} pixels differ from the float file by more than 8");
         match encoding {
-            // 8-bit normals shade within a few levels; an edge pixel may flip.
-            AttributeEncoding::Quantized => assert!(differing <= 40, "{differing}"),
+            // 8-bit (Draco: 10-bit) normals shade within a few levels; an edge pixel may flip.
+            AttributeEncoding::Quantized | AttributeEncoding::Draco => {
+                assert!(differing <= 40, "{differing}")
+            }
             _ => assert_eq!(differing, 0, "{encoding:?}"),
         }
     }
@@ -738,25 +755,35 @@ fn a_spot_light_from_the_file_lights_its_cone_only() {
 }
 
 #[test]
-fn draco_and_unknown_required_extensions_are_refused_by_name() {
+fn unknown_required_extensions_and_broken_draco_are_refused_by_name() {
     let dir = out_dir();
-    for (ext, expect) in [
-        ("KHR_draco_mesh_compression", "gltf-transform"),
-        ("EXT_made_up", "EXT_made_up"),
-    ] {
-        let json = format!(
-            r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["{ext}"],
-                "extensionsRequired":["{ext}"],"scenes":[{{"nodes":[]}}]}}"#
-        );
-        let path = dir.join(format!("{ext}.gltf"));
-        std::fs::write(&path, json).unwrap();
-        let err = load_gltf(&path).unwrap_err().to_string();
-        println!("{err}");
-        assert!(
-            err.contains(expect) && err.contains(&*path.to_string_lossy()),
-            "{err}"
-        );
-    }
+    // A Draco primitive whose bitstream is not Draco (its magic overwritten): the error
+    // names the extension.
+    let mut bytes = std::fs::read(file_sphere(AttributeEncoding::Draco)).unwrap();
+    let magic = bytes
+        .windows(5)
+        .position(|w| w == b"DRACO")
+        .expect("a Draco bitstream in the file");
+    bytes[magic..magic + 5].copy_from_slice(b"XXXXX");
+    let broken = dir.join("broken-draco.glb");
+    std::fs::write(&broken, bytes).unwrap();
+    let err = load_gltf(&broken).unwrap_err().to_string();
+    println!("{err}");
+    assert!(
+        err.contains("KHR_draco_mesh_compression") || err.contains("Draco"),
+        "{err}"
+    );
+    // A required extension omnicave does not read: refused by its name and the file's.
+    let json = r#"{"asset":{"version":"2.0"},"extensionsUsed":["EXT_made_up"],
+        "extensionsRequired":["EXT_made_up"],"scenes":[{"nodes":[]}]}"#;
+    let path = dir.join("EXT_made_up.gltf");
+    std::fs::write(&path, json).unwrap();
+    let err = load_gltf(&path).unwrap_err().to_string();
+    println!("{err}");
+    assert!(
+        err.contains("EXT_made_up") && err.contains(&*path.to_string_lossy()),
+        "{err}"
+    );
 }
 
 #[test]
@@ -771,6 +798,7 @@ fn every_generated_file_passes_the_khronos_validator() {
         file_sphere(AttributeEncoding::Quantized),
         file_sphere(AttributeEncoding::Sparse),
         file_sphere(AttributeEncoding::Meshopt),
+        file_sphere(AttributeEncoding::Draco),
         file_normal_map(),
         file_emissive_map(),
         file_blend(),

@@ -49,6 +49,9 @@ pub enum AttributeEncoding {
     Sparse,
     /// `EXT_meshopt_compression` on every vertex and index buffer view (gltfpack `-c`).
     Meshopt,
+    /// `KHR_draco_mesh_compression` (Blender's "compress" export option): each primitive one
+    /// Draco bitstream, positions quantized to 14 bits, normals 10, coordinates 12, colours 8.
+    Draco,
 }
 
 /// Which attributes a mesh is written with, and how.
@@ -425,6 +428,9 @@ impl GlbWriter {
         options: &MeshOptions,
     ) -> usize {
         let enc = options.encoding;
+        if enc == AttributeEncoding::Draco {
+            return self.add_draco_mesh(name, primitives, options);
+        }
         let quantized = enc == AttributeEncoding::Quantized;
         if quantized {
             self.extensions_used.insert("KHR_mesh_quantization");
@@ -619,6 +625,59 @@ impl GlbWriter {
         self.meshes.len() - 1
     }
 
+    /// A mesh whose primitives are Draco bitstreams; their accessors have no buffer views.
+    fn add_draco_mesh(
+        &mut self,
+        name: &str,
+        primitives: &[(&MeshData, usize)],
+        options: &MeshOptions,
+    ) -> usize {
+        self.extensions_used.insert("KHR_draco_mesh_compression");
+        self.extensions_required
+            .insert("KHR_draco_mesh_compression");
+        let mut prims = Vec::new();
+        for (mesh, material) in primitives {
+            let n = mesh.vertices.len();
+            let (bytes, ids) = draco_encode(mesh, options);
+            let view = self.push_view(&bytes, None);
+            let mut lo = [f32::INFINITY; 3];
+            let mut hi = [f32::NEG_INFINITY; 3];
+            for v in &mesh.vertices {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(v.position[k]);
+                    hi[k] = hi[k].max(v.position[k]);
+                }
+            }
+            let mut attributes = serde_json::Map::new();
+            let mut extension = serde_json::Map::new();
+            for (semantic, kind, id) in ids {
+                let mut accessor = json!({ "componentType": FLOAT, "count": n, "type": kind });
+                if semantic == "POSITION" {
+                    accessor["min"] = json!(lo);
+                    accessor["max"] = json!(hi);
+                }
+                let a = self.push_accessor(accessor);
+                attributes.insert(semantic.into(), json!(a));
+                extension.insert(semantic.into(), json!(id));
+            }
+            let ia = self.push_accessor(json!({
+                "componentType": UNSIGNED_INT, "count": mesh.indices.len(), "type": "SCALAR",
+            }));
+            prims.push(json!({
+                "attributes": attributes,
+                "indices": ia,
+                "material": material,
+                "extensions": { "KHR_draco_mesh_compression": {
+                    "bufferView": view,
+                    "attributes": extension,
+                }},
+            }));
+        }
+        self.meshes
+            .push(json!({ "name": name, "primitives": prims }));
+        self.meshes.len() - 1
+    }
+
     /// Float positions whose first half is stored as zeros and restored by a sparse accessor.
     fn push_sparse_positions(&mut self, pos: &[u8], n: usize, lo: [f32; 3], hi: [f32; 3]) -> usize {
         let replaced = n.div_ceil(2);
@@ -761,4 +820,87 @@ fn meshopt_encode(bytes: &[u8], count: usize, stride: usize, mode: &str) -> Vec<
         };
     }
     by_stride!(1 2 3 4 5 6 7 8).unwrap_or_default()
+}
+
+/// One primitive as a Draco bitstream (draco-core's encoder), and per glTF attribute its
+/// accessor type and Draco unique id.
+fn draco_encode(
+    mesh: &MeshData,
+    options: &MeshOptions,
+) -> (Vec<u8>, Vec<(&'static str, &'static str, u32)>) {
+    use draco_core::encoder_buffer::EncoderBuffer;
+    use draco_core::encoder_options::EncoderOptions;
+    use draco_core::mesh_encoder::MeshEncoder;
+    use draco_core::{DataType, GeometryAttributeType, Mesh, PointAttribute, PointIndex};
+
+    let n = mesh.vertices.len();
+    let mut draco = Mesh::new();
+    draco.set_num_points(n);
+    let mut encoder_options = EncoderOptions::default();
+    let mut ids = Vec::new();
+    let mut add = |semantic: &'static str,
+                   kind: &'static str,
+                   ty: GeometryAttributeType,
+                   bits: i32,
+                   values: Vec<f32>| {
+        let components = values.len() / n.max(1);
+        let mut attribute = PointAttribute::new();
+        attribute.init(ty, components as u8, DataType::Float32, false, n);
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        attribute.buffer_mut().write(0, &bytes);
+        let id = draco.add_attribute(attribute);
+        encoder_options.set_attribute_int(id, "quantization_bits", bits);
+        ids.push((semantic, kind, draco.attribute(id).unique_id()));
+    };
+    let flat = |f: &dyn Fn(&super::Vertex) -> Vec<f32>| -> Vec<f32> {
+        mesh.vertices.iter().flat_map(f).collect()
+    };
+    add(
+        "POSITION",
+        "VEC3",
+        GeometryAttributeType::Position,
+        14,
+        flat(&|v| v.position.to_vec()),
+    );
+    add(
+        "NORMAL",
+        "VEC3",
+        GeometryAttributeType::Normal,
+        10,
+        flat(&|v| {
+            Vec3::from(v.normal)
+                .normalize_or(Vec3::Y)
+                .to_array()
+                .to_vec()
+        }),
+    );
+    if options.uvs {
+        add(
+            "TEXCOORD_0",
+            "VEC2",
+            GeometryAttributeType::TexCoord,
+            12,
+            flat(&|v| v.uv.to_vec()),
+        );
+    }
+    if options.colors {
+        add(
+            "COLOR_0",
+            "VEC4",
+            GeometryAttributeType::Color,
+            8,
+            flat(&|v| v.color.to_vec()),
+        );
+    }
+    for tri in mesh.indices.chunks_exact(3) {
+        draco.add_face([PointIndex(tri[0]), PointIndex(tri[1]), PointIndex(tri[2])]);
+    }
+    let mut encoder = MeshEncoder::new();
+    encoder.set_mesh(draco);
+    let mut out = EncoderBuffer::new();
+    // A mesh the encoder refuses is written empty: the loader then names the bitstream.
+    if encoder.encode(&encoder_options, &mut out).is_err() {
+        return (Vec::new(), ids);
+    }
+    (out.data().to_vec(), ids)
 }

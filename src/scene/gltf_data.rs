@@ -9,8 +9,8 @@ use gltf::accessor::{DataType, Dimensions};
 /// Largest decoded size of one compressed buffer view (the decoder's output budget).
 pub const MAX_DECODED_VIEW_BYTES: usize = 1 << 28;
 
-/// Most elements of an accessor without a buffer view (zeros plus sparse values): no file
-/// data bounds its count.
+/// Most elements of an accessor without a buffer view (zeros, plus sparse values if any): no
+/// file data bounds its count.
 pub const MAX_SPARSE_BASE_ELEMENTS: usize = 1 << 24;
 
 /// The file's buffers and the decoded contents of its compressed buffer views.
@@ -171,7 +171,7 @@ impl BinaryData {
             }
             None if count > MAX_SPARSE_BASE_ELEMENTS => Err(format!(
                 "has {count} elements but no buffer view: more than the \
-                 {MAX_SPARSE_BASE_ELEMENTS} an accessor of sparse values alone may have"
+                 {MAX_SPARSE_BASE_ELEMENTS} an accessor of zeros (and sparse values) may have"
             )),
             None => Ok(()),
         }
@@ -215,9 +215,8 @@ impl BinaryData {
                 let start = accessor.offset() + i * stride;
                 put(i, &bytes[start..start + elem]);
             }
-        } else if accessor.sparse().is_none() {
-            return Err("has no buffer view".into());
         } else {
+            // No buffer view: zeros (then the sparse values), as the specification says.
             let zeros = vec![0u8; elem];
             for i in 0..count {
                 put(i, &zeros);

@@ -70,6 +70,7 @@ const HANDLED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "EXT_meshopt_compression",
     "KHR_lights_punctual",
+    "KHR_draco_mesh_compression",
 ];
 
 /// Parses the JSON (and the GLB's BIN chunk), checks the extensions the file requires or uses,
@@ -90,15 +91,6 @@ fn parse_document(
         gltf::Gltf::from_slice_without_validation(bytes).map_err(gltf_err)?;
     let mut root = document.into_json();
     for name in &root.extensions_required {
-        if name == "KHR_draco_mesh_compression" {
-            return Err(invalid(
-                "its meshes are Draco-compressed (KHR_draco_mesh_compression), which omnicave \
-                 cannot decode; convert the file once, e.g. `npx @gltf-transform/cli meshopt \
-                 in.glb out.glb` (meshopt compression, which omnicave reads) or `gltfpack -i \
-                 in.glb -o out.glb`"
-                    .into(),
-            ));
-        }
         if !HANDLED_EXTENSIONS.contains(&name.as_str()) {
             return Err(invalid(format!(
                 "it requires the extension {name}, which omnicave does not support"
@@ -115,7 +107,24 @@ fn parse_document(
     }
     // Checked above: the crate would refuse what it does not itself decode.
     root.extensions_required.clear();
-    let document = gltf::Document::from_json(root).map_err(gltf_err)?;
+    // The crate's own validation, but for one rule stricter than the specification: an
+    // accessor without a buffer view is legal (zeros, or the data of a Draco primitive).
+    let mut errors = Vec::new();
+    {
+        use gltf::json::validation::{Error, Validate};
+        root.validate(&root, gltf::json::Path::new, &mut |path, error| {
+            let path = path();
+            let accessor_view =
+                path.as_str().starts_with("accessors[") && path.as_str().ends_with("].bufferView");
+            if !(error == Error::Missing && accessor_view) {
+                errors.push((path, error));
+            }
+        });
+    }
+    if !errors.is_empty() {
+        return Err(gltf_err(gltf::Error::Validation(errors)));
+    }
+    let document = gltf::Document::from_json_without_validation(root);
     Ok((document, blob))
 }
 
@@ -611,22 +620,12 @@ impl Loader<'_> {
         Ok(values)
     }
 
-    fn add_primitive(
-        &mut self,
+    /// A primitive's attributes and indices from its accessors.
+    fn accessor_attributes(
+        &self,
         primitive: &gltf::Primitive<'_>,
-        world: Mat4,
         label: &str,
-    ) -> Result<(), SceneError> {
-        let mode = primitive.mode();
-        if !matches!(
-            mode,
-            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
-        ) {
-            self.warn(&format!(
-                "{label} is drawn as {mode:?}; only triangles are rendered, skipped"
-            ));
-            return Ok(());
-        }
+    ) -> Result<PrimitiveAttributes, SceneError> {
         let pos_acc = primitive
             .get(&gltf::Semantic::Positions)
             .ok_or_else(|| self.invalid(format!("{label}: has no POSITION attribute")))?;
@@ -666,6 +665,83 @@ impl Loader<'_> {
             })?,
             None => (0..n as u32).collect(),
         };
+        Ok((positions, normals, tangents, uv0, uv1, colors, raw_indices))
+    }
+
+    /// A Draco-compressed primitive's attributes and indices (`KHR_draco_mesh_compression`).
+    fn draco_attributes(
+        &self,
+        primitive: &gltf::Primitive<'_>,
+        ext: &serde_json::Value,
+        label: &str,
+    ) -> Result<PrimitiveAttributes, SceneError> {
+        let fail =
+            |why: String| self.invalid(format!("{label}: KHR_draco_mesh_compression: {why}"));
+        let view_index = ext
+            .get("bufferView")
+            .and_then(serde_json::Value::as_u64)
+            .ok_or_else(|| fail("has no bufferView".into()))?;
+        let view = self
+            .document
+            .views()
+            .nth(view_index as usize)
+            .ok_or_else(|| fail(format!("buffer view {view_index} does not exist")))?;
+        let bytes = self.data.view_bytes(&view).map_err(&fail)?;
+        let attributes = ext
+            .get("attributes")
+            .and_then(serde_json::Value::as_object)
+            .ok_or_else(|| fail("has no attributes".into()))?;
+        // How the file's accessor says an attribute is stored: normalized integers are
+        // mapped to 0..1 by the largest value of their type.
+        let normalized = |name: &str| {
+            let semantic = match name {
+                "COLOR_0" => gltf::Semantic::Colors(0),
+                "TEXCOORD_0" => gltf::Semantic::TexCoords(0),
+                "TEXCOORD_1" => gltf::Semantic::TexCoords(1),
+                _ => return None,
+            };
+            let accessor = primitive.get(&semantic)?;
+            let max = match accessor.data_type() {
+                gltf::accessor::DataType::U8 | gltf::accessor::DataType::I8 => 255,
+                gltf::accessor::DataType::U16 | gltf::accessor::DataType::I16 => 65535,
+                _ => return None,
+            };
+            Some((accessor.normalized(), max))
+        };
+        let p = super::gltf_draco::decode(bytes, attributes, normalized).map_err(fail)?;
+        Ok((
+            p.positions,
+            p.normals,
+            p.tangents,
+            p.uv0,
+            p.uv1,
+            p.colors,
+            p.indices,
+        ))
+    }
+
+    fn add_primitive(
+        &mut self,
+        primitive: &gltf::Primitive<'_>,
+        world: Mat4,
+        label: &str,
+    ) -> Result<(), SceneError> {
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            self.warn(&format!(
+                "{label} is drawn as {mode:?}; only triangles are rendered, skipped"
+            ));
+            return Ok(());
+        }
+        let (positions, normals, tangents, uv0, uv1, colors, raw_indices) =
+            match primitive.extension_value("KHR_draco_mesh_compression") {
+                Some(ext) => self.draco_attributes(primitive, ext, label)?,
+                None => self.accessor_attributes(primitive, label)?,
+            };
+        let n = positions.len();
         if let Some(bad) = raw_indices.iter().find(|&&i| i as usize >= n) {
             return Err(self.invalid(format!(
                 "{label}: index {bad} is out of range for {n} vertices"
@@ -781,6 +857,18 @@ impl Loader<'_> {
         Ok(())
     }
 }
+
+/// A primitive's positions, normals, tangents, two sets of texture coordinates, colours and
+/// raw indices (before strips and fans are unrolled).
+type PrimitiveAttributes = (
+    Vec<[f32; 3]>,
+    Option<Vec<[f32; 3]>>,
+    Option<Vec<[f32; 4]>>,
+    Option<Vec<[f32; 2]>>,
+    Option<Vec<[f32; 2]>>,
+    Option<Vec<[f32; 4]>>,
+    Vec<u32>,
+);
 
 /// The slot of the normal map in [`Material::texture_slots`].
 const NORMAL_SLOT: usize = 2;

@@ -6,6 +6,7 @@
 pub mod build;
 pub mod glb_writer;
 mod gltf_data;
+mod gltf_draco;
 mod gltf_loader;
 mod lighting;
 mod tangents;
