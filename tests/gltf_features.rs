@@ -158,6 +158,30 @@ fn routes(scene: &Scene, lighting: Lighting) -> Vec<Route> {
     out
 }
 
+/// A matte dielectric point as the CPU twin shades it for the head, in sRGB bytes.
+fn twin(lighting: &Lighting, p: Vec3, normal: Vec3, base_color: Vec3) -> [u8; 3] {
+    let frame = FrameUniforms::new(
+        glam::Mat4::IDENTITY,
+        FrameLights {
+            config: lighting,
+            scene: &[],
+            shading: Shading::Pbr,
+        },
+        None,
+        None,
+        None,
+    );
+    let surface = SurfacePoint {
+        position: p,
+        normal,
+        base_color,
+        metallic: 0.0,
+        roughness: 1.0,
+        occlusion: 1.0,
+    };
+    srgb(shade_pbr(&frame, &surface, HEAD, &LIT))
+}
+
 fn close(a: [u8; 3], b: [u8; 3], tolerance: u8) -> bool {
     a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= tolerance)
 }
@@ -434,34 +458,9 @@ fn a_primitive_without_texture_coordinates_is_its_colour_not_black() {
     lighting.ambient = Vec3::splat(0.3);
     lighting.sun_color = Vec3::ONE;
     lighting.sun_direction = Vec3::new(0.0, -0.5, -1.0).normalize();
-    let frame = FrameUniforms::new(
-        glam::Mat4::IDENTITY,
-        FrameLights {
-            config: &lighting,
-            scene: &[],
-            shading: Shading::Pbr,
-        },
-        None,
-        None,
-        None,
-    );
     let cave = cave();
     let (left, right) = (Vec3::new(-0.45, 1.6, -1.0), Vec3::new(0.45, 1.6, -1.0));
-    let twin = |p: Vec3| {
-        srgb(shade_pbr(
-            &frame,
-            &SurfacePoint {
-                position: p,
-                normal: Vec3::Z,
-                base_color: Vec3::new(0.8, 0.3, 0.1),
-                metallic: 0.0,
-                roughness: 1.0,
-                occlusion: 1.0,
-            },
-            HEAD,
-            &LIT,
-        ))
-    };
+    let twin = |p: Vec3| twin(&lighting, p, Vec3::Z, Vec3::new(0.8, 0.3, 0.1));
     for cad in [true, false] {
         let scene = load_gltf(&file_without_uvs(cad)).unwrap();
         // A texture whose coordinates are missing is dropped for that primitive, not
@@ -601,33 +600,8 @@ fn a_normal_map_bends_the_shading_as_the_cpu_twin_says() {
     // Light arriving from the right and the front: the map tilts the normal towards it.
     lighting.sun_direction = Vec3::new(-1.0, 0.0, -0.6).normalize();
     lighting.sun_color = Vec3::ONE;
-    let frame = FrameUniforms::new(
-        glam::Mat4::IDENTITY,
-        FrameLights {
-            config: &lighting,
-            scene: &[],
-            shading: Shading::Pbr,
-        },
-        None,
-        None,
-        None,
-    );
     let bent = Vec3::new(0.5, 0.0, 1.0).normalize();
-    let expected = |p: Vec3, normal: Vec3| {
-        srgb(shade_pbr(
-            &frame,
-            &SurfacePoint {
-                position: p,
-                normal,
-                base_color: Vec3::splat(0.8),
-                metallic: 0.0,
-                roughness: 1.0,
-                occlusion: 1.0,
-            },
-            HEAD,
-            &LIT,
-        ))
-    };
+    let expected = |p: Vec3, normal: Vec3| twin(&lighting, p, normal, Vec3::splat(0.8));
     let cave = cave();
     let file_tangents = Vec3::new(-0.45, 1.6, -1.0);
     let generated = Vec3::new(0.45, 1.6, -1.0);

@@ -153,7 +153,13 @@ impl BinaryData {
             Some(view) => {
                 let bytes = self.view_bytes(&view)?;
                 let elem = accessor.size();
-                let stride = view.stride().unwrap_or(elem).max(elem);
+                let stride = view.stride().unwrap_or(elem);
+                if stride < elem {
+                    return Err(format!(
+                        "buffer view {} has stride {stride}, shorter than the {elem}-byte element",
+                        view.index()
+                    ));
+                }
                 let end = stride
                     .checked_mul(count - 1)
                     .and_then(|n| n.checked_add(elem))
@@ -184,33 +190,12 @@ impl BinaryData {
         accessor: &gltf::Accessor<'_>,
         mut put: impl FnMut(usize, &[u8]),
     ) -> Result<(), String> {
+        self.check_extent(accessor)?;
         let count = accessor.count();
         let elem = accessor.size();
-        if count == 0 {
-            return Err("has count 0".into());
-        }
         if let Some(view) = accessor.view() {
             let bytes = self.view_bytes(&view)?;
             let stride = view.stride().unwrap_or(elem);
-            if stride < elem {
-                return Err(format!(
-                    "buffer view {} has stride {stride}, shorter than the {elem}-byte element",
-                    view.index()
-                ));
-            }
-            let end = stride
-                .checked_mul(count - 1)
-                .and_then(|n| n.checked_add(elem))
-                .and_then(|n| n.checked_add(accessor.offset()));
-            if end.is_none_or(|end| end > bytes.len()) {
-                return Err(format!(
-                    "{count} elements at offset {} with stride {stride} read past the end of \
-                     buffer view {} ({} bytes)",
-                    accessor.offset(),
-                    view.index(),
-                    bytes.len()
-                ));
-            }
             for i in 0..count {
                 let start = accessor.offset() + i * stride;
                 put(i, &bytes[start..start + elem]);
