@@ -803,3 +803,33 @@ fn every_generated_file_passes_the_khronos_validator() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+#[test]
+fn only_the_images_materials_use_are_decoded() {
+    // A file carrying a broken image no material uses loads (it is never decoded); the same
+    // image used as a base colour texture is refused, naming it.
+    let build = |use_it: bool| {
+        let mut w = GlbWriter::new();
+        let broken = w.add_png_texture("broken", b"\x89PNG\r\n\x1a\n not really a PNG");
+        let mat = w.add_material(&MaterialDesc {
+            texture: use_it.then_some(broken),
+            ..MaterialDesc::plain("plain", [0.5; 3], 1.0)
+        });
+        let m = w.add_mesh("square", &[(&square(0.0, -1.0), mat)]);
+        let n = w.add_node(NodeDesc::new("square").with_mesh(m));
+        write(
+            if use_it {
+                "used-broken-image"
+            } else {
+                "unused-broken-image"
+            },
+            &w,
+            &[n],
+        )
+    };
+    let scene = load_gltf(&build(false)).unwrap();
+    assert!(scene.textures.is_empty());
+    let err = load_gltf(&build(true)).unwrap_err().to_string();
+    println!("{err}");
+    assert!(err.contains("image 0"), "{err}");
+}

@@ -752,6 +752,34 @@ fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wg
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
+    for (mip, (width, height, bytes)) in mip_chain(t).iter().enumerate() {
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: mip as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(width * 4),
+                rows_per_image: Some(*height),
+            },
+            wgpu::Extent3d {
+                width: *width,
+                height: *height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    texture
+}
+
+/// Every mip level of a texture (width, height, RGBA8), level 0 first down to 1×1, each
+/// filtered from the one above in linear light.
+pub fn mip_chain(t: &Texture) -> Vec<(u32, u32, Vec<u8>)> {
+    let mut out = Vec::new();
     let mut level = image::Rgba32FImage::from_raw(
         t.width,
         t.height,
@@ -760,41 +788,25 @@ fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wg
             .flat_map(|px| decode_texel(px, t.color_space))
             .collect(),
     );
-    for mip in 0..mip_count {
-        let Some(img) = level.as_ref() else { break };
+    while let Some(img) = level.take() {
         let bytes: Vec<u8> = img
             .as_raw()
             .chunks_exact(4)
             .flat_map(|px| encode_texel(px, t.color_space))
             .collect();
-        queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: mip,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            &bytes,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(img.width() * 4),
-                rows_per_image: Some(img.height()),
-            },
-            wgpu::Extent3d {
-                width: img.width(),
-                height: img.height(),
-                depth_or_array_layers: 1,
-            },
-        );
+        out.push((img.width(), img.height(), bytes));
+        if img.width() == 1 && img.height() == 1 {
+            break;
+        }
         let (w, h) = ((img.width() / 2).max(1), (img.height() / 2).max(1));
         level = Some(image::imageops::resize(
-            img,
+            &img,
             w,
             h,
             image::imageops::FilterType::Triangle,
         ));
     }
-    texture
+    out
 }
 
 /// One RGBA8 texel as linear-light floats (alpha is always linear).
@@ -815,4 +827,39 @@ fn encode_texel(px: &[f32], space: ColorSpace) -> [u8; 4] {
         ColorSpace::Linear => byte(v),
     };
     [colour(px[0]), colour(px[1]), colour(px[2]), byte(px[3])]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mipmaps_average_light_not_srgb_bytes() {
+        // Black and white stripes: their average is half the light, sRGB 188, not the byte
+        // average 128 (which is 22 % of the light: every distant texture would darken).
+        let stripes = |space| Texture {
+            name: "stripes".into(),
+            width: 4,
+            height: 2,
+            rgba8: (0..8)
+                .flat_map(|i| if i % 2 == 0 { [0, 0, 0, 255] } else { [255; 4] })
+                .collect(),
+            color_space: space,
+        };
+        let chain = mip_chain(&stripes(ColorSpace::Srgb));
+        assert_eq!(
+            chain.iter().map(|(w, h, _)| (*w, *h)).collect::<Vec<_>>(),
+            vec![(4, 2), (2, 1), (1, 1)]
+        );
+        let last = &chain[2].2;
+        assert!((i32::from(last[0]) - 188).abs() <= 1, "{last:?}");
+        assert_eq!(last[3], 255);
+        // Data (a normal or roughness map) is averaged as it is.
+        let data = mip_chain(&stripes(ColorSpace::Linear));
+        assert!(
+            (i32::from(data[2].2[0]) - 128).abs() <= 1,
+            "{:?}",
+            data[2].2
+        );
+    }
 }
