@@ -92,6 +92,7 @@ pub(super) fn measure(
         p.tess = m.tess;
         p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
         p.shading = m.shading;
+        p.shadows.enabled &= m.shadows;
         p
     };
     // One warm-up frame per method (first-use costs), then round-robin so that any drift of the

@@ -16,6 +16,8 @@ pub struct Method {
     /// `None`: no sky.
     pub sky: Option<SkyMode>,
     pub shading: Shading,
+    /// Shadow maps on (as the config says) or off.
+    pub shadows: bool,
 }
 
 /// Parameters of each tessellation criterion the bench sweeps (a full run; `--quick` takes
@@ -48,6 +50,7 @@ pub fn methods(quick: bool) -> Vec<Method> {
             tess,
             sky,
             shading: Shading::Pbr,
+            shadows: true,
         }
     };
     let none = TessSettings::default();
@@ -61,9 +64,16 @@ pub fn methods(quick: bool) -> Vec<Method> {
         shading: Shading::Simple,
         ..m(RenderMode::Stereo, none, None)
     };
+    // And what the shadows cost (where the config's lights cast any).
+    let unshadowed = Method {
+        name: "stereo + shadows off".into(),
+        shadows: false,
+        ..m(RenderMode::Stereo, none, None)
+    };
     let mut out = vec![
         m(RenderMode::Stereo, none, None),
         simple,
+        unshadowed,
         m(RenderMode::Mono, none, None),
         m(RenderMode::Stereo, none, Some(SkyMode::Offaxis)),
         m(RenderMode::OmniOnAxis, none, None),
@@ -90,7 +100,7 @@ pub fn methods(quick: bool) -> Vec<Method> {
 /// The methods' family for the chart: render mode and criterion kind (a series whose points
 /// are the criterion's parameters).
 pub fn family(m: &Method) -> String {
-    if m.shading != Shading::Pbr {
+    if m.shading != Shading::Pbr || !m.shadows {
         return m.name.clone();
     }
     match m.tess.criterion {
@@ -117,6 +127,7 @@ pub fn reference_method() -> Method {
         },
         sky: None,
         shading: Shading::Pbr,
+        shadows: true,
     }
 }
 

@@ -78,6 +78,7 @@ pub(super) fn write_outputs(
                 && m.sky.is_none()
                 && m.tess.criterion.is_none()
                 && m.shading == Shading::Pbr
+                && m.shadows
         })
         .filter(|o| o.input_triangles > 0)
     };
@@ -87,6 +88,7 @@ pub(super) fn write_outputs(
                 && m.tess == r.method.tess
                 && m.sky.is_none()
                 && m.shading == r.method.shading
+                && m.shadows == r.method.shadows
         })
     };
 
