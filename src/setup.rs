@@ -88,6 +88,28 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
             camera.forward.to_array()
         );
     }
+    // The frame holds eight lights: the config's first, then the file's.
+    let config_lights = crate::render::uniforms::FrameLights {
+        config: &settings.lighting(),
+        scene: &[],
+        shading: settings.render.shading,
+    }
+    .all()
+    .len();
+    let room = crate::render::uniforms::MAX_LIGHTS.saturating_sub(config_lights);
+    if scene.lights.len() > room {
+        let left_out: Vec<&str> = scene.lights[room..]
+            .iter()
+            .map(|l| l.name.as_str())
+            .collect();
+        tracing::warn!(
+            "scene {}: {} lights, but only {room} fit beside the config's {config_lights} (eight \
+             in all); not drawn: {}",
+            path.display(),
+            scene.lights.len(),
+            left_out.join(", ")
+        );
+    }
     if settings.scene.double_sided {
         for material in &mut scene.materials {
             material.double_sided = true;
