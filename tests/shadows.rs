@@ -119,6 +119,8 @@ fn images(lighting: Lighting, shadows: ShadowSettings) -> Vec<View> {
     for (mode, tess) in [
         (RenderMode::Mono, TessSettings::default()),
         (RenderMode::Stereo, TessSettings::default()),
+        (RenderMode::TrackedStereo, TessSettings::default()),
+        (RenderMode::OmniOnAxis, TessSettings::default()),
         (
             RenderMode::OmniOffAxis,
             TessSettings {
