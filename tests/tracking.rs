@@ -42,6 +42,12 @@ offset = [0.1, 0.0, -0.2]
 
 [tracking.filter]
 enabled = false
+
+# These tests move the head between hand-worked poses within milliseconds, faster than a head
+# moves: the speed gate would refuse them (it is tested in tracking_fuzz.rs and below).
+[tracking.plausibility]
+max_speed_mps = 1000.0
+max_turn_dps = 100000.0
 "#
         );
     Config::from_toml(&text, &path).expect("config")
@@ -414,15 +420,24 @@ fn lost_tracking_holds_the_head_and_recovers() {
 }
 
 #[test]
-fn positions_outside_the_cave_are_clamped_inside() {
+fn positions_outside_the_cave_are_clamped_inside_or_refused() {
     let mut rig = Rig::start("wxyz", "");
-    // Tracker (0, 0, 5000) mm → 5 m up: above the 2.9 m walls.
-    rig.position([0.0, 0.0, 5000.0]);
+    // Tracker (0, 0, 3200) mm → 3.2 m up: above the 2.9 m walls, within the 0.5 m margin.
+    rig.position([0.0, 0.0, 3200.0]);
     let (_, hi) = rig.state.head_bounds();
     let head = rig.head().position;
     assert!((head.y - hi.y).abs() < 1e-6, "{head}");
     assert!(head.y < 2.9);
     assert_eq!(rig.info().stats.clamped, 1);
+    // 5 m up is farther outside than the margin: refused, counted, and the head stays.
+    rig.position([0.0, 0.0, 5000.0]);
+    assert_eq!(rig.head().position, head);
+    assert_eq!(rig.info().stats.implausible, 1);
+    assert_eq!(
+        rig.info().counters.accepted,
+        2,
+        "the packet itself is valid OSC"
+    );
 }
 
 #[test]

@@ -332,7 +332,7 @@ impl App {
                 target: "omnicave::stats",
                 "tracking: {}, {:.1} Hz, head ({:.3}, {:.3}, {:.3}) m, latency avg {:.2} ms \
                  max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
-                 {} dropped, {} clamped",
+                 {} dropped, {} clamped, {} implausible",
                 status.describe(),
                 t.stats.rate_hz,
                 head.x,
@@ -345,7 +345,8 @@ impl App {
                 c.accepted,
                 c.ignored,
                 c.dropped(),
-                t.stats.clamped
+                t.stats.clamped,
+                t.stats.implausible
             );
         }
     }

@@ -338,8 +338,15 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
         let c = &info.counters;
         ui.label(format!(
             "packets {} · accepted {} · ignored {} · malformed {} · non-finite {} · refused {} \
-             · clamped {}",
-            c.received, c.accepted, c.ignored, c.malformed, c.non_finite, c.refused, s.clamped
+             · clamped {} · implausible {}",
+            c.received,
+            c.accepted,
+            c.ignored,
+            c.malformed,
+            c.non_finite,
+            c.refused,
+            s.clamped,
+            s.implausible
         ));
     }
     let f = &mut settings.tracking.filter;

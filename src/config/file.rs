@@ -21,7 +21,8 @@ use crate::scene::{SceneFit, Shading};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
 use crate::tess::{Criterion, TessSettings};
 use crate::tracking::{
-    DEFAULT_OSC_PORT, OneEuroParams, OscMapping, QuaternionOrder, TrackingSettings,
+    DEFAULT_OSC_PORT, OneEuroParams, OscMapping, PlausibilityLimits, QuaternionOrder,
+    TrackingSettings,
 };
 
 /// Largest accepted wall image side; beyond any projector and wgpu's default texture limit.
@@ -215,6 +216,7 @@ pub struct TrackingSection {
     pub timeout_seconds: f32,
     pub calibration: CalibrationSection,
     pub filter: FilterSection,
+    pub plausibility: PlausibilitySection,
 }
 
 impl Default for TrackingSection {
@@ -233,6 +235,7 @@ impl Default for TrackingSection {
             timeout_seconds: TrackingSettings::default().timeout.as_secs_f32(),
             calibration: CalibrationSection::default(),
             filter: FilterSection::default(),
+            plausibility: PlausibilitySection::default(),
         }
     }
 }
@@ -289,6 +292,33 @@ impl Default for FilterSection {
             min_cutoff_hz: params.min_cutoff_hz,
             beta: params.beta,
             derivative_cutoff_hz: params.derivative_cutoff_hz,
+        }
+    }
+}
+
+/// What a head can do: a tracker sample beyond it is refused before the filter (counted as
+/// "implausible" in the panel and the stats line), so one corrupt packet cannot pin the head.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlausibilitySection {
+    /// How far outside the CAVE a sample may be, metres (those nearer are clamped in).
+    #[schemars(range(min = 0.0, max = 100.0))]
+    pub outside_margin_m: f32,
+    /// Fastest head movement accepted, m/s (a jump confirmed by 3 agreeing samples is taken).
+    #[schemars(range(min = 0.1, max = 1000.0))]
+    pub max_speed_mps: f32,
+    /// Fastest head turn accepted, degrees per second.
+    #[schemars(range(min = 1.0, max = 100000.0))]
+    pub max_turn_dps: f32,
+}
+
+impl Default for PlausibilitySection {
+    fn default() -> Self {
+        let limits = PlausibilityLimits::default();
+        Self {
+            outside_margin_m: limits.outside_margin_m,
+            max_speed_mps: limits.max_speed_mps,
+            max_turn_dps: limits.max_turn_dps,
         }
     }
 }

@@ -13,7 +13,9 @@ use super::{AppConfig, Config, ConfigError, PanelPlacement, TrackingConfig, Wall
 use crate::cave::{Cave, Wall, left_of};
 use crate::gamepad::{GamepadSettings, button_map};
 use crate::pano::{PanoRoute, PanoStereo};
-use crate::tracking::{Calibration, OneEuroParams, OscMapping, ReceiverSettings, TrackingSettings};
+use crate::tracking::{
+    Calibration, OneEuroParams, OscMapping, PlausibilityLimits, ReceiverSettings, TrackingSettings,
+};
 
 /// Builds errors that name the file, the field's line (where the text is known) and value.
 struct Checker<'a> {
@@ -273,6 +275,11 @@ impl ConfigFile {
                     offset,
                 },
                 filter: f.enabled.then_some(params),
+                plausibility: PlausibilityLimits {
+                    outside_margin_m: t.plausibility.outside_margin_m,
+                    max_speed_mps: t.plausibility.max_speed_mps,
+                    max_turn_dps: t.plausibility.max_turn_dps,
+                },
                 timeout: Duration::try_from_secs_f32(timeout).map_err(|_| {
                     ck.fail(
                         "tracking.timeout_seconds",

@@ -1,7 +1,7 @@
 //! The One Euro filter (Casiez, Roussel and Vogel, CHI 2012) against tracker jitter: a low-pass
 //! whose cutoff rises with speed, so a still head is steady and a moving one does not lag.
 
-use glam::{Quat, Vec4};
+use glam::{DVec4, Quat, Vec4};
 
 /// Filter parameters (the panel and `[tracking.filter]` set them).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,15 +29,20 @@ impl Default for OneEuroParams {
 }
 
 /// Smoothing factor of an exponential low-pass at `cutoff_hz` for a step of `dt` seconds.
-fn alpha(cutoff_hz: f32, dt: f32) -> f32 {
-    let tau = 1.0 / (std::f32::consts::TAU * cutoff_hz.max(1e-3));
+fn alpha(cutoff_hz: f64, dt: f64) -> f64 {
+    let tau = 1.0 / (std::f64::consts::TAU * cutoff_hz.max(1e-3));
     1.0 / (1.0 + tau / dt)
 }
 
 /// A One Euro filter over a vector of up to four channels (position: 3, quaternion: 4).
+///
+/// Its state is kept in f64 and is finite whatever it is fed: a non-finite input is not
+/// taken, and should a finite one still overflow (±`f32::MAX` alternating), the filter
+/// restarts from that input instead of keeping infinities (a NaN state would pin its output
+/// for ever). The plausibility gate keeps such samples away; this is the second net.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct OneEuro {
-    state: Option<(Vec4, Vec4)>,
+    state: Option<(DVec4, DVec4)>,
 }
 
 impl OneEuro {
@@ -46,33 +51,51 @@ impl OneEuro {
         self.state = None;
     }
 
+    /// Whether the state is finite (always; for tests).
+    pub fn is_finite(&self) -> bool {
+        self.state
+            .is_none_or(|(x, v)| x.is_finite() && v.is_finite())
+    }
+
     /// Filters `x` measured `dt` seconds after the previous sample.
     pub fn filter(&mut self, x: Vec4, dt: f32, p: &OneEuroParams) -> Vec4 {
+        let x64 = x.as_dvec4();
+        if !x64.is_finite() {
+            // Not taken: the previous output stands (or the input, if there is none).
+            return self.state.map_or(x, |(prev, _)| prev.as_vec4());
+        }
         let Some((prev, prev_speed)) = self.state else {
-            self.state = Some((x, Vec4::ZERO));
+            self.state = Some((x64, DVec4::ZERO));
             return x;
         };
+        let dt = f64::from(dt);
         if !(dt.is_finite() && dt > 0.0) {
             // Two samples at once: keep the newer value's direction, no new speed estimate.
-            return prev;
+            return prev.as_vec4();
         }
-        let speed = (x - prev) / dt;
-        let speed = prev_speed.lerp(speed, alpha(p.derivative_cutoff_hz, dt));
-        let cutoff = p.min_cutoff_hz + p.beta * speed.length();
-        let out = prev.lerp(x, alpha(cutoff, dt));
-        self.state = Some((out, speed));
-        out
+        let speed = (x64 - prev) / dt;
+        let speed = prev_speed.lerp(speed, alpha(f64::from(p.derivative_cutoff_hz), dt));
+        let cutoff = f64::from(p.min_cutoff_hz) + f64::from(p.beta) * speed.length();
+        let out = prev.lerp(x64, alpha(cutoff, dt));
+        if out.is_finite() && speed.is_finite() && out.as_vec4().is_finite() {
+            self.state = Some((out, speed));
+            out.as_vec4()
+        } else {
+            self.state = Some((x64, DVec4::ZERO));
+            x
+        }
     }
 
     /// Filters a quaternion (kept in the previous output's hemisphere, renormalised).
     pub fn filter_quat(&mut self, q: Quat, dt: f32, p: &OneEuroParams) -> Quat {
         let mut v = Vec4::from(q);
         if let Some((prev, _)) = self.state
-            && prev.dot(v) < 0.0
+            && prev.as_vec4().dot(v) < 0.0
         {
             v = -v;
         }
-        Quat::from_vec4(self.filter(v, dt, p)).normalize()
+        let out = self.filter(v, dt, p);
+        super::plausibility::unit_quaternion(Quat::from_vec4(out)).unwrap_or(q)
     }
 }
 

@@ -7,6 +7,7 @@ use glam::{Quat, Vec3};
 
 use super::calibration::Calibration;
 use super::filter::{OneEuro, OneEuroParams};
+use super::plausibility::{Candidate, PlausibilityGate, PlausibilityLimits, Verdict};
 use super::receiver::{LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerSample};
 
 /// How samples become head poses.
@@ -17,6 +18,8 @@ pub struct TrackingSettings {
     pub filter: Option<OneEuroParams>,
     /// No packet for this long: tracking is lost (the head holds its last pose).
     pub timeout: Duration,
+    /// What a head can do: samples beyond it are refused before the filter.
+    pub plausibility: PlausibilityLimits,
 }
 
 impl Default for TrackingSettings {
@@ -25,6 +28,7 @@ impl Default for TrackingSettings {
             calibration: Calibration::default(),
             filter: Some(OneEuroParams::default()),
             timeout: Duration::from_millis(500),
+            plausibility: PlausibilityLimits::default(),
         }
     }
 }
@@ -74,6 +78,9 @@ pub struct TrackingStats {
     pub latency_max_frames: f64,
     /// Positions clamped into the CAVE since start.
     pub clamped: u64,
+    /// Samples refused as implausible since start (not finite, far outside the CAVE, faster
+    /// than a head moves): they never reach the filter.
+    pub implausible: u64,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -90,7 +97,6 @@ pub struct HeadTracker {
     pub settings: TrackingSettings,
     status: TrackingStatus,
     last_seq: Option<u64>,
-    last_arrival: Option<Instant>,
     lost_since: Option<Instant>,
     pose: Option<HeadPose>,
     position_filter: OneEuro,
@@ -102,6 +108,10 @@ pub struct HeadTracker {
     window: Window,
     stats: TrackingStats,
     clamp_log: LogLimiter,
+    gate: PlausibilityGate,
+    implausible_log: LogLimiter,
+    /// When the last accepted sample arrived (the filter's time step runs from it).
+    last_accepted_arrival: Option<Instant>,
 }
 
 impl HeadTracker {
@@ -110,7 +120,6 @@ impl HeadTracker {
             settings,
             status: TrackingStatus::Waiting,
             last_seq: None,
-            last_arrival: None,
             lost_since: None,
             pose: None,
             position_filter: OneEuro::default(),
@@ -121,6 +130,9 @@ impl HeadTracker {
             window: Window::default(),
             stats: TrackingStats::default(),
             clamp_log: LogLimiter::default(),
+            gate: PlausibilityGate::default(),
+            implausible_log: LogLimiter::default(),
+            last_accepted_arrival: None,
         }
     }
 
@@ -167,20 +179,10 @@ impl HeadTracker {
 
         let fresh = sample.filter(|s| Some(s.seq) != self.last_seq);
         let Some(sample) = fresh else {
-            // Nothing new: lost once the newest packet is older than the timeout.
-            if let Some(arrival) = self.last_arrival
-                && self.status == TrackingStatus::Tracking
-                && now.saturating_duration_since(arrival) > self.settings.timeout
-            {
-                self.set_status(TrackingStatus::Lost, now);
-            }
+            self.check_timeout(now);
             return None;
         };
-        let dt = self.last_arrival.map_or(0.0, |t| {
-            sample.arrived.saturating_duration_since(t).as_secs_f32()
-        });
         self.last_seq = Some(sample.seq);
-        self.last_arrival = Some(sample.arrived);
 
         let latency = now.saturating_duration_since(sample.arrived);
         let latency_ms = latency.as_secs_f64() * 1e3;
@@ -200,18 +202,64 @@ impl HeadTracker {
         let Some(raw_position) = sample.position else {
             return None; // orientation without any position yet: nothing to place
         };
-        if self.status != TrackingStatus::Tracking {
-            // Fresh start or resuming after a loss: no smoothing from the stale pose.
+        let cal = &self.settings.calibration;
+        let position = cal.position(raw_position);
+        let orientation = sample.orientation.map(|o| match o {
+            TrackedOrientation::Tracker(q) => cal.orientation(q),
+            TrackedOrientation::CaveAxes(q) => cal.orientation_in_cave_axes(q),
+        });
+        let orientation = match orientation {
+            Some(q) => match super::plausibility::unit_quaternion(q) {
+                Some(unit) => Some(unit),
+                None => Some(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 0.0)), // refused below
+            },
+            None => None,
+        };
+        let candidate = Candidate {
+            position,
+            orientation,
+            arrived: sample.arrived,
+        };
+        let verdict = self
+            .gate
+            .judge(candidate, bounds, &self.settings.plausibility);
+        let jump = match verdict {
+            Verdict::Accept => false,
+            Verdict::AcceptJump => true,
+            Verdict::Refuse(why) => {
+                self.stats.implausible += 1;
+                if let Some(held) = self.implausible_log.allow(now, LOG_INTERVAL) {
+                    tracing::warn!(
+                        "tracking: refused an implausible sample ({}) at ({:.3e}, {:.3e}, \
+                         {:.3e}) m{}",
+                        why.describe(),
+                        position.x,
+                        position.y,
+                        position.z,
+                        if held > 0 {
+                            format!(" ({held} more not logged)")
+                        } else {
+                            String::new()
+                        }
+                    );
+                }
+                self.check_timeout(now);
+                return None;
+            }
+        };
+        let dt = self.last_accepted_arrival.map_or(0.0, |t| {
+            sample.arrived.saturating_duration_since(t).as_secs_f32()
+        });
+        self.last_accepted_arrival = Some(sample.arrived);
+        if self.status != TrackingStatus::Tracking || jump {
+            // Fresh start, resuming after a loss, or a confirmed jump: no smoothing from the
+            // stale pose.
             self.position_filter.reset();
             self.orientation_filter.reset();
             self.set_status(TrackingStatus::Tracking, now);
         }
-        let cal = &self.settings.calibration;
-        let mut position = cal.position(raw_position);
-        let mut orientation = sample.orientation.map(|o| match o {
-            TrackedOrientation::Tracker(q) => cal.orientation(q),
-            TrackedOrientation::CaveAxes(q) => cal.orientation_in_cave_axes(q),
-        });
+        let mut position = position;
+        let mut orientation = orientation;
         if let Some(params) = self.settings.filter {
             position = self
                 .position_filter
@@ -249,6 +297,17 @@ impl HeadTracker {
         };
         self.pose = Some(pose);
         Some(pose)
+    }
+
+    /// Lost once the newest accepted sample is older than the timeout (a stream of refused
+    /// samples is no tracking).
+    fn check_timeout(&mut self, now: Instant) {
+        if let Some(arrival) = self.last_accepted_arrival
+            && self.status == TrackingStatus::Tracking
+            && now.saturating_duration_since(arrival) > self.settings.timeout
+        {
+            self.set_status(TrackingStatus::Lost, now);
+        }
     }
 
     fn set_status(&mut self, status: TrackingStatus, now: Instant) {
@@ -302,6 +361,7 @@ impl HeadTracker {
             latency_max_ms: w.latency_max_ms,
             latency_max_frames: w.latency_max_frames,
             clamped: self.stats.clamped,
+            implausible: self.stats.implausible,
         };
         self.window = Window::default();
         self.window_start = Some(now);
@@ -362,16 +422,30 @@ mod tests {
     }
 
     #[test]
-    fn outside_positions_are_clamped_and_counted() {
+    fn outside_positions_are_clamped_or_refused_and_counted() {
         let t0 = Instant::now();
         let mut t = unfiltered();
         let bounds = (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0));
+        // 0.3 m outside: within the 0.5 m margin, clamped.
         let got = t.update(
-            Some(sample(1, t0, Vec3::new(3.0, 1.0, -0.5))),
+            Some(sample(1, t0, Vec3::new(1.3, 1.0, -0.5))),
             t0,
             Some(bounds),
         );
         assert_eq!(got.map(|h| h.position), Some(Vec3::new(1.0, 1.0, -0.5)));
         assert_eq!(t.stats.clamped, 1);
+        // 2 m outside: refused, the head stays.
+        let later = t0 + Duration::from_millis(8);
+        let got = t.update(
+            Some(sample(2, later, Vec3::new(3.0, 1.0, -0.5))),
+            later,
+            Some(bounds),
+        );
+        assert_eq!(got, None);
+        assert_eq!(t.stats.implausible, 1);
+        assert_eq!(
+            t.pose().map(|h| h.position),
+            Some(Vec3::new(1.0, 1.0, -0.5))
+        );
     }
 }

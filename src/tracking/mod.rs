@@ -5,6 +5,7 @@ pub mod calibration;
 pub mod filter;
 pub mod head;
 pub mod osc;
+pub mod plausibility;
 pub mod receiver;
 pub mod sim;
 
@@ -15,6 +16,7 @@ pub use calibration::Calibration;
 pub use filter::OneEuroParams;
 pub use head::{HeadPose, HeadTracker, TrackingSettings, TrackingStats, TrackingStatus};
 pub use osc::{OscMapping, QuaternionOrder};
+pub use plausibility::PlausibilityLimits;
 pub use receiver::{Counters, OscReceiver, ReceiverSettings, TrackerFeed, TrackerSample};
 
 /// Default UDP port for OSC head tracking (documented in `config/cave.toml`).
