@@ -65,6 +65,8 @@ enum ConfigCommand {
 }
 
 #[derive(Debug, clap::Args)]
+// `--ipd -1` is a value out of range, not an unknown flag `-1`.
+#[command(allow_negative_numbers = true)]
 struct TrackSimArgs {
     /// Where the application listens: HOST:PORT.
     #[arg(long, default_value = "127.0.0.1:7000")]
@@ -145,6 +147,8 @@ fn parse_listen(s: &str) -> Result<std::net::SocketAddr, String> {
 }
 
 #[derive(Debug, clap::Args)]
+// `--ipd -1` is a value out of range, not an unknown flag `-1`.
+#[command(allow_negative_numbers = true)]
 struct RunArgs {
     /// Configuration (TOML); its [app] section says CAVE or preview, monitors and formats.
     #[arg(long, default_value = "config/cave.toml")]
@@ -183,6 +187,8 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
 }
 
 #[derive(Debug, clap::Args)]
+// `--ipd -1` is a value out of range, not an unknown flag `-1`.
+#[command(allow_negative_numbers = true)]
 struct BenchArgs {
     /// CAVE configuration (TOML): walls, resolution, MSAA, head.
     #[arg(long, default_value = "config/cave.toml")]
@@ -218,6 +224,8 @@ struct BenchArgs {
 }
 
 #[derive(Debug, clap::Args)]
+// `--ipd -1` is a value out of range, not an unknown flag `-1`.
+#[command(allow_negative_numbers = true)]
 struct RenderArgs {
     /// CAVE configuration (TOML).
     #[arg(long, default_value = "config/cave.toml")]
@@ -464,6 +472,9 @@ fn parse_msaa(s: &str) -> Result<u32, String> {
 }
 
 fn main() -> ExitCode {
+    // First: a SIGTERM while the scene loads must not kill the process by signal.
+    let signal_handler =
+        omnicave::signals::install(omnicave::signals::command_polls(std::env::args()));
     // Log lines go through the progress bars' layer, so they print above a bar, not inside it.
     let bars = tracing_indicatif::IndicatifLayer::new();
     tracing_subscriber::registry()
@@ -474,11 +485,29 @@ fn main() -> ExitCode {
         .with(tracing_subscriber::fmt::layer().with_writer(bars.get_stderr_writer()))
         .with(bars.with_span_field_formatter(tracing_subscriber::fmt::format::DefaultFields::new()))
         .init();
-    let cli = Cli::parse();
+    if let Err(e) = signal_handler {
+        tracing::warn!("no signal handler ({e}): SIGTERM ends the process at once");
+    }
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // clap's own message, with a huge value cut (it would echo it whole).
+            let text = omnicave::messages::cut_long_lines(&e.render().to_string());
+            if e.use_stderr() {
+                eprint!("{text}");
+            } else {
+                let _ = write_stdout(text.as_bytes());
+            }
+            return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", error_text(&e));
+            eprintln!(
+                "error: {}",
+                omnicave::messages::cut_long_lines(&error_text(&e))
+            );
             ExitCode::FAILURE
         }
     }
@@ -676,8 +705,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 
 fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
     use std::net::ToSocketAddrs;
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
 
     let config = args
         .config
@@ -711,11 +738,11 @@ fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
     let centre = args.centre.unwrap_or(head);
     let pattern = match &args.replay {
         Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|source| {
-                omnicave::tracking::TrackingError::Read {
-                    path: path.clone(),
-                    source,
-                }
+            // A recorded path of a few hours at 1 kHz is ~200 MB.
+            let text = omnicave::read_capped::read_capped_text(path, 256 << 20, "recorded paths")
+                .map_err(|source| omnicave::tracking::TrackingError::Read {
+                path: path.clone(),
+                source,
             })?;
             Pattern::Replay(omnicave::tracking::sim::parse_csv(&text, path)?)
         }
@@ -733,12 +760,8 @@ fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
             PatternName::Still => Pattern::Still { centre },
         },
     };
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        if let Err(e) = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)) {
-            tracing::debug!("no signal handler: {e}");
-        }
+    if omnicave::signals::stop_requested() {
+        return Ok(());
     }
     omnicave::tracking::sim::run(
         &SimOptions {
@@ -750,7 +773,7 @@ fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
             mapping,
             calibration,
         },
-        &stop,
+        omnicave::signals::flag(),
     )?;
     Ok(())
 }

@@ -10,8 +10,8 @@ use crate::render::gpu::Gpu;
 use crate::render::{FrameParams, RenderError, RenderSettings, Renderer, WallImages};
 use std::path::Path;
 
-use crate::scene::{Scene, SceneError, load_gltf};
-use crate::sky::{CubeMap, load_sky};
+use crate::scene::{Scene, SceneError, load_gltf_within};
+use crate::sky::{CubeMap, load_sky_within};
 
 /// The per-frame parameters `settings` describe, for the walls `cave` and `head` where they
 /// are now (the application moves both) and the CAVE placed in the scene by `world_from_cave`
@@ -64,7 +64,7 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
         return Ok(Scene::default());
     }
     let _loading = tracing::info_span!("loading scene", file = %path.display()).entered();
-    let mut scene = load_gltf(path)?;
+    let mut scene = load_gltf_within(path, &settings.scene_budget())?;
     let placed = &settings.scene;
     let fit = Mat4::from_translation(glam::Vec3::from(placed.offset_m))
         * scene.fit_transform(placed.fit, placed.size_m);
@@ -183,7 +183,7 @@ pub fn place_at_camera(settings: &mut ConfigFile, scene: &Scene) -> Result<(), S
 pub fn load_config_sky(config: &Config) -> Option<CubeMap> {
     let path = config.sky_path.as_ref()?;
     let _loading = tracing::info_span!("loading sky", file = %path.display()).entered();
-    match load_sky(path) {
+    match load_sky_within(path, config.settings.scene_budget().max_file_bytes) {
         Ok(cube) => {
             tracing::info!(
                 "sky {}: {}×{} per face, {} mip levels{}",
@@ -219,7 +219,7 @@ fn renderer_for(
             ..render_settings(&config.settings)
         },
     )?;
-    renderer.set_scene(scene);
+    renderer.set_scene(scene)?;
     if let Err(e) = renderer.set_sky(sky) {
         tracing::error!("{e}; rendering without a sky");
     }

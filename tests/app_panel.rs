@@ -210,7 +210,7 @@ fn every_mode_and_tessellation_setting_switches_from_the_panel() {
         },
     )
     .expect("renderer");
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     let device = gpu.device.clone();
     let pipelines_at_start = renderer.pipelines_built();
     let mut panel = PanelDriver::new();

@@ -802,3 +802,180 @@ fn the_operator_window_shows_the_panorama_beside_the_panel() {
         share * 100.0
     );
 }
+
+/// A top-level window: its id, position and size.
+type XWindow = (u32, [i32; 2], [u32; 2]);
+
+/// The application's top-level windows on `display` (no window manager: children of the
+/// root) with their positions, from another X client.
+fn x_windows(display: &str) -> (x11rb::rust_connection::RustConnection, Vec<XWindow>) {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::ConnectionExt;
+    let (conn, screen) = x11rb::connect(Some(display)).expect("X connection");
+    let root = conn.setup().roots[screen].root;
+    let tree = conn.query_tree(root).unwrap().reply().unwrap();
+    let mut windows = Vec::new();
+    for w in tree.children {
+        let attrs = conn.get_window_attributes(w).unwrap().reply().unwrap();
+        if attrs.map_state != x11rb::protocol::xproto::MapState::VIEWABLE {
+            continue;
+        }
+        let g = conn.get_geometry(w).unwrap().reply().unwrap();
+        windows.push((
+            w,
+            [i32::from(g.x), i32::from(g.y)],
+            [u32::from(g.width), u32::from(g.height)],
+        ));
+    }
+    (conn, windows)
+}
+
+/// Issue 18, cases 4 and 5: a wall window stretched past 16 384 pixels panicked in
+/// `Surface::configure`; a window destroyed by another client (XDestroyWindow, as
+/// `xdotool windowclose` does) panicked in winit's size query. Now the surface is clamped
+/// (and the clamp logged), a destroyed wall window goes while the others keep rendering, and
+/// the operator window's loss ends the program with status 0.
+#[test]
+fn windows_stretched_or_destroyed_from_outside_are_handled() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{ConfigureWindowAux, ConnectionExt};
+    let out = out_dir();
+    let config_path = write_config(&out, "destroy-test.toml");
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let mut app = AppProcess::start(
+        &x.display,
+        &["--config", config_path.to_str().expect("utf8")],
+    );
+    app.wait_frames(3);
+    let (conn, windows) = x_windows(&x.display);
+    let find = |pos: [i32; 2]| {
+        windows
+            .iter()
+            .find(|(_, p, _)| *p == pos)
+            .unwrap_or_else(|| panic!("no window at {pos:?}: {windows:?}"))
+            .0
+    };
+    let front = find(WALLS[1].1);
+    let left = find(WALLS[0].1);
+    let operator = find(OPERATOR_POS);
+
+    // Case 4: the front wall's window stretched to 20 000 pixels wide.
+    conn.configure_window(front, &ConfigureWindowAux::new().width(20_000).height(300))
+        .unwrap();
+    conn.flush().unwrap();
+    app.wait_for_line("the clamp", Duration::from_secs(60), |l| {
+        l.contains("is 20000×300; its surface is limited to 16384×300")
+            .then_some(())
+    });
+    let frames_now = |app: &AppProcess| {
+        app.log()
+            .lines()
+            .filter_map(|l| l.split("| frames ").nth(1))
+            .filter_map(|rest| rest.split_whitespace().next()?.parse::<u64>().ok())
+            .max()
+            .unwrap_or(0)
+    };
+    let before = frames_now(&app);
+    app.wait_frames(before + 3);
+
+    // Case 5: the left wall's window destroyed from outside; the others go on.
+    conn.destroy_window(left).unwrap();
+    conn.flush().unwrap();
+    app.wait_for_line("the destroyed wall", Duration::from_secs(60), |l| {
+        l.contains("window of wall left destroyed from outside")
+            .then_some(())
+    });
+    let before = frames_now(&app);
+    app.wait_frames(before + 3);
+
+    // The operator window destroyed: the program ends cleanly.
+    conn.destroy_window(operator).unwrap();
+    conn.flush().unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Ok(Some(status)) = app.child.try_wait() {
+            break status;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "did not quit:\n{}",
+            app.log()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let log = app.log();
+    assert!(status.success(), "exit status {status}:\n{log}");
+    assert!(
+        log.contains("quitting: window operator destroyed from outside"),
+        "{log}"
+    );
+    assert!(!log.contains("panicked"), "{log}");
+}
+
+/// Issue 18, case 5: the preview window destroyed from outside ends the program with 0.
+#[test]
+fn the_preview_window_destroyed_from_outside_ends_the_program_cleanly() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::ConnectionExt;
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let desktop = repo().join("config/desktop.toml");
+    let mut app = AppProcess::start(&x.display, &["--config", desktop.to_str().expect("utf8")]);
+    app.wait_frames(2);
+    let (conn, windows) = x_windows(&x.display);
+    assert_eq!(windows.len(), 1, "{windows:?}");
+    conn.destroy_window(windows[0].0).unwrap();
+    conn.flush().unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Ok(Some(status)) = app.child.try_wait() {
+            break status;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "did not quit:\n{}",
+            app.log()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let log = app.log();
+    assert!(status.success(), "exit status {status}:\n{log}");
+    assert!(log.contains("destroyed from outside"), "{log}");
+}
+
+/// Issue 18, case 8: SIGTERM in the first moments (while the config and scene load) killed
+/// the process by the signal; the handler is now installed first, and the program exits 0.
+/// (The signal is sent once the process has logged its first line, i.e. once `main` runs: a
+/// signal before the program's first instruction cannot be caught by it.)
+#[test]
+fn sigterm_while_starting_exits_cleanly() {
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let desktop = repo().join("config/desktop.toml");
+    for delay_ms in [0, 50, 300] {
+        let mut app = AppProcess::start(&x.display, &["--config", desktop.to_str().expect("utf8")]);
+        app.wait_for_line("the first log line", Duration::from_secs(60), |l| {
+            (!l.is_empty()).then_some(())
+        });
+        std::thread::sleep(Duration::from_millis(delay_ms));
+        let status = Command::new("kill")
+            .args(["-TERM", &app.child.id().to_string()])
+            .status()
+            .expect("kill");
+        assert!(status.success());
+        let start = Instant::now();
+        let status = loop {
+            if let Ok(Some(status)) = app.child.try_wait() {
+                break status;
+            }
+            assert!(start.elapsed() < Duration::from_secs(60), "did not quit");
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        assert!(
+            status.success(),
+            "after {delay_ms} ms: {status}:\n{}",
+            app.log()
+        );
+    }
+}

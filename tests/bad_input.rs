@@ -328,6 +328,13 @@ fn bad_accessors_are_refused() {
         (
             "huge-count",
             Box::new(|doc, _| doc["accessors"][0]["count"] = json!(u32::MAX)),
+            // Counted against the vertex budget before any accessor is read (issue 18).
+            "4294967295 vertices here, over budgets.max_vertices",
+        ),
+        (
+            // Under the budget but still past its data: the accessor check names it.
+            "large-count",
+            Box::new(|doc, _| doc["accessors"][0]["count"] = json!(1_000_000)),
             "accessor 0",
         ),
         (

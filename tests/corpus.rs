@@ -123,7 +123,7 @@ fn every_corpus_model_renders_as_a_model_in_stereo_and_tessellated_omnistereo() 
     ] {
         let scene = model(&corpus, name);
         let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-        renderer.set_scene(&scene);
+        renderer.set_scene(&scene).expect("scene upload");
         for (mode, tess) in [
             (RenderMode::Stereo, TessSettings::default()),
             (

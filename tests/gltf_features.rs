@@ -115,7 +115,7 @@ fn routes(scene: &Scene, lighting: Lighting) -> Vec<Route> {
     let cave = cave();
     let front = cave.wall_index("front").unwrap();
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-    renderer.set_scene(scene);
+    renderer.set_scene(scene).expect("scene upload");
     let mut out = Vec::new();
     for (name, mode, tess) in [
         ("walls", RenderMode::Mono, TessSettings::default()),
@@ -671,7 +671,7 @@ fn blended_quads_compose_back_to_front_in_every_eye() {
     // A point where the near square hides part of the far one, as each eye sees it.
     let overlap = Vec3::new(0.05, 1.6, -1.0);
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     for (mode, tess) in [
         (RenderMode::Stereo, TessSettings::default()),
         (

@@ -36,7 +36,7 @@ fn every_format_matches_its_cpu_twin_and_its_layout() {
     )))
     .unwrap();
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).unwrap();
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     renderer
         .render(&test_frame(
             &cave,

@@ -42,7 +42,7 @@ fn render_with(
 ) -> [RgbaImage; 2] {
     let cave = cave();
     let mut renderer = Renderer::new(gpu(), &cave, settings).expect("renderer");
-    renderer.set_scene(scene);
+    renderer.set_scene(scene).expect("scene upload");
     let mut frame = test_frame(
         &cave,
         Head::at(HEAD),
@@ -611,7 +611,7 @@ fn a_panorama_needs_no_new_pipelines_and_bad_sizes_are_refused() {
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
     let built = renderer.pipelines_built();
     let scene = marker_scene(&[HEAD + Vec3::new(0.0, 0.0, -2.0)], HEAD, 0.02);
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     let frame = test_frame(
         &cave,
         Head::at(HEAD),
@@ -718,7 +718,7 @@ fn the_sky_shows_behind_the_panorama_where_its_beacons_are() {
         pano.cube_size = 1024;
         let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
         renderer.set_sky(Some(&sky)).expect("sky");
-        renderer.set_scene(&hider);
+        renderer.set_scene(&hider).expect("scene upload");
         let frame = test_frame(
             &cave,
             Head::at(HEAD),

@@ -29,7 +29,7 @@ fn walls_and_panorama_keep_their_own_frame_data_in_any_order() {
     let cave = cave();
     let scene = load_gltf(&repo_path("assets/living-room.glb")).expect("living room");
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     let tess = TessSettings {
         criterion: Some(Criterion::Error(1.0)),
         ..TessSettings::default()
@@ -82,7 +82,7 @@ fn the_readback_ring_returns_each_frames_time_and_tessellation_counts_without_wa
     let scene = load_gltf(&repo_path("assets/living-room.glb")).expect("living room");
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
     let timed = renderer.enable_gpu_timing(gpu());
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     assert_eq!(renderer.poll_readbacks().frame, 0, "nothing rendered yet");
     let mut frame = test_frame(
         &cave,

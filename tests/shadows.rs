@@ -107,7 +107,7 @@ fn images(lighting: Lighting, shadows: ShadowSettings) -> Vec<View> {
     let front = cave.wall_index("front").unwrap();
     let scene = scene();
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     let frame = |mode, tess| {
         let mut f: FrameParams<'_> =
             test_frame(&cave, Head::at(HEAD), mode, OmniSettings::default(), tess);

@@ -572,7 +572,7 @@ fn the_sky_fills_only_the_background_in_every_render_mode() {
     for mode in RenderMode::ALL {
         let render = |sky: Option<SkyMode>| {
             let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-            renderer.set_scene(&scene);
+            renderer.set_scene(&scene).expect("scene upload");
             renderer.set_sky(sky.map(|_| bundled_sky())).expect("sky");
             let mut frame = test_frame(
                 &cave,
@@ -711,7 +711,7 @@ fn the_sky_lights_the_scene_as_its_irradiance_says() {
             .map(omnicave::sky::cubemap::linear_to_srgb)
     };
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene).expect("scene upload");
     renderer.set_sky(Some(&sky)).expect("sky");
     let floor_point = Vec3::new(0.0, floor_y, -1.3);
     let ceiling_point = Vec3::new(0.0, ceiling_y, -1.3);

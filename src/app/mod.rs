@@ -9,9 +9,8 @@ pub mod state;
 pub mod stats;
 mod window;
 
+use std::panic::AssertUnwindSafe;
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use winit::application::ApplicationHandler;
@@ -74,14 +73,11 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
     };
     crate::setup::place_at_camera(&mut config.settings, &scene)?;
     let sky = load_config_sky(&config);
-    let quit = Arc::new(AtomicBool::new(false));
-    {
-        let quit = quit.clone();
-        // A second handler cannot be installed (tests start several apps in one process):
-        // then Esc and the window close button still quit.
-        if let Err(e) = ctrlc::set_handler(move || quit.store(true, Ordering::SeqCst)) {
-            tracing::debug!("no signal handler: {e}");
-        }
+    // `main` installed the signal handler before anything else; a signal during loading
+    // ends here, cleanly, before any window opens.
+    if crate::signals::stop_requested() {
+        tracing::info!("stopped by a signal while loading");
+        return Ok(());
     }
     let event_loop = EventLoop::new().map_err(|e| AppError::EventLoop(e.to_string()))?;
     let tracking = Tracking::new(config.tracking.clone());
@@ -99,7 +95,6 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         scene,
         sky,
         options,
-        quit,
         gfx: None,
         result: Ok(()),
         held: HeldKeys::default(),
@@ -134,7 +129,6 @@ struct App {
     scene: Scene,
     sky: Option<CubeMap>,
     options: RunOptions,
-    quit: Arc<AtomicBool>,
     gfx: Option<Graphics>,
     result: Result<(), AppError>,
     held: HeldKeys,
@@ -205,7 +199,7 @@ impl App {
             None => Gpu::headless()?,
         };
         let mut renderer = Renderer::new(&gpu, self.state.cave(), self.state.render_settings())?;
-        renderer.set_scene(&self.scene);
+        renderer.set_scene(&self.scene)?;
         if let Err(e) = renderer.set_sky(self.sky.as_ref()) {
             tracing::error!("{e}; running without a sky");
         }
@@ -261,14 +255,28 @@ impl App {
         // The panel first, so what it changes shows in this frame.
         let mut egui_frame = None;
         if let Some(host) = gfx.egui.as_mut() {
-            let win = &gfx.windows[host.window_index];
-            egui_frame = Some(host.run(&gfx.gpu, win, &mut self.state, &self.info));
+            let index = host.window_index;
+            let win = &gfx.windows[index];
+            let (state, info, gpu) = (&mut self.state, &self.info, &gfx.gpu);
+            // A window destroyed since the events were read: winit's size query panics.
+            match std::panic::catch_unwind(AssertUnwindSafe(|| host.run(gpu, win, state, info))) {
+                Ok(frame) => egui_frame = Some(frame),
+                Err(_) => {
+                    self.window_gone(event_loop, index, "lost (its window system call failed)");
+                    return;
+                }
+            }
         }
         if let Err(e) = render_views(gfx, &mut self.state, &mut self.info) {
             self.fail(event_loop, e);
             return;
         }
-        self.surface_recoveries += present_windows(gfx, &self.state, egui_frame);
+        let (recovered, lost) = present_windows(gfx, &self.state, egui_frame);
+        self.surface_recoveries += recovered;
+        if let Some(index) = lost {
+            self.window_gone(event_loop, index, "lost (its window system call failed)");
+            return;
+        }
         // The newest frame the GPU has finished: its time and tessellation counts (never waits).
         let readback = gfx.renderer.poll_readbacks();
         let gpu_ms = readback.gpu_ms;
@@ -370,6 +378,35 @@ impl App {
         });
     }
 
+    /// A window went (closed, destroyed, or failing beyond recovery): a wall's window is
+    /// dropped and the others keep rendering; the operator or preview window's loss, or the
+    /// last window's, ends the program cleanly.
+    fn window_gone(&mut self, event_loop: &ActiveEventLoop, index: usize, how: &str) {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return;
+        };
+        let Some(role) = gfx.windows.get(index).map(|w| w.role) else {
+            return;
+        };
+        let name = role.name(&self.state.config);
+        if !(matches!(role, Role::Wall(_)) && gfx.windows.len() > 1) {
+            self.quit_now(event_loop, &format!("window {name} {how}"));
+            return;
+        }
+        tracing::warn!("window of wall {name} {how}; the other windows keep rendering");
+        let gone = gfx.windows.remove(index);
+        match gfx.egui.as_ref().map(|h| h.window_index) {
+            Some(host) if host == index => gfx.egui = None,
+            Some(host) if host > index => {
+                if let Some(h) = gfx.egui.as_mut() {
+                    h.window_index -= 1;
+                }
+            }
+            _ => {}
+        }
+        drop(gone);
+    }
+
     fn quit_now(&mut self, event_loop: &ActiveEventLoop, why: &str) {
         tracing::info!("quitting: {why}");
         if let Some(gfx) = self.gfx.as_ref()
@@ -412,24 +449,11 @@ impl ApplicationHandler for App {
             consumed = host.on_event(&gfx.windows[index], &event);
         }
         match event {
-            WindowEvent::CloseRequested => {
-                let role = gfx.windows[index].role;
-                if matches!(role, Role::Wall(_)) && gfx.windows.len() > 1 {
-                    tracing::info!("window of wall {} closed", role.name(&self.state.config));
-                    let gone = gfx.windows.remove(index);
-                    match gfx.egui.as_ref().map(|h| h.window_index) {
-                        Some(host) if host == index => gfx.egui = None,
-                        Some(host) if host > index => {
-                            if let Some(h) = gfx.egui.as_mut() {
-                                h.window_index -= 1;
-                            }
-                        }
-                        _ => {}
-                    }
-                    drop(gone);
-                } else {
-                    self.quit_now(event_loop, "window closed");
-                }
+            WindowEvent::CloseRequested => self.window_gone(event_loop, index, "closed"),
+            // XDestroyWindow from another client (`xdotool windowclose`): like a close, but
+            // nothing may touch the window again (winit's size query would panic).
+            WindowEvent::Destroyed => {
+                self.window_gone(event_loop, index, "destroyed from outside");
             }
             WindowEvent::Resized(size) => {
                 gfx.windows[index].resize(&gfx.gpu, size.width, size.height);
@@ -486,7 +510,7 @@ impl ApplicationHandler for App {
         if self.gfx.is_none() {
             return;
         }
-        if self.quit.load(Ordering::SeqCst) {
+        if crate::signals::stop_requested() {
             self.quit_now(event_loop, "signal");
             return;
         }
@@ -536,28 +560,37 @@ fn render_views(
     Ok(())
 }
 
-/// Composes and presents every window (the panel into its host window); the number of
-/// surfaces recovered on the way.
+/// Composes and presents every window (the panel into its host window): the number of
+/// surfaces recovered on the way, and a window lost on the way (its window system calls
+/// panicked: destroyed from outside between the events and this frame).
 fn present_windows(
     gfx: &mut Graphics,
     state: &AppState,
     egui_frame: Option<window::EguiFrame>,
-) -> u64 {
+) -> (u64, Option<usize>) {
     let mut recovered = 0;
+    let mut lost = None;
     for (index, win) in gfx.windows.iter_mut().enumerate() {
         let egui = match (&mut gfx.egui, &egui_frame) {
             (Some(host), Some(frame)) if host.window_index == index => Some((host, frame)),
             _ => None,
         };
-        match win.draw(&gfx.gpu, &gfx.renderer, state, egui) {
-            Ok(r) => recovered += u64::from(r),
-            Err(e) => tracing::warn!("{e}"),
+        let (gpu, renderer) = (&gfx.gpu, &gfx.renderer);
+        let drawn =
+            std::panic::catch_unwind(AssertUnwindSafe(|| win.draw(gpu, renderer, state, egui)));
+        match drawn {
+            Ok(Ok(r)) => recovered += u64::from(r),
+            Ok(Err(e)) => tracing::warn!("{e}"),
+            Err(_) => {
+                lost = Some(index);
+                break;
+            }
         }
     }
     if let (Some(host), Some(frame)) = (gfx.egui.as_mut(), egui_frame) {
         host.free_textures(frame);
     }
-    recovered
+    (recovered, lost)
 }
 
 /// The tessellator's counts of the newest frame read back, summed per wall (both eyes), into

@@ -171,8 +171,16 @@ impl OutputWindow {
                 name: role.name(config),
                 message: "the adapter cannot present to this window".into(),
             })?;
+        let [width, height] = clamp_surface_size(gpu, size.width, size.height);
+        if [width, height] != [size.width, size.height] {
+            warn_clamped(
+                &role.name(config),
+                [size.width, size.height],
+                [width, height],
+            );
+        }
         let mut surface_config = surface
-            .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
+            .get_default_config(&gpu.adapter, width.max(1), height.max(1))
             .ok_or_else(|| AppError::Surface {
                 name: role.name(config),
                 message: "no surface configuration is supported".into(),
@@ -237,6 +245,12 @@ impl OutputWindow {
     /// Follows a window resize (a zero size pauses drawing until it has an area again).
     pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) {
         self.configured = width > 0 && height > 0;
+        let clamped = clamp_surface_size(gpu, width, height);
+        // Logged when the clamped size changes, not on every reconfiguration at that size.
+        if clamped != [width, height] && clamped != self.size() {
+            warn_clamped(&format!("{:?}", self.role), [width, height], clamped);
+        }
+        let [width, height] = clamped;
         if self.configured {
             self.surface_config.width = width;
             self.surface_config.height = height;
@@ -442,6 +456,20 @@ impl OutputWindow {
         }
         Ok(suboptimal)
     }
+}
+
+/// A window size limited to what the device can present (a surface is a texture: a window
+/// stretched past 16 384 pixels would make wgpu panic).
+fn clamp_surface_size(gpu: &Gpu, width: u32, height: u32) -> [u32; 2] {
+    let max = gpu.device.limits().max_texture_dimension_2d;
+    [width.min(max), height.min(max)]
+}
+
+fn warn_clamped(name: &str, [width, height]: [u32; 2], [w, h]: [u32; 2]) {
+    tracing::warn!(
+        "window {name} is {width}×{height}; its surface is limited to {w}×{h} (this GPU's \
+         max_texture_dimension_2d): the rest of the window is not drawn"
+    );
 }
 
 /// The largest rectangle of an image's proportions (`size` pixels) centred in `area`.

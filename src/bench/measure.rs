@@ -73,7 +73,7 @@ pub(super) fn measure(
         },
     )?;
     if let Some(scene) = scene {
-        renderer.set_scene(scene);
+        renderer.set_scene(scene)?;
     }
     renderer.set_sky(Some(sky))?;
     let timer = if renderer.enable_gpu_timing(gpu) {

@@ -145,7 +145,7 @@ pub fn run_panorama(
                 },
             )?;
             let gpu_timed = renderer.enable_gpu_timing(gpu);
-            renderer.set_scene(scene);
+            renderer.set_scene(scene)?;
             let mut frame = frame_params(config);
             frame.tess = tess;
             let mut times = Vec::with_capacity(frames);
@@ -203,7 +203,7 @@ pub fn run_panorama(
             else {
                 continue;
             };
-            renderer.set_scene(flat);
+            renderer.set_scene(flat)?;
             renderer.render_panorama(&frame, &pano)?;
             let [image, _] = renderer.read_panorama()?;
             let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();

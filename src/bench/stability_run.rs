@@ -192,7 +192,7 @@ fn run_rendered_sweep(
             wireframe: false,
         },
     )?;
-    renderer.set_scene(&scene);
+    renderer.set_scene(&scene)?;
     let methods = stability::sweep_methods();
     let mut out = Vec::new();
     for (i, method) in methods.iter().enumerate() {

@@ -9,7 +9,7 @@ use super::file::{ConfigFile, LightingSection};
 use crate::cave::Head;
 use crate::cave::omni::{OmniSettings, PoleMerge};
 use crate::pano::{PanoSettings, PanoStereo};
-use crate::scene::Lighting;
+use crate::scene::{Lighting, SceneBudget};
 use crate::sky::SkySettings;
 use crate::tess::{MAX_DEPTH_LIMIT, TessSettings};
 use crate::tracking::OneEuroParams;
@@ -103,6 +103,19 @@ impl ConfigFile {
             normal_offset_texels: s.normal_offset_texels,
             pcf: s.pcf,
             distance_m: s.distance_m,
+        }
+    }
+
+    /// The scene budget `[budgets]` sets.
+    pub fn scene_budget(&self) -> SceneBudget {
+        let b = &self.budgets;
+        SceneBudget {
+            max_file_bytes: u64::from(b.max_file_mb) << 20,
+            max_instances: u64::from(b.max_instances),
+            max_vertices: u64::from(b.max_vertices),
+            max_triangles: u64::from(b.max_triangles),
+            max_texture_side: b.max_texture_side,
+            max_texture_bytes: u64::from(b.max_texture_memory_mb) << 20,
         }
     }
 

@@ -17,7 +17,7 @@ use crate::cave::omni::{PoleMerge, WarpVariant};
 use crate::gamepad::{GamepadMode, GamepadSettings};
 use crate::output::formats::StereoFormat;
 use crate::pano::{PanoRoute, PanoStereoKind, Projection, VOLUME_DEFAULT_PARAMS};
-use crate::scene::{SceneFit, Shading};
+use crate::scene::{SceneBudget, SceneFit, Shading};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
 use crate::tess::{Criterion, TessSettings};
 use crate::tracking::{
@@ -45,6 +45,7 @@ pub struct ConfigFile {
     pub tracking: TrackingSection,
     pub gamepad: GamepadSection,
     pub panorama: PanoramaSection,
+    pub budgets: BudgetsSection,
     /// The projection walls (screens), at least one: `[[wall]]` tables.
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
@@ -323,6 +324,59 @@ impl Default for PlausibilitySection {
     }
 }
 
+/// What inputs may cost (README "Budgets"). A scene or sky past one is refused with the
+/// budget named; images larger than `max_texture_side` are downscaled, with a warning.
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct BudgetsSection {
+    /// Largest scene or sky file (and each file a glTF names), MiB.
+    #[schemars(range(min = 1, max = 65536))]
+    pub max_file_mb: u32,
+    /// Mesh instances and nodes after expanding the scene's node graph.
+    #[schemars(range(min = 1, max = 67108864))]
+    pub max_instances: u32,
+    /// Vertices after expanding instances (72 bytes each on the GPU).
+    #[schemars(range(min = 3, max = 1073741824))]
+    pub max_vertices: u32,
+    /// Triangles after expanding instances.
+    #[schemars(range(min = 1, max = 1073741824))]
+    pub max_triangles: u32,
+    /// Longest texture side, pixels; larger images are downscaled to it.
+    #[schemars(range(min = 16, max = 16384))]
+    pub max_texture_side: u32,
+    /// All of a scene's textures with their mip levels, MiB.
+    #[schemars(range(min = 1, max = 1048576))]
+    pub max_texture_memory_mb: u32,
+    /// Walls in one config (one window and render target each).
+    #[schemars(range(min = 1, max = 1024))]
+    pub max_walls: u32,
+    /// GPU memory of every wall's render targets (both eyes, MSAA and depth), MiB.
+    #[schemars(range(min = 1, max = 1048576))]
+    pub max_target_memory_mb: u32,
+}
+
+impl Default for BudgetsSection {
+    fn default() -> Self {
+        let scene = SceneBudget::default();
+        let narrow = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+        Self {
+            max_file_mb: narrow(scene.max_file_bytes >> 20),
+            max_instances: narrow(scene.max_instances),
+            max_vertices: narrow(scene.max_vertices),
+            max_triangles: narrow(scene.max_triangles),
+            max_texture_side: scene.max_texture_side,
+            max_texture_memory_mb: narrow(scene.max_texture_bytes >> 20),
+            max_walls: DEFAULT_MAX_WALLS,
+            // Six 2560×1600 walls with MSAA 4 take 1.7 GiB; three 8192² walls with MSAA 4
+            // would take 13.5 GiB, more than most lab GPUs hold.
+            max_target_memory_mb: 4096,
+        }
+    }
+}
+
+/// Walls in one config by default: six for a closed CAVE, far more for a tiled wall.
+pub const DEFAULT_MAX_WALLS: u32 = 64;
+
 /// The gamepad (gilrs, hot-plug).
 #[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
@@ -569,8 +623,12 @@ impl Default for PointLightSection {
 pub struct WallSection {
     /// 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files).
     pub name: String,
+    /// Corners in CAVE metres (within ±100 km: the projection math is f32).
+    #[schemars(inner(range(min = -1e5, max = 1e5)))]
     pub lower_left: [f32; 3],
+    #[schemars(inner(range(min = -1e5, max = 1e5)))]
     pub lower_right: [f32; 3],
+    #[schemars(inner(range(min = -1e5, max = 1e5)))]
     pub upper_left: [f32; 3],
     /// Pixels (width, height).
     #[schemars(inner(range(min = 1, max = MAX_WALL_PIXELS)))]

@@ -10,6 +10,7 @@ mod convert;
 mod file;
 pub mod schema;
 mod spans;
+mod strict;
 mod validate;
 
 use std::path::{Path, PathBuf};
@@ -113,7 +114,12 @@ pub struct Config {
 impl Config {
     /// Reads and validates a config file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        let text = crate::read_capped::read_capped_text(
+            path,
+            crate::read_capped::MAX_CONFIG_BYTES,
+            "config files",
+        )
+        .map_err(|source| ConfigError::Read {
             path: path.to_owned(),
             source,
         })?;
@@ -130,7 +136,21 @@ impl Config {
                 .and_then(|span| spans::field_at(text, span.start))
                 .map(|field| format!(": field `{field}`"))
                 .unwrap_or_default(),
-            message: e.to_string().trim_end().to_owned(),
+            message: crate::messages::cut_long_lines(e.to_string().trim_end()),
+        })?;
+        let model = toml::Value::try_from(&file).map_err(|e| ConfigError::Parse {
+            path: path.to_owned(),
+            field: String::new(),
+            message: e.to_string(),
+        })?;
+        strict::check_lengths(text, &model).map_err(|wrong| ConfigError::Invalid {
+            path: path.to_owned(),
+            line: spans::line_of(text, &wrong.path)
+                .map(|line| format!(", line {line}"))
+                .unwrap_or_default(),
+            value: format!("({} elements)", wrong.got),
+            reason: format!("takes exactly {} elements", wrong.expected),
+            field: wrong.path,
         })?;
         file.validate_text(path, Some(text))
     }

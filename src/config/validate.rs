@@ -36,8 +36,8 @@ impl Checker<'_> {
                 .and_then(|text| spans::line_of(text, field))
                 .map(|line| format!(", line {line}"))
                 .unwrap_or_default(),
-            field: field.to_owned(),
-            value,
+            field: crate::messages::cut(field, 120),
+            value: crate::messages::cut(&value, 120),
             reason: reason.to_owned(),
         }
     }
@@ -86,9 +86,48 @@ impl ConfigFile {
         if self.walls.is_empty() {
             return Err(ck.fail("wall", "[]", "at least one [[wall]] is required"));
         }
+        let max_walls = self.budgets.max_walls as usize;
+        if self.walls.len() > max_walls {
+            return Err(ck.fail_text(
+                "wall",
+                format!("({} walls)", self.walls.len()),
+                &format!("more than budgets.max_walls = {max_walls}"),
+            ));
+        }
         let mut walls = Vec::with_capacity(self.walls.len());
+        let mut names = std::collections::HashSet::with_capacity(self.walls.len());
         for (i, w) in self.walls.iter().enumerate() {
-            walls.push(validate_wall(&ck, i, w, &walls)?);
+            let wall = validate_wall(&ck, i, w)?;
+            if !names.insert(wall.name.clone()) {
+                return Err(ck.fail(
+                    &format!("wall[{i}].name"),
+                    &w.name,
+                    "another wall has this name",
+                ));
+            }
+            walls.push(wall);
+        }
+
+        let target_bytes: u64 = walls
+            .iter()
+            .map(|w| crate::render::targets::wall_target_bytes(w.resolution, self.render.msaa))
+            .sum();
+        let target_budget = u64::from(self.budgets.max_target_memory_mb) << 20;
+        if target_bytes > target_budget {
+            return Err(ck.fail_text(
+                "wall",
+                format!(
+                    "({} walls at MSAA {}: {} of render targets)",
+                    walls.len(),
+                    self.render.msaa,
+                    crate::read_capped::human_bytes(target_bytes)
+                ),
+                &format!(
+                    "over budgets.max_target_memory_mb = {} (smaller walls, render.msaa = 1, \
+                     or a larger budget)",
+                    self.budgets.max_target_memory_mb
+                ),
+            ));
         }
 
         let c = &self.cave;
@@ -373,12 +412,7 @@ impl ConfigFile {
     }
 }
 
-fn validate_wall(
-    ck: &Checker<'_>,
-    index: usize,
-    w: &WallSection,
-    earlier: &[Wall],
-) -> Result<Wall, ConfigError> {
+fn validate_wall(ck: &Checker<'_>, index: usize, w: &WallSection) -> Result<Wall, ConfigError> {
     let field = |name: &str| format!("wall[{index}].{name}");
     let name_ok = !w.name.is_empty()
         && w.name.len() <= 64
@@ -392,24 +426,24 @@ fn validate_wall(
             "must be 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files)",
         ));
     }
-    if earlier.iter().any(|e| e.name == w.name) {
-        return Err(ck.fail(&field("name"), &w.name, "another wall has this name"));
-    }
     let ll = ck.finite3(&field("lower_left"), w.lower_left)?;
     let lr = ck.finite3(&field("lower_right"), w.lower_right)?;
     let ul = ck.finite3(&field("upper_left"), w.upper_left)?;
-    // A wall narrower than a millimetre is a typo, not a screen.
-    const MIN_SIDE_M: f32 = 1e-3;
-    let width = (lr - ll).length();
-    if width < MIN_SIDE_M {
+    // A wall narrower than a millimetre is a typo, not a screen. Lengths and the angle are
+    // worked in f64 so that huge corners cannot overflow into a NaN that passes the tests
+    // (1e30 squared is infinite in f32); anything not finite even so is refused.
+    const MIN_SIDE_M: f64 = 1e-3;
+    let (ll64, lr64, ul64) = (ll.as_dvec3(), lr.as_dvec3(), ul.as_dvec3());
+    let width = (lr64 - ll64).length();
+    if !width.is_finite() || width < MIN_SIDE_M {
         return Err(ck.fail(
             &field("lower_right"),
             w.lower_right,
             "coincides with lower_left: the wall has no width",
         ));
     }
-    let height = (ul - ll).length();
-    if height < MIN_SIDE_M {
+    let height = (ul64 - ll64).length();
+    if !height.is_finite() || height < MIN_SIDE_M {
         return Err(ck.fail(
             &field("upper_left"),
             w.upper_left,
@@ -418,8 +452,8 @@ fn validate_wall(
     }
     // The two edges from lower_left must be perpendicular (cosine below ~0.06°); a skewed
     // parallelogram cannot be driven by a rectangular image.
-    let cosine = (lr - ll).dot(ul - ll) / (width * height);
-    if cosine.abs() > 1e-3 {
+    let cosine = (lr64 - ll64).dot(ul64 - ll64) / (width * height);
+    if !cosine.is_finite() || cosine.abs() > 1e-3 {
         return Err(ck.fail(
             &field("upper_left"),
             w.upper_left,

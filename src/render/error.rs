@@ -24,6 +24,37 @@ pub enum RenderError {
     PanoramaSize(u32, u32),
     #[error("sky faces of {size}×{size} exceed this device's texture limit of {max}")]
     SkyTooLarge { size: u32, max: u32 },
+    #[error(
+        "the scene's {what} take {bytes} bytes; this GPU's largest buffer is {limit} bytes \
+         (max_buffer_size): use a smaller scene or lower budgets.max_vertices"
+    )]
+    SceneTooLarge {
+        what: &'static str,
+        bytes: u64,
+        limit: u64,
+    },
+    #[error(
+        "texture {name} is {width}×{height}; this GPU's textures are at most {max} pixels a \
+         side (max_texture_dimension_2d): lower budgets.max_texture_side to {max}"
+    )]
+    TextureTooLarge {
+        name: String,
+        width: u32,
+        height: u32,
+        max: u32,
+    },
+    #[error(
+        "{what} would be {width}×{height} pixels; this GPU's images are at most {max} a side \
+         (max_texture_dimension_2d)"
+    )]
+    TextureLimit {
+        what: String,
+        width: u32,
+        height: u32,
+        max: u32,
+    },
+    #[error("the GPU ran out of memory {0}")]
+    OutOfMemory(String),
 }
 
 /// Everything that can go wrong setting up the tessellator.
@@ -31,4 +62,14 @@ pub enum RenderError {
 pub enum TessError {
     #[error("scene has {0} triangles; the tessellator dispatches at most {1}")]
     TooManyTriangles(usize, usize),
+    #[error(
+        "the scene's {what} take {bytes} bytes; the tessellator binds them whole and this \
+         GPU binds at most {limit} bytes (max_storage_buffer_binding_size): use a mode \
+         without tessellation or a smaller scene"
+    )]
+    BindingTooLarge {
+        what: &'static str,
+        bytes: u64,
+        limit: u64,
+    },
 }

@@ -68,6 +68,13 @@ impl Gpu {
             .limits()
             .max_storage_buffers_per_shader_stage
             .clamp(limits.max_storage_buffers_per_shader_stage, 16);
+        // Large scenes: as large a buffer and storage binding as the adapter offers (WebGPU's
+        // defaults, 256 and 128 MiB, hold only 3.7 M and 1.9 M vertices). Every use checks
+        // its size against these first and says which limit a scene passes.
+        limits.max_buffer_size = limits.max_buffer_size.max(adapter.limits().max_buffer_size);
+        limits.max_storage_buffer_binding_size = limits
+            .max_storage_buffer_binding_size
+            .max(adapter.limits().max_storage_buffer_binding_size);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("omnicave device"),
             required_features: features,

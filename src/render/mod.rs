@@ -230,15 +230,17 @@ impl Renderer {
         Ok(renderer)
     }
 
-    /// Replaces the scene (uploads buffers and textures once).
-    pub fn set_scene(&mut self, scene: &Scene) {
-        self.scene = Some(
-            self.scene_pass
-                .upload_scene(&self.device, &self.queue, scene),
-        );
+    /// Replaces the scene (uploads buffers and textures once). A scene the device cannot
+    /// hold is an error naming the limit; the previous scene stays.
+    pub fn set_scene(&mut self, scene: &Scene) -> Result<(), RenderError> {
+        let uploaded = self
+            .scene_pass
+            .upload_scene(&self.device, &self.queue, scene)?;
+        self.scene = Some(uploaded);
         self.scene_pass.shadows.invalidate();
         self.walls.drop_tessellation();
         self.pano_set.drop_tessellation();
+        Ok(())
     }
 
     /// Times every following frame on the GPU (for the benchmark: reading the time back

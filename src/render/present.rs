@@ -286,6 +286,12 @@ impl PresentPass {
         self.ensure_pipeline(device, format);
         let binding = self.bind(device, left, right);
         let [w, h] = params.format.output_size(binding.eye_size);
+        targets::check_texture_size(
+            device,
+            &format!("the {} output", params.format.name()),
+            w,
+            h,
+        )?;
         let target = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("PresentPass::image"),
             size: wgpu::Extent3d {

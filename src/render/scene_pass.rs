@@ -1,6 +1,7 @@
 //! Draws the scene's triangles for one wall and eye (shaders/scene.wgsl): pipelines, scene
 //! buffers, materials and textures, all created once and reused every frame.
 
+use super::error::RenderError;
 use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
@@ -520,7 +521,28 @@ impl ScenePass {
     }
 
     /// Uploads a scene: vertex/index buffers, material uniforms, textures with mipmaps.
+    /// Every size is checked against the device's limits first (the error names the limit),
+    /// and the GPU running out of memory is an error, not a panic.
     pub fn upload_scene(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &Scene,
+    ) -> Result<SceneGpu, RenderError> {
+        check_scene_limits(device, scene)?;
+        let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let uploaded = self.upload_checked(device, queue, scene);
+        match pollster::block_on(out_of_memory.pop()) {
+            None => Ok(uploaded),
+            Some(e) => Err(RenderError::OutOfMemory(format!(
+                "uploading the scene ({} vertices, {} textures): {e}",
+                scene.vertices.len(),
+                scene.textures.len()
+            ))),
+        }
+    }
+
+    fn upload_checked(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -733,6 +755,36 @@ fn make_sampler(device: &wgpu::Device, (u, v, nearest): (Wrap, Wrap, bool)) -> w
 
 /// Uploads a texture with a full mip chain, box-filtered on the CPU once at load: in linear
 /// light for sRGB textures (averaging the encoded bytes would darken every mip level).
+/// Refuses a scene whose buffers or textures pass this device's limits, naming the limit.
+fn check_scene_limits(device: &wgpu::Device, scene: &Scene) -> Result<(), RenderError> {
+    let limits = device.limits();
+    let vertex_bytes = scene.vertices.len() as u64 * std::mem::size_of::<GpuVertex>() as u64;
+    let index_bytes = scene.indices.len() as u64 * 4;
+    for (what, bytes) in [("vertices", vertex_bytes), ("indices", index_bytes)] {
+        if bytes > limits.max_buffer_size {
+            return Err(RenderError::SceneTooLarge {
+                what,
+                bytes,
+                limit: limits.max_buffer_size,
+            });
+        }
+    }
+    let max_side = limits.max_texture_dimension_2d;
+    if let Some(t) = scene
+        .textures
+        .iter()
+        .find(|t| t.width > max_side || t.height > max_side)
+    {
+        return Err(RenderError::TextureTooLarge {
+            name: t.name.clone(),
+            width: t.width,
+            height: t.height,
+            max: max_side,
+        });
+    }
+    Ok(())
+}
+
 fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, t: &Texture) -> wgpu::Texture {
     let mip_count = 32 - t.width.max(t.height).max(1).leading_zeros();
     let texture = device.create_texture(&wgpu::TextureDescriptor {

@@ -118,69 +118,175 @@ pub fn read_buffer(
     Ok(bytes)
 }
 
+/// GPU memory of one wall's targets (two eyes: colour, MSAA colour, depth), as
+/// `EyeTarget::new` allocates them (keep in sync); for the config's target budget.
+pub fn wall_target_bytes(size: [u32; 2], msaa: u32) -> u64 {
+    let pixels = u64::from(size[0]) * u64::from(size[1]);
+    let samples = u64::from(msaa.max(1));
+    let color = 4;
+    let msaa_color = if samples > 1 { 4 * samples } else { 0 };
+    let depth = 4 * samples; // Depth32Float
+    2 * pixels * (color + msaa_color + depth)
+}
+
+/// Refuses an image size the device cannot create (instead of wgpu's panic), naming it.
+pub fn check_texture_size(
+    device: &wgpu::Device,
+    what: &str,
+    width: u32,
+    height: u32,
+) -> Result<(), RenderError> {
+    let max = device.limits().max_texture_dimension_2d;
+    if width == 0 || height == 0 || width > max || height > max {
+        return Err(RenderError::TextureLimit {
+            what: what.to_owned(),
+            width,
+            height,
+            max,
+        });
+    }
+    Ok(())
+}
+
+/// Largest staging buffer [`read_textures`] uses: a texture larger than this (an 8192² image
+/// is 256 MiB, a frame-packed 8192-high wall more) is read back in bands of rows, so that
+/// every legal image can be read whatever the device's buffer limit.
+const MAX_STAGING_BYTES: u64 = 64 << 20;
+
 /// Copies textures back to CPU images (for the headless CLI and tests; never per frame in the
-/// interactive render path).
+/// interactive render path), in bands of rows of at most [`MAX_STAGING_BYTES`].
 pub fn read_textures(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     textures: &[&wgpu::Texture],
 ) -> Result<Vec<RgbaImage>, RenderError> {
-    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-        label: Some("read_textures"),
-    });
-    let mut staging = Vec::with_capacity(textures.len());
-    for texture in textures {
+    let band_limit = MAX_STAGING_BYTES.min(device.limits().max_buffer_size);
+    let mut images: Vec<Vec<u8>> = textures
+        .iter()
+        .map(|t| Vec::with_capacity(t.width() as usize * t.height() as usize * 4))
+        .collect();
+    // Bands of every texture in order; flushed whenever the staging held passes the limit.
+    let mut pending: Vec<Band<'_>> = Vec::new();
+    let mut pending_bytes = 0;
+    for (index, texture) in textures.iter().enumerate() {
         let (w, h) = (texture.width(), texture.height());
         let padded = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
             * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("read_textures::staging"),
-            size: u64::from(padded) * u64::from(h),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
+        let rows_per_band = (band_limit / u64::from(padded)).clamp(1, u64::from(h.max(1))) as u32;
+        let mut first_row = 0;
+        while first_row < h {
+            let rows = rows_per_band.min(h - first_row);
+            let bytes = u64::from(padded) * u64::from(rows);
+            if pending_bytes + bytes > band_limit && !pending.is_empty() {
+                flush_bands(device, queue, &mut pending, &mut images)?;
+                pending_bytes = 0;
+            }
+            pending.push(Band {
+                index,
+                texture,
+                first_row,
+                rows,
+                width: w,
+                padded,
+                buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("read_textures::staging"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    mapped_at_creation: false,
+                }),
+            });
+            pending_bytes += bytes;
+            first_row += rows;
+        }
+    }
+    if !pending.is_empty() {
+        flush_bands(device, queue, &mut pending, &mut images)?;
+    }
+    // `pending` was filled in texture order, so each image got its rows top to bottom.
+    textures
+        .iter()
+        .zip(images)
+        .map(|(t, pixels)| {
+            RgbaImage::from_raw(t.width(), t.height(), pixels)
+                .ok_or_else(|| RenderError::Readback("image size mismatch".into()))
+        })
+        .collect()
+}
+
+/// Rows `first_row..first_row + rows` of one texture, on their way back.
+struct Band<'t> {
+    index: usize,
+    texture: &'t wgpu::Texture,
+    first_row: u32,
+    rows: u32,
+    width: u32,
+    padded: u32,
+    buffer: wgpu::Buffer,
+}
+
+/// Copies the pending bands' rows into their staging buffers, waits, and appends the rows
+/// to their images.
+fn flush_bands(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    pending: &mut Vec<Band<'_>>,
+    images: &mut [Vec<u8>],
+) -> Result<(), RenderError> {
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("read_textures"),
+    });
+    for band in pending.iter() {
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
-                texture,
+                texture: band.texture,
                 mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: band.first_row,
+                    z: 0,
+                },
                 aspect: wgpu::TextureAspect::All,
             },
             wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
+                buffer: &band.buffer,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(h),
+                    bytes_per_row: Some(band.padded),
+                    rows_per_image: Some(band.rows),
                 },
             },
-            texture.size(),
+            wgpu::Extent3d {
+                width: band.width,
+                height: band.rows,
+                depth_or_array_layers: 1,
+            },
         );
-        staging.push((buffer, w, h, padded));
     }
     queue.submit([encoder.finish()]);
-    for (buffer, ..) in &staging {
-        buffer.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    for band in pending.iter() {
+        band.buffer.slice(..).map_async(wgpu::MapMode::Read, |_| {});
     }
     device
         .poll(wgpu::PollType::wait_indefinitely())
         .map_err(|e| RenderError::Readback(e.to_string()))?;
-    let mut images = Vec::with_capacity(staging.len());
-    for (buffer, w, h, padded) in staging {
-        let data = buffer
+    for band in pending.drain(..) {
+        let data = band
+            .buffer
             .get_mapped_range(..)
             .map_err(|e| RenderError::Readback(e.to_string()))?;
-        let mut pixels = Vec::with_capacity((w * h * 4) as usize);
-        for row in data.chunks_exact(padded as usize).take(h as usize) {
-            pixels.extend_from_slice(&row[..(w * 4) as usize]);
+        let pixels = images
+            .get_mut(band.index)
+            .ok_or_else(|| RenderError::Readback("band of no texture".into()))?;
+        for row in data
+            .chunks_exact(band.padded as usize)
+            .take(band.rows as usize)
+        {
+            pixels.extend_from_slice(&row[..(band.width * 4) as usize]);
         }
         drop(data);
-        buffer.unmap();
-        let image = RgbaImage::from_raw(w, h, pixels)
-            .ok_or_else(|| RenderError::Readback("image size mismatch".into()))?;
-        images.push(image);
+        band.buffer.unmap();
     }
-    Ok(images)
+    Ok(())
 }
 
 /// A render pass as the scene pass draws into: `color` (resolved from `msaa` when there is

@@ -353,6 +353,16 @@ impl Tessellator {
         if tri_info.len() > max_tris {
             return Err(TessError::TooManyTriangles(tri_info.len(), max_tris));
         }
+        let limit = device.limits().max_storage_buffer_binding_size;
+        for (what, buffer) in [("vertices", vertex_buffer), ("indices", index_buffer)] {
+            if buffer.size() > limit {
+                return Err(TessError::BindingTooLarge {
+                    what,
+                    bytes: buffer.size(),
+                    limit,
+                });
+            }
+        }
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let buffer = |label: &str, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {

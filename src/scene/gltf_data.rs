@@ -2,8 +2,6 @@
 //! accessors of every layout the specification and `KHR_mesh_quantization` allow (normalized or
 //! integer components, byte strides, sparse substitution), read as `f32` or `u32`.
 
-use std::path::Path;
-
 use gltf::accessor::{DataType, Dimensions};
 
 /// Largest decoded size of one compressed buffer view (the decoder's output budget).
@@ -26,8 +24,8 @@ pub struct BinaryData {
 /// it) is left empty.
 pub fn load_buffers(
     document: &gltf::Document,
-    base: &Path,
     mut blob: Option<Vec<u8>>,
+    read_file: &dyn Fn(&str) -> Result<Vec<u8>, String>,
 ) -> Result<Vec<Vec<u8>>, String> {
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
@@ -36,12 +34,17 @@ pub fn load_buffers(
             .and_then(|e| e.get("fallback"))
             .and_then(|f| f.as_bool())
             .unwrap_or(false);
-        let data = if fallback {
-            Vec::new()
-        } else {
-            gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
-                .map_err(|e| format!("buffer {}: {e}", buffer.index()))?
-                .0
+        let data = match buffer.source() {
+            _ if fallback => Vec::new(),
+            // A file: read under the size cap (the crate's own read has none).
+            gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
+                read_file(uri).map_err(|e| format!("buffer {}: {e}", buffer.index()))?
+            }
+            _ => {
+                gltf::buffer::Data::from_source_and_blob(buffer.source(), None, &mut blob)
+                    .map_err(|e| format!("buffer {}: {e}", buffer.index()))?
+                    .0
+            }
         };
         if !fallback && data.len() < buffer.length() {
             return Err(format!(

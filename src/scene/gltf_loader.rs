@@ -9,12 +9,14 @@ use glam::{Mat3, Mat4, Vec3};
 use gltf::accessor::Dimensions;
 use gltf::mesh::Mode;
 
+use super::budget::{SceneBudget, SceneTotals, fitted_size, texture_bytes};
 use super::gltf_data::{BinaryData, load_buffers};
 use super::tangents::generate_tangents;
 use super::{
     AlphaMode, Camera, ColorSpace, Light, LightKind, Material, Scene, TEXTURE_SLOT_NAMES,
     TEXTURE_SLOTS, Texture, TextureRef, UvTransform, Vertex, Wrap, generate_normals,
 };
+use crate::read_capped::{human_bytes, read_capped};
 
 /// Everything that can be wrong with a scene file.
 #[derive(Debug, thiserror::Error)]
@@ -30,22 +32,39 @@ pub enum SceneError {
     Invalid { path: PathBuf, what: String },
 }
 
-/// Largest texture side accepted (wgpu's guaranteed minimum for 2D textures).
-const MAX_TEXTURE_SIDE: u32 = 8192;
+/// Largest image side decoded at all (larger ones are refused from their header; those
+/// between `budgets.max_texture_side` and this are decoded and downscaled).
+const MAX_IMAGE_SIDE: u32 = 65_536;
 /// Deeper node nesting than this is treated as a cycle (the glTF spec forbids cycles).
 const MAX_NODE_DEPTH: usize = 128;
 
-/// Loads a `.gltf` or `.glb` file; external buffers and images are resolved next to it.
+/// Loads a `.gltf` or `.glb` file under the default [`SceneBudget`]; external buffers and
+/// images are resolved next to it.
 pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Read {
-        path: path.to_owned(),
-        source,
-    })?;
-    load_gltf_bytes(&bytes, path)
+    load_gltf_within(path, &SceneBudget::default())
 }
 
-/// Loads glTF from bytes; `path` names the file in errors and locates external resources.
-pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
+/// Loads a `.gltf` or `.glb` file under `budget` (refused with the budget named when over).
+pub fn load_gltf_within(path: &Path, budget: &SceneBudget) -> Result<Scene, SceneError> {
+    let bytes = read_capped(path, budget.max_file_bytes, FILE_BUDGET).map_err(|source| {
+        SceneError::Read {
+            path: path.to_owned(),
+            source,
+        }
+    })?;
+    load_gltf_bytes(&bytes, path, budget)
+}
+
+/// Where the file size cap is set (for messages).
+const FILE_BUDGET: &str = "budgets.max_file_mb";
+
+/// Loads glTF from bytes under `budget`; `path` names the file in errors and locates
+/// external resources.
+pub fn load_gltf_bytes(
+    bytes: &[u8],
+    path: &Path,
+    budget: &SceneBudget,
+) -> Result<Scene, SceneError> {
     let invalid = |what: String| SceneError::Invalid {
         path: path.to_owned(),
         what,
@@ -53,7 +72,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
     check_glb_header(bytes).map_err(&invalid)?;
     // The checks in this module cover every panic we know of in the gltf crate; this guard
     // turns one we do not know of into an error instead of taking the application down.
-    let parsed = std::panic::catch_unwind(|| load_unguarded(bytes, path));
+    let parsed = std::panic::catch_unwind(|| load_unguarded(bytes, path, budget));
     match parsed {
         Ok(result) => result,
         Err(_) => Err(invalid(
@@ -107,6 +126,49 @@ fn parse_document(
     }
     // Checked above: the crate would refuse what it does not itself decode.
     root.extensions_required.clear();
+    // The crate's `Image::source` unwraps what the specification requires: an image from a
+    // buffer view without a MIME type (its bytes tell the format; it is guessed from them
+    // anyway) gets a placeholder, and one with neither a URI nor a buffer view is refused.
+    for (i, image) in root.images.iter_mut().enumerate() {
+        match (&image.buffer_view, &image.uri) {
+            (Some(_), _) if image.mime_type.is_none() => {
+                image.mime_type = Some(gltf::json::image::MimeType(
+                    "application/octet-stream".into(),
+                ));
+            }
+            (None, None) => {
+                return Err(invalid(format!(
+                    "image {i} has neither a uri nor a bufferView"
+                )));
+            }
+            _ => {}
+        }
+    }
+    // The crate's validation indexes a primitive's POSITION accessor without a bounds check
+    // (found by the glTF fuzzer): every accessor a primitive names is checked first.
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let named = primitive
+                .attributes
+                .values()
+                .chain(primitive.indices.iter())
+                .chain(primitive.targets.iter().flatten().flat_map(|t| {
+                    t.positions
+                        .iter()
+                        .chain(t.normals.iter())
+                        .chain(t.tangents.iter())
+                }));
+            for index in named {
+                if index.value() >= accessors {
+                    return Err(invalid(format!(
+                        "mesh {m} primitive {p} refers to accessor {}, but the file has {accessors}",
+                        index.value()
+                    )));
+                }
+            }
+        }
+    }
     // The crate's own validation, but for one rule stricter than the specification: an
     // accessor without a buffer view is legal (zeros, or the data of a Draco primitive).
     let mut errors = Vec::new();
@@ -128,7 +190,7 @@ fn parse_document(
     Ok((document, blob))
 }
 
-fn load_unguarded(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
+fn load_unguarded(bytes: &[u8], path: &Path, budget: &SceneBudget) -> Result<Scene, SceneError> {
     let invalid = |what: String| SceneError::Invalid {
         path: path.to_owned(),
         what,
@@ -136,7 +198,12 @@ fn load_unguarded(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
     let (document, blob) = parse_document(bytes, path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     check_external_files(&document, base, path)?;
-    let buffers = load_buffers(&document, base, blob).map_err(&invalid)?;
+    let buffers = load_buffers(&document, blob, &|uri| {
+        let file = base.join(percent_decode(uri));
+        read_capped(&file, budget.max_file_bytes, FILE_BUDGET)
+            .map_err(|e| format!("{}: {e}", file.display()))
+    })
+    .map_err(&invalid)?;
     let data = BinaryData::new(&document, buffers);
     warn_ignored_features(&document, path);
     let mut loader = Loader {
@@ -149,12 +216,20 @@ fn load_unguarded(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
         default_material: None,
         material_variants: HashMap::new(),
         document: &document,
+        budget: *budget,
+        texture_bytes: 0,
     };
-    loader.load_materials(&document)?;
     let gltf_scene = document
         .default_scene()
         .or_else(|| document.scenes().next())
         .ok_or_else(|| loader.invalid("the file contains no scene".into()))?;
+    // Counted before anything is built: a node graph that expands past the budget (a node
+    // listed twice as a child doubles its subtree at every level) is refused up front.
+    let mut totals = SceneTotals::default();
+    for node in gltf_scene.nodes() {
+        loader.count_node(&node, 0, &mut totals)?;
+    }
+    loader.load_materials(&document)?;
     for node in gltf_scene.nodes() {
         loader.visit_node(&node, Mat4::IDENTITY, 0)?;
     }
@@ -262,6 +337,9 @@ struct Loader<'a> {
     default_material: Option<usize>,
     /// (scene material, texture slots dropped) → scene material without those textures.
     material_variants: HashMap<(usize, u32), usize>,
+    budget: SceneBudget,
+    /// Texture memory taken so far (with mips).
+    texture_bytes: u64,
 }
 
 impl Loader<'_> {
@@ -414,6 +492,11 @@ impl Loader<'_> {
         };
         let (width, height, rgba8) = match self.image_textures.get(&(image, other)) {
             Some(&index) => {
+                let (w, h) = (
+                    self.scene.textures[index].width,
+                    self.scene.textures[index].height,
+                );
+                self.take_texture_memory(image, w, h)?;
                 let t = &self.scene.textures[index];
                 (t.width, t.height, t.rgba8.clone())
             }
@@ -431,10 +514,39 @@ impl Loader<'_> {
         Ok(index)
     }
 
+    /// Counts a `width`×`height` texture (with mips) against `budgets.max_texture_memory_mb`.
+    fn take_texture_memory(
+        &mut self,
+        image: usize,
+        width: u32,
+        height: u32,
+    ) -> Result<(), SceneError> {
+        let bytes = texture_bytes(width, height);
+        let total = self.texture_bytes.saturating_add(bytes);
+        if total > self.budget.max_texture_bytes {
+            return Err(self.invalid(format!(
+                "image {image} ({width}×{height}, {} with mips) brings the textures to {}, \
+                 over budgets.max_texture_memory_mb = {} (lower budgets.max_texture_side to \
+                 downscale them, or raise the budget)",
+                human_bytes(bytes),
+                human_bytes(total),
+                self.budget.max_texture_bytes >> 20
+            )));
+        }
+        self.texture_bytes = total;
+        Ok(())
+    }
+
     /// Decodes one image (PNG or JPEG, from a buffer view, a data URI or a file) to RGBA8,
-    /// refusing sizes past the texture limit before decoding the pixels.
-    fn decode_image(&self, image: usize) -> Result<(u32, u32, Vec<u8>), SceneError> {
-        let fail = |why: String| self.invalid(format!("image {image}: {why}"));
+    /// checking its size from the header first: the texture memory it will take is counted
+    /// against the budget before the pixels are decoded, and an image larger than
+    /// `budgets.max_texture_side` is downscaled to it, with a warning.
+    fn decode_image(&mut self, image: usize) -> Result<(u32, u32, Vec<u8>), SceneError> {
+        let path = self.path;
+        let fail = |why: String| SceneError::Invalid {
+            path: path.to_owned(),
+            what: format!("image {image}: {why}"),
+        };
         let gltf_image = self
             .document
             .images()
@@ -445,18 +557,12 @@ impl Loader<'_> {
                 self.data.view_bytes(&view).map_err(&fail)?.to_vec()
             }
             gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                let data =
-                    gltf::image::Data::from_source(gltf_image.source(), Some(self.base), &[])
-                        .map_err(|e| fail(e.to_string()))?;
-                let (w, h) = (data.width, data.height);
-                check_image_size(w, h).map_err(&fail)?;
-                let rgba8 = to_rgba8(&data)
-                    .ok_or_else(|| fail("has an unsupported pixel format".into()))?;
-                return Ok((w, h, rgba8));
+                decode_data_uri(uri).map_err(&fail)?
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let file = self.base.join(percent_decode(uri));
-                std::fs::read(&file).map_err(|e| fail(format!("{}: {e}", file.display())))?
+                read_capped(&file, self.budget.max_file_bytes, FILE_BUDGET)
+                    .map_err(|e| fail(format!("{}: {e}", file.display())))?
             }
         };
         let reader = image::ImageReader::new(std::io::Cursor::new(&encoded))
@@ -464,8 +570,28 @@ impl Loader<'_> {
             .map_err(|e| fail(e.to_string()))?;
         let (w, h) = reader.into_dimensions().map_err(|e| fail(e.to_string()))?;
         check_image_size(w, h).map_err(&fail)?;
+        // The full-size image is decoded first: it must fit the texture budget on its own.
+        let decoded_bytes = u64::from(w) * u64::from(h) * 4;
+        if decoded_bytes > self.budget.max_texture_bytes {
+            return Err(fail(format!(
+                "is {w}×{h}: {} decoded, over budgets.max_texture_memory_mb = {}",
+                human_bytes(decoded_bytes),
+                self.budget.max_texture_bytes >> 20
+            )));
+        }
+        let (fw, fh) = fitted_size(w, h, self.budget.max_texture_side);
+        self.take_texture_memory(image, fw, fh)?;
         let decoded = image::load_from_memory(&encoded).map_err(|e| fail(e.to_string()))?;
-        Ok((w, h, decoded.to_rgba8().into_raw()))
+        let rgba = decoded.to_rgba8();
+        if (fw, fh) == (w, h) {
+            return Ok((w, h, rgba.into_raw()));
+        }
+        self.warn(&format!(
+            "image {image} is {w}×{h}; downscaled to {fw}×{fh} (budgets.max_texture_side = {})",
+            self.budget.max_texture_side
+        ));
+        let small = image::imageops::resize(&rgba, fw, fh, image::imageops::FilterType::Triangle);
+        Ok((fw, fh, small.into_raw()))
     }
 
     fn default_material(&mut self) -> usize {
@@ -496,6 +622,69 @@ impl Loader<'_> {
         let index = self.scene.add_material(variant);
         self.material_variants.insert((material, dropped), index);
         index
+    }
+
+    /// Counts what drawing `node` (and its subtree) adds, without building anything; stops
+    /// at the first budget passed, naming the node and mesh.
+    fn count_node(
+        &self,
+        node: &gltf::Node<'_>,
+        depth: usize,
+        totals: &mut SceneTotals,
+    ) -> Result<(), SceneError> {
+        if depth > MAX_NODE_DEPTH {
+            return Err(self.invalid(format!(
+                "node {} is nested more than {MAX_NODE_DEPTH} deep (cyclic hierarchy?)",
+                node.index()
+            )));
+        }
+        let over = |why: String, what: String| {
+            self.invalid(format!(
+                "{why} (at {what}); raise the budget in the config's [budgets] if the scene \
+                 is meant to be this large"
+            ))
+        };
+        let node_name = || {
+            format!(
+                "node {} ({})",
+                node.index(),
+                node.name().unwrap_or("unnamed")
+            )
+        };
+        // The node itself is an instance: an empty node graph can explode too.
+        totals
+            .add(0, 0, &self.budget)
+            .map_err(|why| over(why, node_name()))?;
+        if let Some(mesh) = node.mesh() {
+            for primitive in mesh.primitives() {
+                let vertices = primitive
+                    .get(&gltf::Semantic::Positions)
+                    .map_or(0, |a| a.count() as u64);
+                let corners = primitive.indices().map_or(vertices, |a| a.count() as u64);
+                let triangles = match primitive.mode() {
+                    Mode::Triangles => corners / 3,
+                    Mode::TriangleStrip | Mode::TriangleFan => corners.saturating_sub(2),
+                    _ => 0,
+                };
+                totals
+                    .add(vertices, triangles, &self.budget)
+                    .map_err(|why| {
+                        over(
+                            why,
+                            format!(
+                                "{}, mesh {} ({})",
+                                node_name(),
+                                mesh.index(),
+                                mesh.name().unwrap_or("unnamed")
+                            ),
+                        )
+                    })?;
+            }
+        }
+        for child in node.children() {
+            self.count_node(&child, depth + 1, totals)?;
+        }
+        Ok(())
     }
 
     fn visit_node(
@@ -873,14 +1062,25 @@ type PrimitiveAttributes = (
 /// The slot of the normal map in [`Material::texture_slots`].
 const NORMAL_SLOT: usize = 2;
 
-/// Refuses image sizes the renderer cannot hold, before their pixels are decoded.
+/// Refuses image sizes that are not images, before their pixels are decoded.
 fn check_image_size(width: u32, height: u32) -> Result<(), String> {
-    if width == 0 || height == 0 || width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE {
+    if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
         return Err(format!(
-            "is {width}×{height}; sides must be 1..={MAX_TEXTURE_SIDE}"
+            "is {width}×{height}; sides must be 1..={MAX_IMAGE_SIDE}"
         ));
     }
     Ok(())
+}
+
+/// The bytes of a base64 `data:` URI (its size is bounded by the file's).
+fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    use base64::Engine as _;
+    let (_, payload) = uri
+        .split_once(";base64,")
+        .ok_or("is a data URI without base64 content")?;
+    base64::engine::general_purpose::STANDARD
+        .decode(payload.trim())
+        .map_err(|e| format!("its data URI is not valid base64: {e}"))
 }
 
 /// `KHR_texture_transform`: the transform and the coordinate set it overrides, if any.
@@ -964,50 +1164,6 @@ fn wrap(mode: gltf::texture::WrappingMode) -> Wrap {
         gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
         gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
     }
-}
-
-/// Converts decoded glTF image data of any 8/16/32-bit layout to RGBA8.
-fn to_rgba8(data: &gltf::image::Data) -> Option<Vec<u8>> {
-    use gltf::image::Format as F;
-    let px = data.width as usize * data.height as usize;
-    let p = &data.pixels;
-    let u16_at = |i: usize| (u16::from_le_bytes([p[2 * i], p[2 * i + 1]]) >> 8) as u8;
-    let f32_at = |i: usize| {
-        let v = f32::from_le_bytes([p[4 * i], p[4 * i + 1], p[4 * i + 2], p[4 * i + 3]]);
-        (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
-    };
-    let (channels, bytes_per) = match data.format {
-        F::R8 => (1, 1),
-        F::R8G8 => (2, 1),
-        F::R8G8B8 => (3, 1),
-        F::R8G8B8A8 => (4, 1),
-        F::R16 => (1, 2),
-        F::R16G16 => (2, 2),
-        F::R16G16B16 => (3, 2),
-        F::R16G16B16A16 => (4, 2),
-        F::R32G32B32FLOAT => (3, 4),
-        F::R32G32B32A32FLOAT => (4, 4),
-    };
-    if p.len() < px * channels * bytes_per {
-        return None;
-    }
-    let get = |i: usize| match bytes_per {
-        1 => p[i],
-        2 => u16_at(i),
-        _ => f32_at(i),
-    };
-    let mut out = Vec::with_capacity(px * 4);
-    for i in 0..px {
-        let c = |k: usize| get(i * channels + k);
-        let rgba = match channels {
-            1 => [c(0), c(0), c(0), 255],
-            2 => [c(0), c(0), c(0), c(1)],
-            3 => [c(0), c(1), c(2), 255],
-            _ => [c(0), c(1), c(2), c(3)],
-        };
-        out.extend_from_slice(&rgba);
-    }
-    Some(out)
 }
 
 #[cfg(test)]

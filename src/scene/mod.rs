@@ -3,6 +3,7 @@
 //! Node transforms are baked into the vertices at load time, so every vertex is in scene
 //! (world) space; the renderer only applies the per-frame CAVE-from-world transform.
 
+pub mod budget;
 pub mod build;
 pub mod glb_writer;
 mod gltf_data;
@@ -11,8 +12,9 @@ mod gltf_loader;
 mod lighting;
 mod tangents;
 
+pub use budget::SceneBudget;
 pub use gltf_data::MAX_DECODED_VIEW_BYTES;
-pub use gltf_loader::{SceneError, load_gltf};
+pub use gltf_loader::{SceneError, load_gltf, load_gltf_bytes, load_gltf_within};
 pub use lighting::{Lighting, Shading};
 pub use tangents::generate_tangents;
 

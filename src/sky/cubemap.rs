@@ -190,12 +190,18 @@ pub fn equirect_coordinates(dir: Vec3) -> (f32, f32) {
     )
 }
 
-/// Loads a sky: an equirectangular image file, or a folder holding six face images.
+/// Loads a sky: an equirectangular image file, or a folder holding six face images; each
+/// file is read up to the default `budgets.max_file_mb`.
 pub fn load_sky(path: &Path) -> Result<CubeMap, SkyError> {
+    load_sky_within(path, crate::scene::SceneBudget::default().max_file_bytes)
+}
+
+/// [`load_sky`], reading no file past `max_file_bytes`.
+pub fn load_sky_within(path: &Path, max_file_bytes: u64) -> Result<CubeMap, SkyError> {
     if path.is_dir() {
-        load_faces(path)
+        load_faces(path, max_file_bytes)
     } else {
-        let image = open_image(path)?;
+        let image = open_image(path, max_file_bytes)?;
         from_equirect(path, &image)
     }
 }
@@ -231,11 +237,12 @@ impl Decoded {
     }
 }
 
-fn open_image(path: &Path) -> Result<Decoded, SkyError> {
-    let bytes = std::fs::read(path).map_err(|source| SkyError::Read {
-        path: path.to_owned(),
-        source,
-    })?;
+fn open_image(path: &Path, max_file_bytes: u64) -> Result<Decoded, SkyError> {
+    let bytes = crate::read_capped::read_capped(path, max_file_bytes, "budgets.max_file_mb")
+        .map_err(|source| SkyError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
     let decoded = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| SkyError::Decode {
@@ -255,7 +262,7 @@ fn open_image(path: &Path) -> Result<Decoded, SkyError> {
     })
 }
 
-fn load_faces(dir: &Path) -> Result<CubeMap, SkyError> {
+fn load_faces(dir: &Path, max_file_bytes: u64) -> Result<CubeMap, SkyError> {
     let mut faces = Vec::with_capacity(6);
     let mut size = None;
     for (face, alias) in FACE_NAMES.into_iter().zip(FACE_ALIASES) {
@@ -272,7 +279,7 @@ fn load_faces(dir: &Path) -> Result<CubeMap, SkyError> {
                 face,
                 alias,
             })?;
-        let image = open_image(&path)?;
+        let image = open_image(&path, max_file_bytes)?;
         let (w, h) = image.dimensions();
         let expected = *size.get_or_insert(w);
         if w != h || w != expected || w == 0 || w > MAX_FACE_SIZE {

@@ -6,7 +6,7 @@ pub mod cubemap;
 pub mod irradiance;
 pub mod lookup;
 
-pub use cubemap::{CubeMap, SkyError, load_sky};
+pub use cubemap::{CubeMap, SkyError, load_sky, load_sky_within};
 
 use crate::cave::RenderMode;
 

@@ -159,7 +159,7 @@ pub fn render_tess(
     if let Some(c) = capacity {
         renderer.set_tess_capacity(c);
     }
-    renderer.set_scene(scene);
+    renderer.set_scene(scene).expect("scene upload");
     renderer
         .render(&test_frame(cave, head, mode, OmniSettings::default(), tess))
         .expect("render");
@@ -180,7 +180,7 @@ pub fn render_omni(
     omni: OmniSettings,
 ) -> Vec<WallImages> {
     let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
-    renderer.set_scene(scene);
+    renderer.set_scene(scene).expect("scene upload");
     renderer
         .render(&test_frame(cave, head, mode, omni, TessSettings::default()))
         .expect("render");

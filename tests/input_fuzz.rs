@@ -1,0 +1,399 @@
+//! Property-based fuzzing of the config loader and the glTF loader (issue 18), bounded so it
+//! runs on every CI run beside the OSC fuzzers: mutated bundled configs (lines dropped,
+//! doubled or cut, numbers replaced by huge, negative, NaN or non-numbers, arrays lengthened,
+//! random bytes) and mutated glTF files (bytes flipped in the JSON and the binary chunk,
+//! numbers in the JSON rewritten, chunks cut). Nothing may panic or hang, every error is a
+//! readable message, and the process's peak memory stays under a stated bound.
+//!
+//! Deterministic seeds (a CI failure reproduces locally); `OMNICAVE_FUZZ_CASES` raises the
+//! number of cases for a longer run.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+use std::cell::Cell;
+use std::path::Path;
+use std::sync::mpsc;
+use std::time::Duration;
+
+use glam::Vec3;
+use proptest::collection::vec;
+use proptest::prelude::*;
+use proptest::test_runner::{Config as ProptestConfig, RngAlgorithm, TestRng, TestRunner};
+
+use omnicave::config::Config;
+use omnicave::scene::build::grid;
+use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, MeshOptions, NodeDesc};
+use omnicave::scene::{SceneBudget, load_gltf_bytes};
+
+fn cases(default: u32) -> u32 {
+    std::env::var("OMNICAVE_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+fn runner(cases: u32) -> TestRunner {
+    TestRunner::new_with_rng(
+        ProptestConfig {
+            cases,
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        },
+        TestRng::deterministic_rng(RngAlgorithm::ChaCha),
+    )
+}
+
+/// Runs `f` on another thread and fails if it takes longer than `limit` (a hang).
+fn within<T: Send + 'static>(limit: Duration, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(v) => v,
+        Err(mpsc::RecvTimeoutError::Timeout) => panic!("no result within {limit:?}: a hang"),
+        Err(mpsc::RecvTimeoutError::Disconnected) => panic!("the fuzz thread panicked"),
+    }
+}
+
+/// The process's peak resident memory so far (Linux `VmHWM`), bytes.
+fn peak_rss() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// The peak memory every fuzz test here stays under: the loaders' budgets below allow 64 MiB
+/// of textures and 1 M vertices (~150 MB with the scene's copies); the rest is the test
+/// binary and its threads. A mutation that made a loader allocate by a lying count would
+/// pass it by gigabytes.
+const PEAK_RSS_LIMIT: u64 = 1 << 30;
+
+// ---------------------------------------------------------------- config
+
+#[derive(Debug, Clone)]
+enum ConfigEdit {
+    DropLine(usize),
+    DoubleLine(usize),
+    CutLine(usize, usize),
+    /// Replace the n-th number in the text.
+    Number(usize, String),
+    /// Add elements to the n-th array.
+    LongerArray(usize, String),
+    InsertBytes(usize, Vec<u8>),
+}
+
+fn number_text() -> impl Strategy<Value = String> {
+    prop_oneof![
+        Just("1e30".to_owned()),
+        Just("-1e30".to_owned()),
+        Just("nan".to_owned()),
+        Just("-inf".to_owned()),
+        Just("0".to_owned()),
+        Just("-1".to_owned()),
+        Just("4294967296".to_owned()),
+        Just("\"text\"".to_owned()),
+        Just("[]".to_owned()),
+        Just("{}".to_owned()),
+        Just("true".to_owned()),
+        any::<f32>().prop_map(|f| format!("{f:?}")),
+        any::<i64>().prop_map(|i| i.to_string()),
+    ]
+}
+
+fn config_edit() -> impl Strategy<Value = ConfigEdit> {
+    prop_oneof![
+        1 => any::<usize>().prop_map(ConfigEdit::DropLine),
+        1 => any::<usize>().prop_map(ConfigEdit::DoubleLine),
+        1 => (any::<usize>(), any::<usize>()).prop_map(|(l, c)| ConfigEdit::CutLine(l, c)),
+        3 => (any::<usize>(), number_text()).prop_map(|(n, t)| ConfigEdit::Number(n, t)),
+        1 => (any::<usize>(), number_text()).prop_map(|(n, t)| ConfigEdit::LongerArray(n, t)),
+        1 => (any::<usize>(), vec(any::<u8>(), 1..8)).prop_map(|(at, b)| ConfigEdit::InsertBytes(at, b)),
+    ]
+}
+
+fn apply(text: &str, edit: &ConfigEdit) -> String {
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let n = lines.len().max(1);
+    match edit {
+        ConfigEdit::DropLine(l) => {
+            lines.remove(l % n);
+        }
+        ConfigEdit::DoubleLine(l) => {
+            let line = lines[l % n].clone();
+            lines.insert(l % n, line);
+        }
+        ConfigEdit::CutLine(l, c) => {
+            let line = &mut lines[l % n];
+            let keep = line
+                .char_indices()
+                .nth(c % (line.len() + 1))
+                .map_or(line.len(), |(i, _)| i);
+            line.truncate(keep);
+        }
+        ConfigEdit::Number(k, replacement) => {
+            let joined = lines.join("\n");
+            let numbers: Vec<(usize, usize)> = number_spans(&joined);
+            if numbers.is_empty() {
+                return joined;
+            }
+            let (start, end) = numbers[k % numbers.len()];
+            return format!("{}{replacement}{}", &joined[..start], &joined[end..]);
+        }
+        ConfigEdit::LongerArray(k, extra) => {
+            let joined = lines.join("\n");
+            let closes: Vec<usize> = joined.match_indices(']').map(|(i, _)| i).collect();
+            if closes.is_empty() {
+                return joined;
+            }
+            let at = closes[k % closes.len()];
+            return format!("{}, {extra}{}", &joined[..at], &joined[at..]);
+        }
+        ConfigEdit::InsertBytes(at, bytes) => {
+            let joined = lines.join("\n");
+            let mut raw = joined.into_bytes();
+            let at = at % (raw.len() + 1);
+            raw.splice(at..at, bytes.iter().copied());
+            return String::from_utf8_lossy(&raw).into_owned();
+        }
+    }
+    lines.join("\n")
+}
+
+/// Byte ranges of the numbers in `text` (outside comments is not needed: a number in a
+/// comment changed is a harmless case too).
+fn number_spans(text: &str) -> Vec<(usize, usize)> {
+    let bytes = text.as_bytes();
+    let mut spans = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        let starts = bytes[i].is_ascii_digit()
+            && (i == 0 || !(bytes[i - 1].is_ascii_alphanumeric() || bytes[i - 1] == b'_'));
+        if starts {
+            let start = if i > 0 && bytes[i - 1] == b'-' {
+                i - 1
+            } else {
+                i
+            };
+            let mut end = i;
+            while end < bytes.len()
+                && (bytes[end].is_ascii_digit()
+                    || matches!(bytes[end], b'.' | b'e' | b'E' | b'-' | b'+'))
+            {
+                end += 1;
+            }
+            spans.push((start, end));
+            i = end;
+        } else {
+            i += 1;
+        }
+    }
+    spans
+}
+
+#[test]
+fn the_config_loader_never_panics_or_hangs_on_mutated_configs() {
+    let n = cases(3000);
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bases: Vec<String> = ["config/cave.toml", "config/desktop.toml"]
+        .iter()
+        .map(|f| std::fs::read_to_string(repo.join(f)).unwrap())
+        .collect();
+    let (refused, accepted) = within(Duration::from_secs(600), move || {
+        let refused = Cell::new(0u32);
+        let accepted = Cell::new(0u32);
+        runner(n)
+            .run(
+                &(0..bases.len(), vec(config_edit(), 1..4)),
+                |(base, edits)| {
+                    let mut text = bases[base].clone();
+                    for e in &edits {
+                        text = apply(&text, e);
+                    }
+                    match Config::from_toml(&text, Path::new("fuzz.toml")) {
+                        Ok(_) => accepted.set(accepted.get() + 1),
+                        Err(e) => {
+                            let message = e.to_string();
+                            prop_assert!(message.contains("fuzz.toml"), "{}", message);
+                            prop_assert!(message.len() < 4096, "{} bytes", message.len());
+                            refused.set(refused.get() + 1);
+                        }
+                    }
+                    Ok(())
+                },
+            )
+            .map_err(|e| e.to_string())
+            .unwrap();
+        (refused.get(), accepted.get())
+    });
+    println!("config fuzz: {n} cases, {refused} refused, {accepted} accepted");
+    assert!(refused > n / 4, "the mutations should break most configs");
+    if let Some(peak) = peak_rss() {
+        assert!(peak < PEAK_RSS_LIMIT, "peak memory {peak} bytes");
+    }
+}
+
+// ---------------------------------------------------------------- glTF
+
+/// A small GLB with what the loader reads: indices, normals, UVs, a PNG texture, a node
+/// hierarchy with a transform.
+fn seed_glb() -> Vec<u8> {
+    let mut w = GlbWriter::new();
+    let mut img = image::RgbaImage::new(8, 8);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        *p = image::Rgba([(x * 32) as u8, (y * 32) as u8, 128, 255]);
+    }
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let texture = w.add_png_texture("t", &png);
+    let material = w.add_material(&MaterialDesc {
+        texture: Some(texture),
+        ..MaterialDesc::plain("m", [1.0; 3], 0.5)
+    });
+    let quad = grid(Vec3::new(-0.5, 1.0, -2.0), Vec3::X, Vec3::Y, 2, 2, 1.0);
+    let mesh = w.add_mesh_with("q", &[(&quad, material)], &MeshOptions::default());
+    let leaf = w.add_node(
+        NodeDesc::new("leaf")
+            .with_mesh(mesh)
+            .at(Vec3::new(0.1, 0.0, 0.0)),
+    );
+    let root = w.add_node(
+        NodeDesc::new("root")
+            .with_children(vec![leaf])
+            .rotated_y_degrees(20.0),
+    );
+    w.to_glb(&[root])
+}
+
+#[derive(Debug, Clone)]
+enum GlbEdit {
+    /// Flip bits of the byte at this position (anywhere: headers, JSON, BIN).
+    Flip(usize, u8),
+    /// Replace the n-th number of the JSON chunk.
+    JsonNumber(usize, i64),
+    Truncate(usize),
+}
+
+fn glb_edit() -> impl Strategy<Value = GlbEdit> {
+    let interesting = prop_oneof![
+        Just(0i64),
+        Just(-1),
+        Just(1),
+        Just(3),
+        Just(5126),
+        Just(5123),
+        Just(65_536),
+        Just(u32::MAX as i64),
+        Just(i64::from(i32::MAX)),
+        Just(1 << 40),
+        any::<i64>(),
+    ];
+    prop_oneof![
+        3 => (any::<usize>(), 1u8..=255).prop_map(|(at, bits)| GlbEdit::Flip(at, bits)),
+        3 => (any::<usize>(), interesting).prop_map(|(n, v)| GlbEdit::JsonNumber(n, v)),
+        1 => any::<usize>().prop_map(GlbEdit::Truncate),
+    ]
+}
+
+fn apply_glb(glb: &[u8], edit: &GlbEdit) -> Vec<u8> {
+    let mut out = glb.to_vec();
+    match edit {
+        GlbEdit::Flip(at, bits) => {
+            if let Some(len) = std::num::NonZeroUsize::new(out.len()) {
+                out[*at % len] ^= bits;
+            }
+        }
+        GlbEdit::Truncate(at) => out.truncate(at % (out.len() + 1)),
+        GlbEdit::JsonNumber(k, value) => {
+            if out.len() < 20 {
+                return out;
+            }
+            let json_len = u32::from_le_bytes(out[12..16].try_into().unwrap()) as usize;
+            let Some(json) = out.get(20..20 + json_len) else {
+                return out;
+            };
+            let text = String::from_utf8_lossy(json).into_owned();
+            let spans = number_spans(&text);
+            if spans.is_empty() {
+                return out;
+            }
+            let (start, end) = spans[k % spans.len()];
+            let mut text = format!("{}{value}{}", &text[..start], &text[end..]).into_bytes();
+            while !text.len().is_multiple_of(4) {
+                text.push(b' ');
+            }
+            let bin = out[20 + json_len..].to_vec();
+            let mut rebuilt = Vec::new();
+            rebuilt.extend_from_slice(b"glTF");
+            rebuilt.extend_from_slice(&2u32.to_le_bytes());
+            rebuilt.extend_from_slice(&((20 + text.len() + bin.len()) as u32).to_le_bytes());
+            rebuilt.extend_from_slice(&(text.len() as u32).to_le_bytes());
+            rebuilt.extend_from_slice(b"JSON");
+            rebuilt.extend_from_slice(&text);
+            rebuilt.extend_from_slice(&bin);
+            return rebuilt;
+        }
+    }
+    out
+}
+
+#[test]
+fn the_gltf_loader_never_panics_or_hangs_on_mutated_files() {
+    let n = cases(3000);
+    let seed = seed_glb();
+    // The seed itself loads.
+    let budget = SceneBudget {
+        max_file_bytes: 1 << 20,
+        max_instances: 10_000,
+        max_vertices: 1 << 20,
+        max_triangles: 1 << 20,
+        max_texture_side: 1024,
+        max_texture_bytes: 64 << 20,
+    };
+    load_gltf_bytes(&seed, Path::new("seed.glb"), &budget).expect("seed loads");
+    let (refused, loaded, caught) = within(Duration::from_secs(600), move || {
+        let (refused, loaded, caught) = (Cell::new(0u32), Cell::new(0u32), Cell::new(0u32));
+        runner(n)
+            .run(&vec(glb_edit(), 1..4), |edits| {
+                let mut bytes = seed.clone();
+                for e in &edits {
+                    bytes = apply_glb(&bytes, e);
+                }
+                match load_gltf_bytes(&bytes, Path::new("fuzz.glb"), &budget) {
+                    Ok(scene) => {
+                        prop_assert!(scene.vertices.len() <= 1 << 20);
+                        loaded.set(loaded.get() + 1);
+                    }
+                    Err(e) => {
+                        let message = e.to_string();
+                        prop_assert!(message.contains("fuzz.glb"), "{}", message);
+                        prop_assert!(message.len() < 8192, "{} bytes", message.len());
+                        // The loader's last net: a panic inside a dependency turned into an
+                        // error. Counted (and printed) so that a new one is seen.
+                        if message.contains("the glTF parser failed") {
+                            caught.set(caught.get() + 1);
+                        }
+                        refused.set(refused.get() + 1);
+                    }
+                }
+                Ok(())
+            })
+            .map_err(|e| e.to_string())
+            .unwrap();
+        (refused.get(), loaded.get(), caught.get())
+    });
+    println!(
+        "glTF fuzz: {n} cases, {refused} refused ({caught} by the panic guard), {loaded} loaded"
+    );
+    assert!(refused > n / 4, "the mutations should break most files");
+    // Every panic of the gltf crate the fuzzer found is checked for before it is reached.
+    assert_eq!(
+        caught, 0,
+        "a mutation reached a panic inside the gltf crate"
+    );
+    if let Some(peak) = peak_rss() {
+        assert!(peak < PEAK_RSS_LIMIT, "peak memory {peak} bytes");
+    }
+}
