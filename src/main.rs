@@ -103,6 +103,10 @@ struct TrackSimArgs {
     /// Quaternion order to send (default: the config's).
     #[arg(long, value_enum)]
     quaternion_order: Option<QuaternionOrder>,
+    /// After every pose packet, send N hostile datagrams (random bytes, cut packets, huge and
+    /// non-finite coordinates): a robustness soak (scripts/soak.sh).
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=100))]
+    junk: u32,
 }
 
 /// `track-sim --pattern`.
@@ -772,6 +776,7 @@ fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {
             form: args.form,
             mapping,
             calibration,
+            junk_per_packet: args.junk,
         },
         omnicave::signals::flag(),
     )?;

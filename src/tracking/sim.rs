@@ -323,6 +323,57 @@ pub struct SimOptions {
     pub form: SimForm,
     pub mapping: OscMapping,
     pub calibration: Calibration,
+    /// Hostile datagrams sent after every pose packet (the soak's stress; 0: none).
+    pub junk_per_packet: u32,
+}
+
+/// A hostile datagram for the soak, from a xorshift state: random bytes, a pose packet cut
+/// short, a position with huge, subnormal or non-finite coordinates, or one with the wrong
+/// number of arguments. The receiver must drop or refuse every one and keep the head.
+pub fn junk_datagram(state: &mut u64, mapping: &OscMapping) -> Vec<u8> {
+    let mut next = || {
+        // xorshift64: deterministic, no dependency, plenty for noise.
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    };
+    let choice = next() % 5;
+    let address = &mapping.position_address;
+    match choice {
+        0 => {
+            let len = (next() % 512) as usize;
+            (0..len).map(|_| next() as u8).collect()
+        }
+        1 => {
+            let mut bytes =
+                encode::bytes(&encode::message(address, encode::floats(&[0.1, 1.7, -0.2])));
+            let keep = (next() as usize) % bytes.len().max(1);
+            bytes.truncate(keep);
+            bytes
+        }
+        2 => {
+            let odd = [
+                3e38,
+                -f32::MAX,
+                1.02e38,
+                f32::MIN_POSITIVE / 4.0,
+                40.0,
+                -1e6,
+            ];
+            let v = odd[(next() % odd.len() as u64) as usize];
+            let axis = (next() % 3) as usize;
+            let mut p = [0.1f32, 1.7, -0.2];
+            p[axis] = v;
+            encode::bytes(&encode::message(address, encode::floats(&p)))
+        }
+        3 => {
+            let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+            let v = odd[(next() % odd.len() as u64) as usize];
+            encode::bytes(&encode::message(address, encode::floats(&[v, 1.7, 0.0])))
+        }
+        _ => encode::bytes(&encode::message(address, encode::floats(&[1.0]))),
+    }
 }
 
 /// Sends the pattern at the rate until the duration ends or `stop` is set; returns the number
@@ -345,6 +396,8 @@ pub fn run(
     let mut sent = 0u64;
     let mut failed = super::receiver::LogLimiter::default();
     let mut progress = super::receiver::LogLimiter::default();
+    let mut junk_state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut junk_sent = 0u64;
     tracing::info!(
         "track-sim: sending {} packets to {} at {} Hz",
         options.form.name(),
@@ -373,20 +426,27 @@ pub fn run(
                 }
             }
         }
+        for _ in 0..options.junk_per_packet {
+            let junk = junk_datagram(&mut junk_state, &options.mapping);
+            if sender.send_bytes(&junk).is_ok() {
+                junk_sent += 1;
+            }
+        }
         if progress
             .allow(Instant::now(), Duration::from_secs(5))
             .is_some()
         {
             let p = pose.position;
             tracing::info!(
-                "track-sim: {sent} packets sent; head at ({:.3}, {:.3}, {:.3}) m",
+                "track-sim: {sent} packets sent ({junk_sent} hostile); head at ({:.3}, {:.3}, \
+                 {:.3}) m",
                 p.x,
                 p.y,
                 p.z
             );
         }
     }
-    tracing::info!("track-sim: done, {sent} packets sent");
+    tracing::info!("track-sim: done, {sent} packets sent ({junk_sent} hostile)");
     Ok(sent)
 }
 
