@@ -25,8 +25,8 @@ pub enum RenderError {
     #[error("sky faces of {size}×{size} exceed this device's texture limit of {max}")]
     SkyTooLarge { size: u32, max: u32 },
     #[error(
-        "the scene's {what} take {bytes} bytes; this GPU's largest buffer is {limit} bytes \
-         (max_buffer_size): use a smaller scene or lower budgets.max_vertices"
+        "the scene's {what} take {bytes} bytes, more than the largest buffer, {limit} bytes \
+         (this GPU's max_buffer_size, or the limit set): split the primitive in the file"
     )]
     SceneTooLarge {
         what: &'static str,
@@ -62,6 +62,11 @@ pub enum RenderError {
 pub enum TessError {
     #[error("scene has {0} triangles; the tessellator dispatches at most {1}")]
     TooManyTriangles(usize, usize),
+    #[error(
+        "the scene is split over {0} buffers (it is larger than this GPU's largest buffer); \
+         the tessellator binds it whole: use a mode without tessellation or a smaller scene"
+    )]
+    SplitScene(usize),
     #[error(
         "the scene's {what} take {bytes} bytes; the tessellator binds them whole and this \
          GPU binds at most {limit} bytes (max_storage_buffer_binding_size): use a mode \

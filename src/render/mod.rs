@@ -103,6 +103,8 @@ pub struct Renderer {
     settings: RenderSettings,
     scene_pass: ScenePass,
     scene: Option<SceneGpu>,
+    /// The largest buffer a scene is uploaded in (`None`: the device's limit).
+    scene_buffer_limit: Option<u64>,
     sky_pass: SkyPass,
     /// `None` when the device cannot run it (too few storage buffers per stage).
     tessellator: Option<Tessellator>,
@@ -203,6 +205,7 @@ impl Renderer {
             settings,
             scene_pass,
             scene: None,
+            scene_buffer_limit: None,
             sky_pass,
             tessellator,
             tess_capacity: tessellator::DEFAULT_CAPACITY,
@@ -230,12 +233,27 @@ impl Renderer {
         Ok(renderer)
     }
 
+    /// Splits the next scenes' geometry into buffers of at most `bytes` (`None`: the device's
+    /// largest buffer): to leave room beside a large scene, and to test the split on a
+    /// device whose largest buffer is large.
+    pub fn limit_scene_buffers(&mut self, bytes: Option<u64>) {
+        self.scene_buffer_limit = bytes;
+    }
+
+    /// How many buffers the current scene's geometry is split over (0: no scene).
+    pub fn scene_chunks(&self) -> usize {
+        self.scene.as_ref().map_or(0, SceneGpu::chunk_count)
+    }
+
     /// Replaces the scene (uploads buffers and textures once). A scene the device cannot
     /// hold is an error naming the limit; the previous scene stays.
     pub fn set_scene(&mut self, scene: &Scene) -> Result<(), RenderError> {
-        let uploaded = self
-            .scene_pass
-            .upload_scene(&self.device, &self.queue, scene)?;
+        let uploaded = self.scene_pass.upload_scene(
+            &self.device,
+            &self.queue,
+            scene,
+            self.scene_buffer_limit,
+        )?;
         self.scene = Some(uploaded);
         self.scene_pass.shadows.invalidate();
         self.walls.drop_tessellation();

@@ -87,11 +87,19 @@ pub struct ScenePass {
     pub(crate) shadows: ShadowPass,
 }
 
+/// Vertex and index buffers holding a run of draws.
+#[derive(Debug)]
+pub(crate) struct SceneChunk {
+    pub(crate) vertex_buffer: wgpu::Buffer,
+    pub(crate) index_buffer: wgpu::Buffer,
+}
+
 /// A scene uploaded to the GPU.
 #[derive(Debug)]
 pub struct SceneGpu {
-    pub(crate) vertex_buffer: wgpu::Buffer,
-    pub(crate) index_buffer: wgpu::Buffer,
+    /// One chunk holding the whole scene (as the file laid it out) when it fits the device's
+    /// largest buffer; else runs of whole draws, each under the limit (see [`plan_chunks`]).
+    chunks: Vec<SceneChunk>,
     draws: Vec<GpuDraw>,
     /// The order draws are issued in: opaque ones, then blended ones back to front (sorted
     /// each frame by [`SceneGpu::sort_blended`]).
@@ -113,6 +121,8 @@ pub struct SceneGpu {
 
 #[derive(Debug, Clone, Copy)]
 struct GpuDraw {
+    /// The chunk whose buffers hold it; `first_index` counts in that chunk's index buffer.
+    chunk: usize,
     first_index: u32,
     index_count: u32,
     material: usize,
@@ -129,15 +139,45 @@ struct GpuDraw {
 impl SceneGpu {
     /// Records the shadow casters into a depth-only pass whose pipeline is bound.
     pub(crate) fn draw_casters(&self, pass: &mut wgpu::RenderPass<'_>) {
-        pass.set_vertex_buffer(0, self.vertex_buffer.slice(..));
-        pass.set_index_buffer(self.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        let bound = std::cell::Cell::new(None);
         for draw in self.draws.iter().filter(|d| d.casts_shadow) {
+            self.bind_chunk(pass, draw.chunk, &bound);
             pass.draw_indexed(
                 draw.first_index..draw.first_index + draw.index_count,
                 0,
                 0..1,
             );
         }
+    }
+
+    /// Binds chunk `chunk`'s buffers unless they are bound already (`bound`).
+    fn bind_chunk(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        chunk: usize,
+        bound: &std::cell::Cell<Option<usize>>,
+    ) {
+        if bound.get() == Some(chunk) {
+            return;
+        }
+        if let Some(c) = self.chunks.get(chunk) {
+            pass.set_vertex_buffer(0, c.vertex_buffer.slice(..));
+            pass.set_index_buffer(c.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+            bound.set(Some(chunk));
+        }
+    }
+
+    /// The buffers of the whole scene, if it is one chunk (the tessellator binds them whole).
+    pub(crate) fn whole(&self) -> Result<&SceneChunk, super::error::TessError> {
+        match self.chunks.as_slice() {
+            [one] => Ok(one),
+            chunks => Err(super::error::TessError::SplitScene(chunks.len())),
+        }
+    }
+
+    /// How many buffers the scene is split over (1 when it fits the largest buffer).
+    pub fn chunk_count(&self) -> usize {
+        self.chunks.len()
     }
 
     /// Number of draws (materials runs) the scene is drawn with.
@@ -397,8 +437,7 @@ impl ScenePass {
         view_index: usize,
         wireframe: bool,
     ) {
-        pass.set_vertex_buffer(0, scene.vertex_buffer.slice(..));
-        pass.set_index_buffer(scene.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+        let bound = std::cell::Cell::new(None);
         self.draw_materials(
             pass,
             scene,
@@ -407,6 +446,7 @@ impl ScenePass {
             wireframe,
             Variant::Plain,
             |pass, _, draw| {
+                scene.bind_chunk(pass, draw.chunk, &bound);
                 pass.draw_indexed(
                     draw.first_index..draw.first_index + draw.index_count,
                     0,
@@ -523,15 +563,22 @@ impl ScenePass {
     /// Uploads a scene: vertex/index buffers, material uniforms, textures with mipmaps.
     /// Every size is checked against the device's limits first (the error names the limit),
     /// and the GPU running out of memory is an error, not a panic.
+    /// A scene larger than `max_buffer_bytes` (or the device's largest buffer) is split
+    /// into several buffers, by whole draws.
     pub fn upload_scene(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         scene: &Scene,
+        max_buffer_bytes: Option<u64>,
     ) -> Result<SceneGpu, RenderError> {
         check_scene_limits(device, scene)?;
+        let limit = max_buffer_bytes
+            .unwrap_or(u64::MAX)
+            .min(device.limits().max_buffer_size);
+        let plan = plan_chunks(scene, limit)?;
         let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let uploaded = self.upload_checked(device, queue, scene);
+        let uploaded = self.upload_checked(device, queue, scene, plan);
         match pollster::block_on(out_of_memory.pop()) {
             None => Ok(uploaded),
             Some(e) => Err(RenderError::OutOfMemory(format!(
@@ -547,30 +594,44 @@ impl ScenePass {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         scene: &Scene,
+        plan: ChunkPlan,
     ) -> SceneGpu {
-        let vertices: Vec<GpuVertex> = scene.vertices.iter().map(GpuVertex::from).collect();
-        // wgpu refuses zero-sized buffers; an empty scene still gets valid (unused) buffers.
-        let empty_vertex = [GpuVertex::zeroed()];
-        let vertex_bytes: &[u8] = if vertices.is_empty() {
-            bytemuck::cast_slice(&empty_vertex)
-        } else {
-            bytemuck::cast_slice(&vertices)
+        // Scene draw index → (chunk, first index in it).
+        let mut placed: HashMap<usize, (usize, u32)> = HashMap::new();
+        let chunks: Vec<SceneChunk> = match plan {
+            ChunkPlan::Whole => {
+                vec![upload_chunk(
+                    device,
+                    "SceneGpu",
+                    &scene.vertices,
+                    &scene.indices,
+                )]
+            }
+            ChunkPlan::Split(runs) => runs
+                .iter()
+                .enumerate()
+                .map(|(c, run)| {
+                    let base = run.vertices.start;
+                    let mut indices = Vec::new();
+                    for &d in &run.draws {
+                        let draw = &scene.draws[d];
+                        placed.insert(d, (c, indices.len() as u32));
+                        let range = draw.first_index as usize
+                            ..(draw.first_index + draw.index_count) as usize;
+                        indices.extend(
+                            scene
+                                .indices
+                                .get(range)
+                                .unwrap_or(&[])
+                                .iter()
+                                .map(|i| i - base),
+                        );
+                    }
+                    let vertices = &scene.vertices[base as usize..run.vertices.end as usize];
+                    upload_chunk(device, &format!("SceneGpu::chunk {c}"), vertices, &indices)
+                })
+                .collect(),
         };
-        let index_bytes: &[u8] = if scene.indices.is_empty() {
-            &[0; 12]
-        } else {
-            bytemuck::cast_slice(&scene.indices)
-        };
-        let vertex_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("SceneGpu::vertex_buffer"),
-            contents: vertex_bytes,
-            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
-        });
-        let index_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("SceneGpu::index_buffer"),
-            contents: index_bytes,
-            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
-        });
 
         let textures: Vec<wgpu::Texture> = scene
             .textures
@@ -669,8 +730,11 @@ impl ScenePass {
         let draws: Vec<GpuDraw> = scene
             .draws
             .iter()
-            .filter(|d| d.material < scene.materials.len())
-            .map(|d| {
+            .enumerate()
+            .filter(|(_, d)| d.material < scene.materials.len())
+            .map(|(index, d)| {
+                let (chunk, first_index) =
+                    placed.get(&index).copied().unwrap_or((0, d.first_index));
                 let material = &scene.materials[d.material];
                 let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
                 let (lo, hi) = scene.indices.get(range).unwrap_or(&[]).iter().fold(
@@ -684,7 +748,8 @@ impl ScenePass {
                     },
                 );
                 GpuDraw {
-                    first_index: d.first_index,
+                    chunk,
+                    first_index,
                     index_count: d.index_count,
                     material: d.material,
                     double_sided: material.double_sided,
@@ -695,8 +760,11 @@ impl ScenePass {
                 }
             })
             .collect();
-        // Triangles no valid draw covers get a draw index no draw has: never drawn.
-        let mut tri_info = vec![super::tessellator::NO_DRAW; scene.triangle_count()];
+        // Triangles no valid draw covers get a draw index no draw has: never drawn. (A split
+        // scene is not tessellated: it has no single buffer to bind.)
+        let whole = chunks.len() == 1;
+        let mut tri_info =
+            vec![super::tessellator::NO_DRAW; if whole { scene.triangle_count() } else { 0 }];
         for (d, draw) in draws.iter().enumerate() {
             let flag = if draw.double_sided { 1 << 31 } else { 0 };
             let first = draw.first_index as usize / 3;
@@ -712,8 +780,7 @@ impl ScenePass {
         let mut all_textures = textures;
         all_textures.push(white);
         SceneGpu {
-            vertex_buffer,
-            index_buffer,
+            chunks,
             draws,
             order,
             opaque_count,
@@ -755,20 +822,119 @@ fn make_sampler(device: &wgpu::Device, (u, v, nearest): (Wrap, Wrap, bool)) -> w
 
 /// Uploads a texture with a full mip chain, box-filtered on the CPU once at load: in linear
 /// light for sRGB textures (averaging the encoded bytes would darken every mip level).
-/// Refuses a scene whose buffers or textures pass this device's limits, naming the limit.
-fn check_scene_limits(device: &wgpu::Device, scene: &Scene) -> Result<(), RenderError> {
-    let limits = device.limits();
-    let vertex_bytes = scene.vertices.len() as u64 * std::mem::size_of::<GpuVertex>() as u64;
+/// Vertex and index buffers for `vertices` and `indices` (wgpu refuses empty buffers: an
+/// empty scene gets valid, unused ones).
+fn upload_chunk(
+    device: &wgpu::Device,
+    label: &str,
+    vertices: &[crate::scene::Vertex],
+    indices: &[u32],
+) -> SceneChunk {
+    let mut gpu: Vec<GpuVertex> = vertices.iter().map(GpuVertex::from).collect();
+    if gpu.is_empty() {
+        gpu.push(GpuVertex::zeroed());
+    }
+    let index_bytes: &[u8] = if indices.is_empty() {
+        &[0; 12]
+    } else {
+        bytemuck::cast_slice(indices)
+    };
+    SceneChunk {
+        vertex_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(&format!("{label}::vertex_buffer")),
+            contents: bytemuck::cast_slice(&gpu),
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+        }),
+        index_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(&format!("{label}::index_buffer")),
+            contents: index_bytes,
+            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+        }),
+    }
+}
+
+/// How a scene's geometry goes into buffers.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChunkPlan {
+    /// One vertex and one index buffer, as the scene lays them out.
+    Whole,
+    /// Runs of whole draws, each with the vertices its draws use.
+    Split(Vec<ChunkRun>),
+}
+
+/// A run of draws (scene draw indices) and the vertex range they use.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChunkRun {
+    pub draws: Vec<usize>,
+    pub vertices: std::ops::Range<u32>,
+}
+
+/// Splits `scene` into runs of whole draws whose vertex and index data each fit `limit`
+/// bytes (greedily, in draw order); the whole scene when it fits. A single draw larger than
+/// the limit cannot be split: refused naming it and the limit.
+pub fn plan_chunks(scene: &Scene, limit: u64) -> Result<ChunkPlan, RenderError> {
+    let vertex_size = std::mem::size_of::<GpuVertex>() as u64;
+    let vertex_bytes = scene.vertices.len() as u64 * vertex_size;
     let index_bytes = scene.indices.len() as u64 * 4;
-    for (what, bytes) in [("vertices", vertex_bytes), ("indices", index_bytes)] {
-        if bytes > limits.max_buffer_size {
+    if vertex_bytes <= limit && index_bytes <= limit {
+        return Ok(ChunkPlan::Whole);
+    }
+    let mut runs: Vec<ChunkRun> = Vec::new();
+    let mut current: Option<(ChunkRun, u64)> = None;
+    for (d, draw) in scene.draws.iter().enumerate() {
+        let range = draw.first_index as usize..(draw.first_index + draw.index_count) as usize;
+        let indices = scene.indices.get(range).unwrap_or(&[]);
+        let Some((&lo, &hi)) = indices.iter().min().zip(indices.iter().max()) else {
+            continue;
+        };
+        let own = lo..hi + 1;
+        let own_bytes = u64::from(own.end - own.start) * vertex_size;
+        let own_indices = indices.len() as u64 * 4;
+        if own_bytes > limit || own_indices > limit {
             return Err(RenderError::SceneTooLarge {
-                what,
-                bytes,
-                limit: limits.max_buffer_size,
+                what: "vertices of one primitive",
+                bytes: own_bytes.max(own_indices),
+                limit,
             });
         }
+        if let Some((run, run_indices)) = current.as_mut() {
+            let merged = run.vertices.start.min(own.start)..run.vertices.end.max(own.end);
+            let merged_bytes = u64::from(merged.end - merged.start) * vertex_size;
+            if merged_bytes <= limit && *run_indices + own_indices <= limit {
+                run.vertices = merged;
+                run.draws.push(d);
+                *run_indices += own_indices;
+                continue;
+            }
+        }
+        if let Some((run, _)) = current.take() {
+            runs.push(run);
+        }
+        current = Some((
+            ChunkRun {
+                draws: vec![d],
+                vertices: own,
+            },
+            own_indices,
+        ));
     }
+    if let Some((run, _)) = current {
+        runs.push(run);
+    }
+    tracing::info!(
+        "the scene's geometry ({} vertex, {} index bytes) is split over {} buffers of at most \
+         {limit} bytes; tessellated modes cannot bind it whole",
+        vertex_bytes,
+        index_bytes,
+        runs.len()
+    );
+    Ok(ChunkPlan::Split(runs))
+}
+
+/// Refuses a scene whose textures pass this device's limits, naming the limit (its geometry
+/// is split over buffers by [`plan_chunks`]).
+fn check_scene_limits(device: &wgpu::Device, scene: &Scene) -> Result<(), RenderError> {
+    let limits = device.limits();
     let max_side = limits.max_texture_dimension_2d;
     if let Some(t) = scene
         .textures
