@@ -30,13 +30,14 @@ pub fn stop_requested() -> bool {
     STOP.load(Ordering::SeqCst)
 }
 
-/// Whether the command line runs a command that polls for signals (`run`, `track-sim`), from
-/// the raw arguments (before they are parsed, so the handler is in place from the start).
+/// Whether the command line runs a command that polls for signals (`run`, `track-sim`, or no
+/// command at all, which runs the application), from the raw arguments (before they are
+/// parsed, so the handler is in place from the start).
 pub fn command_polls(args: impl IntoIterator<Item = String>) -> bool {
     args.into_iter()
         .skip(1)
         .find(|a| !a.starts_with('-'))
-        .is_some_and(|command| command == "run" || command == "track-sim")
+        .is_none_or(|command| command == "run" || command == "track-sim")
 }
 
 #[cfg(test)]
@@ -51,6 +52,7 @@ mod tests {
         assert!(!command_polls(args(&[
             "omnicave", "render", "--config", "run"
         ])));
-        assert!(!command_polls(args(&["omnicave", "--help"])));
+        assert!(command_polls(args(&["omnicave"])));
+        assert!(!command_polls(args(&["omnicave", "bench", "--quick"])));
     }
 }

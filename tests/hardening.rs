@@ -308,10 +308,11 @@ fn texture_memory_and_size_budgets_hold() {
     );
 }
 
-/// Case 6: a scene or sky path of `/dev/zero` was read without end. Files are now read under
-/// `budgets.max_file_mb`, a device file included.
+/// Case 6: a scene or sky path of `/dev/zero` was read without end. Only regular files are
+/// read now (a device, FIFO or socket is refused before it is opened: opening a FIFO without
+/// a writer would block), and each under `budgets.max_file_mb`.
 #[test]
-fn device_files_are_not_read_without_end() {
+fn device_files_fifos_and_huge_files_are_not_read() {
     let config = repo("config/desktop.toml");
     let out = out_dir().join("dev-zero");
     let small = out_dir().join("small-files.toml");
@@ -320,37 +321,65 @@ fn device_files_are_not_read_without_end() {
         .replace("\"../assets/", &format!("\"{}/", repo("assets")))
         + "\n[budgets]\nmax_file_mb = 4\n";
     std::fs::write(&small, text).unwrap();
-    let started = Instant::now();
-    let (code, stderr) = omnicave(&[
-        "render",
-        "--config",
-        small.to_str().unwrap(),
-        "--scene",
-        "/dev/zero",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 1, "{stderr}");
+    let fifo = out_dir().join("scene.fifo");
+    let _ = std::fs::remove_file(&fifo);
     assert!(
-        stderr.contains("/dev/zero")
-            && stderr.contains("over the limit of 4.0 MiB (budgets.max_file_mb)"),
-        "{stderr}"
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
     );
+    // 5 MiB, sparse: over the 4 MiB cap without writing it.
+    let huge = out_dir().join("huge.glb");
+    std::fs::File::create(&huge)
+        .unwrap()
+        .set_len(5 << 20)
+        .unwrap();
+    let started = Instant::now();
+    for (scene, expected) in [
+        ("/dev/zero", "is not a regular file"),
+        (fifo.to_str().unwrap(), "is not a regular file"),
+        (
+            huge.to_str().unwrap(),
+            "5.0 MiB is over the limit of 4.0 MiB (budgets.max_file_mb)",
+        ),
+    ] {
+        let (code, stderr) = omnicave(&[
+            "render",
+            "--config",
+            small.to_str().unwrap(),
+            "--scene",
+            scene,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{stderr}");
+        assert!(
+            stderr.contains(scene) && stderr.contains(expected),
+            "{stderr}"
+        );
+    }
     // A broken sky is reported and the render goes on without it (as before).
-    let (code, stderr) = omnicave(&[
-        "render",
-        "--config",
-        small.to_str().unwrap(),
-        "--skybox",
-        "/dev/zero",
-        "--size",
-        "32x24",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
-    assert!(stderr.contains("over the limit of 4.0 MiB"), "{stderr}");
-    assert!(started.elapsed() < Duration::from_secs(120));
+    for sky in ["/dev/zero", huge.to_str().unwrap()] {
+        let (code, stderr) = omnicave(&[
+            "render",
+            "--config",
+            small.to_str().unwrap(),
+            "--skybox",
+            sky,
+            "--size",
+            "32x24",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{stderr}");
+        assert!(
+            stderr.contains(sky) && stderr.contains("rendering without a sky"),
+            "{stderr}"
+        );
+    }
+    assert!(started.elapsed() < Duration::from_secs(180));
 }
 
 /// A config with `walls` copies of a 1 m wall, named w0, w1, …
@@ -500,27 +529,101 @@ fn gltf_extras_of_any_json_type_load() {
             }
         }
         doc["extras"] = extras.clone();
-        let glb = w.to_glb(&[node]);
-        // Swap the JSON chunk for the edited one (same BIN chunk after it).
-        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-        let bin = &glb[20 + json_len..];
-        let mut text = doc.to_string().into_bytes();
-        while !text.len().is_multiple_of(4) {
-            text.push(b' ');
-        }
-        let mut out = Vec::new();
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&((12 + 8 + text.len() + bin.len()) as u32).to_le_bytes());
-        out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"JSON");
-        out.extend_from_slice(&text);
-        out.extend_from_slice(bin);
+        let out = with_json(&w.to_glb(&[node]), &doc);
         let path = out_dir().join("extras.glb");
         std::fs::write(&path, &out).unwrap();
         let scene = load_gltf(&path).unwrap_or_else(|e| panic!("extras {extras}: {e}"));
         assert_eq!(scene.triangle_count(), 2);
     }
+}
+
+/// `glb` with its JSON chunk replaced by `doc` (the BIN chunk kept).
+fn with_json(glb: &[u8], doc: &serde_json::Value) -> Vec<u8> {
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let bin = &glb[20 + json_len..];
+    let mut text = doc.to_string().into_bytes();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((12 + 8 + text.len() + bin.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    out.extend_from_slice(bin);
+    out
+}
+
+/// Case 6 (found in review): the budget counts what the accessors declare; a Draco
+/// bitstream that decodes to more is refused, a file with more materials than the renderer
+/// takes is refused, and the files a `.gltf` names are held to the file budget together.
+#[test]
+fn declared_counts_materials_and_named_files_are_held_to_the_budget() {
+    use omnicave::scene::glb_writer::{AttributeEncoding, MeshOptions};
+    let mut w = GlbWriter::new();
+    let material = w.add_material(&MaterialDesc::plain("m", [1.0; 3], 1.0));
+    let sheet = grid(Vec3::ZERO, Vec3::X, Vec3::Y, 10, 10, 1.0);
+    let options = MeshOptions {
+        encoding: AttributeEncoding::Draco,
+        ..MeshOptions::default()
+    };
+    let mesh = w.add_mesh_with("sheet", &[(&sheet, material)], &options);
+    let node = w.add_node(NodeDesc::new("n").with_mesh(mesh));
+    let mut doc = w.json(&[node]);
+    let position = doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap() as usize;
+    doc["accessors"][position]["count"] = json!(3);
+    let path = out_dir().join("draco-understated.glb");
+    std::fs::write(&path, with_json(&w.to_glb(&[node]), &doc)).unwrap();
+    let err = load_gltf(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("decodes to 121 vertices") && err.contains("declare (3 and"),
+        "{err}"
+    );
+
+    let mut doc = w.json(&[node]);
+    doc["materials"] = json!(vec![json!({}); 65_537]);
+    let path = out_dir().join("many-materials.glb");
+    std::fs::write(&path, with_json(&w.to_glb(&[node]), &doc)).unwrap();
+    let err = load_gltf(&path).unwrap_err().to_string();
+    assert!(
+        err.contains("65537 materials") && err.contains("at most 65536"),
+        "{err}"
+    );
+
+    // Three buffers naming one 2 MiB file, under a 5 MiB budget: the third passes it.
+    let dir = out_dir().join("shared-buffer");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("big.bin"), vec![0u8; 2 << 20]).unwrap();
+    let gltf = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": [
+            {"uri": "big.bin", "byteLength": 2 << 20},
+            {"uri": "big.bin", "byteLength": 2 << 20},
+            {"uri": "big.bin", "byteLength": 2 << 20}
+        ],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [0, 0, 0]}]
+    });
+    let path = dir.join("shared.gltf");
+    std::fs::write(&path, gltf.to_string()).unwrap();
+    let budget = SceneBudget {
+        max_file_bytes: 5 << 20,
+        ..SceneBudget::default()
+    };
+    let err = load_gltf_within(&path, &budget).unwrap_err().to_string();
+    assert!(
+        err.contains("buffer 2") && err.contains("for the scene's files together"),
+        "{err}"
+    );
 }
 
 // ------------------------------------------------------------------ case 8: CLI and signals
@@ -701,7 +804,7 @@ fn texture_descriptor_like(t: &wgpu::Texture) -> wgpu::TextureDescriptor<'static
 }
 
 /// Case 2: a scene larger than the device's largest buffer is split over several buffers by
-/// whole draws and drawn the same. Shown on the living room with the limit lowered to 256 KiB
+/// draws (cut at triangles where one draw is larger) and drawn the same. Shown on the living room with the limit lowered to 256 KiB
 /// (lavapipe's own limit, 2 GiB, is past any budgeted scene): the stereo walls are
 /// pixel-identical to the unsplit upload, with the shadows drawn from the split buffers too;
 /// the tessellated modes, which bind the scene whole, refuse it naming the split.
@@ -755,12 +858,21 @@ fn a_scene_past_one_buffer_is_split_and_drawn_the_same() {
         err.contains(&format!("split over {chunks} buffers")),
         "{err}"
     );
-    // A single primitive past the limit cannot be split: refused naming the limit.
+    // One material (the living room merged into a single draw) is cut at triangles.
+    let mut merged = scene.clone();
+    for d in &mut merged.draws {
+        d.material = 0;
+    }
     let mut renderer = Renderer::new(common::gpu(), &cave, common::NO_MSAA).unwrap();
-    renderer.limit_scene_buffers(Some(256));
+    renderer.limit_scene_buffers(Some(256 << 10));
+    renderer.set_scene(&merged).expect("one material, split");
+    assert!(renderer.scene_chunks() >= 3);
+    renderer.render(&frame).expect("render");
+    // A limit below one triangle: refused naming it.
+    renderer.limit_scene_buffers(Some(100));
     let err = renderer.set_scene(&scene).unwrap_err().to_string();
     assert!(
-        err.contains("vertices of one primitive") && err.contains("256 bytes"),
+        err.contains("vertices of one triangle") && err.contains("100 bytes"),
         "{err}"
     );
 }

@@ -452,6 +452,12 @@ impl OutputWindow {
         self.presented += 1;
         if suboptimal {
             let size = self.window.inner_size();
+            // A surface clamped below its window's size is suboptimal by design: nothing to
+            // recover while the clamp holds.
+            let clamped = clamp_surface_size(gpu, size.width, size.height);
+            if clamped != [size.width, size.height] && clamped == self.size() {
+                return Ok(false);
+            }
             self.resize(gpu, size.width, size.height);
         }
         Ok(suboptimal)

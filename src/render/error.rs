@@ -53,7 +53,7 @@ pub enum RenderError {
         height: u32,
         max: u32,
     },
-    #[error("the GPU ran out of memory {0}")]
+    #[error("the GPU could not hold the scene (out of memory?) {0}")]
     OutOfMemory(String),
 }
 

@@ -6,6 +6,7 @@ pub mod panorama;
 pub mod pbr;
 pub mod present;
 pub mod readback;
+pub mod scene_chunks;
 pub mod scene_pass;
 pub mod shaders;
 pub mod shadow_pass;

@@ -2,10 +2,10 @@
 //! buffers, materials and textures, all created once and reused every frame.
 
 use super::error::RenderError;
+use super::scene_chunks::{ChunkPlan, plan_chunks};
 use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 use super::shaders;
 use super::shadow_pass::{ShadowPass, ShadowSettings};
@@ -576,10 +576,31 @@ impl ScenePass {
         let limit = max_buffer_bytes
             .unwrap_or(u64::MAX)
             .min(device.limits().max_buffer_size);
-        let plan = plan_chunks(scene, limit)?;
+        let vertex_size = std::mem::size_of::<GpuVertex>() as u64;
+        let plan =
+            plan_chunks(scene, vertex_size, limit).map_err(|e| RenderError::SceneTooLarge {
+                what: "vertices of one triangle",
+                bytes: e.bytes,
+                limit: e.limit,
+            })?;
+        if let ChunkPlan::Split(chunks) = &plan {
+            tracing::info!(
+                "the scene's geometry ({} vertices, {} indices) is split over {} buffers of at \
+                 most {limit} bytes; tessellated modes cannot bind it whole",
+                scene.vertices.len(),
+                scene.indices.len(),
+                chunks.len()
+            );
+        }
+        // Out of memory, and the validation errors of filling what could not be made.
+        let invalid = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let uploaded = self.upload_checked(device, queue, scene, plan);
-        match pollster::block_on(out_of_memory.pop()) {
+        let errors = [
+            pollster::block_on(out_of_memory.pop()),
+            pollster::block_on(invalid.pop()),
+        ];
+        match errors.into_iter().flatten().next() {
             None => Ok(uploaded),
             Some(e) => Err(RenderError::OutOfMemory(format!(
                 "uploading the scene ({} vertices, {} textures): {e}",
@@ -596,41 +617,55 @@ impl ScenePass {
         scene: &Scene,
         plan: ChunkPlan,
     ) -> SceneGpu {
-        // Scene draw index → (chunk, first index in it).
-        let mut placed: HashMap<usize, (usize, u32)> = HashMap::new();
-        let chunks: Vec<SceneChunk> = match plan {
+        // (chunk, scene draw, first index, index count) of every piece drawn.
+        let mut pieces: Vec<(usize, usize, u32, u32)> = Vec::new();
+        let chunks: Vec<SceneChunk> = match &plan {
             ChunkPlan::Whole => {
+                for (d, draw) in scene.draws.iter().enumerate() {
+                    pieces.push((0, d, draw.first_index, draw.index_count));
+                }
                 vec![upload_chunk(
                     device,
+                    queue,
                     "SceneGpu",
                     &scene.vertices,
                     &scene.indices,
                 )]
             }
-            ChunkPlan::Split(runs) => runs
+            ChunkPlan::Split(split) => split
                 .iter()
                 .enumerate()
-                .map(|(c, run)| {
-                    let base = run.vertices.start;
-                    let mut indices = Vec::new();
-                    for &d in &run.draws {
-                        let draw = &scene.draws[d];
-                        placed.insert(d, (c, indices.len() as u32));
-                        let range = draw.first_index as usize
-                            ..(draw.first_index + draw.index_count) as usize;
-                        indices.extend(
-                            scene
-                                .indices
-                                .get(range)
-                                .unwrap_or(&[])
-                                .iter()
-                                .map(|i| i - base),
-                        );
+                .map(|(c, chunk)| {
+                    for p in &chunk.pieces {
+                        pieces.push((c, p.draw, p.first_index, p.index_count));
                     }
-                    let vertices = &scene.vertices[base as usize..run.vertices.end as usize];
-                    upload_chunk(device, &format!("SceneGpu::chunk {c}"), vertices, &indices)
+                    let vertices: Vec<crate::scene::Vertex> = chunk
+                        .vertices
+                        .iter()
+                        .filter_map(|&v| scene.vertices.get(v as usize).copied())
+                        .collect();
+                    let label = format!("SceneGpu::chunk {c}");
+                    upload_chunk(device, queue, &label, &vertices, &chunk.indices)
                 })
                 .collect(),
+        };
+        // A piece's corner positions, for its bounding box.
+        let corner = |chunk: usize, index: u32| -> glam::Vec3 {
+            let vertex = match &plan {
+                ChunkPlan::Whole => Some(index),
+                ChunkPlan::Split(split) => split
+                    .get(chunk)
+                    .and_then(|c| c.vertices.get(index as usize).copied()),
+            };
+            vertex
+                .and_then(|v| scene.vertices.get(v as usize))
+                .map_or(glam::Vec3::ZERO, |v| glam::Vec3::from(v.position))
+        };
+        let chunk_indices = |chunk: usize| -> &[u32] {
+            match &plan {
+                ChunkPlan::Whole => &scene.indices,
+                ChunkPlan::Split(split) => split.get(chunk).map_or(&[], |c| &c.indices),
+            }
         };
 
         let textures: Vec<wgpu::Texture> = scene
@@ -669,11 +704,13 @@ impl ScenePass {
         if material_bytes.is_empty() {
             material_bytes.resize(UNIFORM_STRIDE as usize, 0);
         }
-        let material_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("SceneGpu::material_buffer"),
-            contents: &material_bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let material_buffer = buffer_with(
+            device,
+            queue,
+            "SceneGpu::material_buffer",
+            &material_bytes,
+            wgpu::BufferUsages::UNIFORM,
+        );
 
         let mut samplers: HashMap<(Wrap, Wrap, bool), wgpu::Sampler> = HashMap::new();
         let mut material_bind_groups = Vec::with_capacity(scene.materials.len());
@@ -727,37 +764,30 @@ impl ScenePass {
             }));
         }
 
-        let draws: Vec<GpuDraw> = scene
-            .draws
+        let draws: Vec<GpuDraw> = pieces
             .iter()
-            .enumerate()
-            .filter(|(_, d)| d.material < scene.materials.len())
-            .map(|(index, d)| {
-                let (chunk, first_index) =
-                    placed.get(&index).copied().unwrap_or((0, d.first_index));
-                let material = &scene.materials[d.material];
-                let range = d.first_index as usize..(d.first_index + d.index_count) as usize;
-                let (lo, hi) = scene.indices.get(range).unwrap_or(&[]).iter().fold(
+            .filter_map(|&(chunk, d, first_index, index_count)| {
+                let scene_draw = scene.draws.get(d)?;
+                let material = scene.materials.get(scene_draw.material)?;
+                let range = first_index as usize..(first_index + index_count) as usize;
+                let (lo, hi) = chunk_indices(chunk).get(range).unwrap_or(&[]).iter().fold(
                     (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY),
                     |(lo, hi), &i| {
-                        let p = scene
-                            .vertices
-                            .get(i as usize)
-                            .map_or(glam::Vec3::ZERO, |v| glam::Vec3::from(v.position));
+                        let p = corner(chunk, i);
                         (lo.min(p), hi.max(p))
                     },
                 );
-                GpuDraw {
+                Some(GpuDraw {
                     chunk,
                     first_index,
-                    index_count: d.index_count,
-                    material: d.material,
+                    index_count,
+                    material: scene_draw.material,
                     double_sided: material.double_sided,
                     blend: material.alpha_mode == AlphaMode::Blend,
                     casts_shadow: material.alpha_mode != AlphaMode::Blend
                         && material.emissive == [0.0; 3],
                     centre: 0.5 * (lo + hi),
-                }
+                })
             })
             .collect();
         // Triangles no valid draw covers get a draw index no draw has: never drawn. (A split
@@ -826,6 +856,7 @@ fn make_sampler(device: &wgpu::Device, (u, v, nearest): (Wrap, Wrap, bool)) -> w
 /// empty scene gets valid, unused ones).
 fn upload_chunk(
     device: &wgpu::Device,
+    queue: &wgpu::Queue,
     label: &str,
     vertices: &[crate::scene::Vertex],
     indices: &[u32],
@@ -840,101 +871,65 @@ fn upload_chunk(
         bytemuck::cast_slice(indices)
     };
     SceneChunk {
-        vertex_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(&format!("{label}::vertex_buffer")),
-            contents: bytemuck::cast_slice(&gpu),
-            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
-        }),
-        index_buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(&format!("{label}::index_buffer")),
-            contents: index_bytes,
-            usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
-        }),
+        vertex_buffer: buffer_with(
+            device,
+            queue,
+            &format!("{label}::vertex_buffer"),
+            bytemuck::cast_slice(&gpu),
+            wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+        ),
+        index_buffer: buffer_with(
+            device,
+            queue,
+            &format!("{label}::index_buffer"),
+            index_bytes,
+            wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE,
+        ),
     }
 }
 
-/// How a scene's geometry goes into buffers.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ChunkPlan {
-    /// One vertex and one index buffer, as the scene lays them out.
-    Whole,
-    /// Runs of whole draws, each with the vertices its draws use.
-    Split(Vec<ChunkRun>),
-}
-
-/// A run of draws (scene draw indices) and the vertex range they use.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ChunkRun {
-    pub draws: Vec<usize>,
-    pub vertices: std::ops::Range<u32>,
-}
-
-/// Splits `scene` into runs of whole draws whose vertex and index data each fit `limit`
-/// bytes (greedily, in draw order); the whole scene when it fits. A single draw larger than
-/// the limit cannot be split: refused naming it and the limit.
-pub fn plan_chunks(scene: &Scene, limit: u64) -> Result<ChunkPlan, RenderError> {
-    let vertex_size = std::mem::size_of::<GpuVertex>() as u64;
-    let vertex_bytes = scene.vertices.len() as u64 * vertex_size;
-    let index_bytes = scene.indices.len() as u64 * 4;
-    if vertex_bytes <= limit && index_bytes <= limit {
-        return Ok(ChunkPlan::Whole);
+/// A buffer holding `contents`, created unmapped and filled through the queue: should the
+/// device be out of memory, the failure lands in the caller's error scope (wgpu's
+/// `create_buffer_init` maps at creation and panics when the buffer could not be made).
+fn buffer_with(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    let align = wgpu::COPY_BUFFER_ALIGNMENT;
+    let size = (contents.len() as u64).next_multiple_of(align).max(align);
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: usage | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let aligned = contents.len() - contents.len() % align as usize;
+    if aligned > 0 {
+        queue.write_buffer(&buffer, 0, &contents[..aligned]);
     }
-    let mut runs: Vec<ChunkRun> = Vec::new();
-    let mut current: Option<(ChunkRun, u64)> = None;
-    for (d, draw) in scene.draws.iter().enumerate() {
-        let range = draw.first_index as usize..(draw.first_index + draw.index_count) as usize;
-        let indices = scene.indices.get(range).unwrap_or(&[]);
-        let Some((&lo, &hi)) = indices.iter().min().zip(indices.iter().max()) else {
-            continue;
-        };
-        let own = lo..hi + 1;
-        let own_bytes = u64::from(own.end - own.start) * vertex_size;
-        let own_indices = indices.len() as u64 * 4;
-        if own_bytes > limit || own_indices > limit {
-            return Err(RenderError::SceneTooLarge {
-                what: "vertices of one primitive",
-                bytes: own_bytes.max(own_indices),
-                limit,
-            });
-        }
-        if let Some((run, run_indices)) = current.as_mut() {
-            let merged = run.vertices.start.min(own.start)..run.vertices.end.max(own.end);
-            let merged_bytes = u64::from(merged.end - merged.start) * vertex_size;
-            if merged_bytes <= limit && *run_indices + own_indices <= limit {
-                run.vertices = merged;
-                run.draws.push(d);
-                *run_indices += own_indices;
-                continue;
-            }
-        }
-        if let Some((run, _)) = current.take() {
-            runs.push(run);
-        }
-        current = Some((
-            ChunkRun {
-                draws: vec![d],
-                vertices: own,
-            },
-            own_indices,
-        ));
+    if aligned < contents.len() {
+        let mut tail = [0u8; wgpu::COPY_BUFFER_ALIGNMENT as usize];
+        tail[..contents.len() - aligned].copy_from_slice(&contents[aligned..]);
+        queue.write_buffer(&buffer, aligned as u64, &tail);
     }
-    if let Some((run, _)) = current {
-        runs.push(run);
-    }
-    tracing::info!(
-        "the scene's geometry ({} vertex, {} index bytes) is split over {} buffers of at most \
-         {limit} bytes; tessellated modes cannot bind it whole",
-        vertex_bytes,
-        index_bytes,
-        runs.len()
-    );
-    Ok(ChunkPlan::Split(runs))
+    buffer
 }
 
 /// Refuses a scene whose textures pass this device's limits, naming the limit (its geometry
 /// is split over buffers by [`plan_chunks`]).
 fn check_scene_limits(device: &wgpu::Device, scene: &Scene) -> Result<(), RenderError> {
     let limits = device.limits();
+    let material_bytes = scene.materials.len() as u64 * UNIFORM_STRIDE;
+    if material_bytes > limits.max_buffer_size {
+        return Err(RenderError::SceneTooLarge {
+            what: "materials",
+            bytes: material_bytes,
+            limit: limits.max_buffer_size,
+        });
+    }
     let max_side = limits.max_texture_dimension_2d;
     if let Some(t) = scene
         .textures

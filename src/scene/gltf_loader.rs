@@ -55,8 +55,17 @@ pub fn load_gltf_within(path: &Path, budget: &SceneBudget) -> Result<Scene, Scen
     load_gltf_bytes(&bytes, path, budget)
 }
 
+/// What the texture budget charges a texture at least (GPU allocations have a granularity
+/// and an object behind each), bytes.
+const MIN_TEXTURE_CHARGE: u64 = 64 << 10;
+/// Most materials a file may define (each is a 256-byte uniform block and a bind group;
+/// variants without some textures come on top).
+const MAX_MATERIALS: usize = 65_536;
+
 /// Where the file size cap is set (for messages).
 const FILE_BUDGET: &str = "budgets.max_file_mb";
+/// The same cap, for the files a glTF names (for messages).
+const FILES_BUDGET: &str = "what is left of budgets.max_file_mb for the scene's files together";
 
 /// Loads glTF from bytes under `budget`; `path` names the file in errors and locates
 /// external resources.
@@ -198,10 +207,16 @@ fn load_unguarded(bytes: &[u8], path: &Path, budget: &SceneBudget) -> Result<Sce
     let (document, blob) = parse_document(bytes, path)?;
     let base = path.parent().unwrap_or(Path::new("."));
     check_external_files(&document, base, path)?;
+    // The scene's files together (the file, its buffers, its images) are held to the file
+    // budget: a hundred buffers naming one large file are not read a hundred times over.
+    let read = std::cell::Cell::new(bytes.len() as u64);
     let buffers = load_buffers(&document, blob, &|uri| {
         let file = base.join(percent_decode(uri));
-        read_capped(&file, budget.max_file_bytes, FILE_BUDGET)
-            .map_err(|e| format!("{}: {e}", file.display()))
+        let left = budget.max_file_bytes.saturating_sub(read.get());
+        let data = read_capped(&file, left, FILES_BUDGET)
+            .map_err(|e| format!("{}: {e}", file.display()))?;
+        read.set(read.get() + data.len() as u64);
+        Ok(data)
     })
     .map_err(&invalid)?;
     let data = BinaryData::new(&document, buffers);
@@ -218,6 +233,7 @@ fn load_unguarded(bytes: &[u8], path: &Path, budget: &SceneBudget) -> Result<Sce
         document: &document,
         budget: *budget,
         texture_bytes: 0,
+        files_read: read.get(),
     };
     let gltf_scene = document
         .default_scene()
@@ -340,6 +356,8 @@ struct Loader<'a> {
     budget: SceneBudget,
     /// Texture memory taken so far (with mips).
     texture_bytes: u64,
+    /// Bytes of the scene's files read so far (the file, its buffers and images).
+    files_read: u64,
 }
 
 impl Loader<'_> {
@@ -355,6 +373,12 @@ impl Loader<'_> {
     }
 
     fn load_materials(&mut self, document: &gltf::Document) -> Result<(), SceneError> {
+        let count = document.materials().len();
+        if count > MAX_MATERIALS {
+            return Err(self.invalid(format!(
+                "it defines {count} materials; omnicave takes at most {MAX_MATERIALS}"
+            )));
+        }
         for m in document.materials() {
             let material = self.convert_material(&m)?;
             let index = self.scene.add_material(material);
@@ -521,7 +545,9 @@ impl Loader<'_> {
         width: u32,
         height: u32,
     ) -> Result<(), SceneError> {
-        let bytes = texture_bytes(width, height);
+        // Every texture costs at least its GPU object's overhead: a million 1×1 images must
+        // not pass as a few megabytes.
+        let bytes = texture_bytes(width, height).max(MIN_TEXTURE_CHARGE);
         let total = self.texture_bytes.saturating_add(bytes);
         if total > self.budget.max_texture_bytes {
             return Err(self.invalid(format!(
@@ -561,8 +587,11 @@ impl Loader<'_> {
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let file = self.base.join(percent_decode(uri));
-                read_capped(&file, self.budget.max_file_bytes, FILE_BUDGET)
-                    .map_err(|e| fail(format!("{}: {e}", file.display())))?
+                let left = self.budget.max_file_bytes.saturating_sub(self.files_read);
+                let data = read_capped(&file, left, FILES_BUDGET)
+                    .map_err(|e| fail(format!("{}: {e}", file.display())))?;
+                self.files_read += data.len() as u64;
+                data
             }
         };
         let reader = image::ImageReader::new(std::io::Cursor::new(&encoded))
@@ -581,7 +610,15 @@ impl Loader<'_> {
         }
         let (fw, fh) = fitted_size(w, h, self.budget.max_texture_side);
         self.take_texture_memory(image, fw, fh)?;
-        let decoded = image::load_from_memory(&encoded).map_err(|e| fail(e.to_string()))?;
+        // The decoder's own allocation limit follows the budget (its default, 512 MiB, would
+        // refuse a 16384² image the budget allows).
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(&encoded))
+            .with_guessed_format()
+            .map_err(|e| fail(e.to_string()))?;
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(self.budget.max_texture_bytes.max(decoded_bytes));
+        reader.limits(limits);
+        let decoded = reader.decode().map_err(|e| fail(e.to_string()))?;
         let rgba = decoded.to_rgba8();
         if (fw, fh) == (w, h) {
             return Ok((w, h, rgba.into_raw()));
@@ -931,6 +968,19 @@ impl Loader<'_> {
                 None => self.accessor_attributes(primitive, label)?,
             };
         let n = positions.len();
+        // The budget counted what the accessors declare; a Draco bitstream decodes to what
+        // it holds, which must not be more.
+        let declared_vertices = primitive
+            .get(&gltf::Semantic::Positions)
+            .map_or(0, |a| a.count());
+        let declared_indices = primitive.indices().map_or(n, |a| a.count());
+        if n > declared_vertices || raw_indices.len() > declared_indices.max(n) {
+            return Err(self.invalid(format!(
+                "{label}: decodes to {n} vertices and {} indices, more than its accessors \
+                 declare ({declared_vertices} and {declared_indices})",
+                raw_indices.len()
+            )));
+        }
         if let Some(bad) = raw_indices.iter().find(|&&i| i as usize >= n) {
             return Err(self.invalid(format!(
                 "{label}: index {bad} is out of range for {n} vertices"
