@@ -333,7 +333,11 @@ impl OutputWindow {
             wgpu::CurrentSurfaceTexture::Outdated => {
                 let size = self.window.inner_size();
                 self.resize(gpu, size.width, size.height);
-                return Ok(true);
+                // A surface clamped below its window goes out of date again and again on
+                // some drivers (Mesa's X11 swapchain): expected while the clamp holds, so
+                // not counted as a recovery.
+                let clamped = clamp_surface_size(gpu, size.width, size.height);
+                return Ok(clamped == [size.width, size.height]);
             }
             wgpu::CurrentSurfaceTexture::Lost => {
                 // Recreate the surface on the same window (e.g. after a display change).
