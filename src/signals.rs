@@ -1,6 +1,7 @@
 //! Termination signals (SIGINT, SIGTERM, SIGHUP) caught from the first instruction of `main`:
-//! the interactive commands poll [`stop_requested`] and shut down cleanly (exit 0); the batch
-//! commands, which do not poll, exit at once with 143 (128 + SIGTERM), as if killed.
+//! the interactive commands poll [`stop_requested`] and shut down cleanly (exit 0), a second
+//! signal ending them at once; the batch commands, which do not poll, exit at once with 143
+//! (128 + SIGTERM), as if killed.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -13,8 +14,9 @@ pub const STOPPED_BY_SIGNAL: i32 = 143;
 /// the tracker simulator); otherwise a signal ends the process with [`STOPPED_BY_SIGNAL`].
 pub fn install(polled: bool) -> Result<(), ctrlc::Error> {
     ctrlc::set_handler(move || {
-        STOP.store(true, Ordering::SeqCst);
-        if !polled {
+        // A second signal ends a polling command too: it may be stuck (a hung driver).
+        let again = STOP.swap(true, Ordering::SeqCst);
+        if !polled || again {
             std::process::exit(STOPPED_BY_SIGNAL);
         }
     })

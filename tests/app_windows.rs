@@ -250,6 +250,18 @@ impl AppProcess {
         }
     }
 
+    /// Waits for the process to exit by itself (at most `limit`); its status.
+    fn wait_exit(&mut self, limit: Duration) -> std::process::ExitStatus {
+        let start = Instant::now();
+        loop {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return status;
+            }
+            assert!(start.elapsed() < limit, "did not quit:\n{}", self.log());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// SIGTERM, then the exit status must be success within 30 s.
     fn quit(mut self) -> String {
         let status = Command::new("kill")
@@ -905,18 +917,7 @@ fn windows_stretched_or_destroyed_from_outside_are_handled() {
     // The operator window destroyed: the program ends cleanly.
     conn.destroy_window(operator).unwrap();
     conn.flush().unwrap();
-    let start = Instant::now();
-    let status = loop {
-        if let Ok(Some(status)) = app.child.try_wait() {
-            break status;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "did not quit:\n{}",
-            app.log()
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = app.wait_exit(Duration::from_secs(60));
     let log = app.log();
     assert!(status.success(), "exit status {status}:\n{log}");
     assert!(
@@ -940,18 +941,7 @@ fn the_preview_window_destroyed_from_outside_ends_the_program_cleanly() {
     assert_eq!(windows.len(), 1, "{windows:?}");
     conn.destroy_window(windows[0].0).unwrap();
     conn.flush().unwrap();
-    let start = Instant::now();
-    let status = loop {
-        if let Ok(Some(status)) = app.child.try_wait() {
-            break status;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "did not quit:\n{}",
-            app.log()
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = app.wait_exit(Duration::from_secs(60));
     let log = app.log();
     assert!(status.success(), "exit status {status}:\n{log}");
     assert!(log.contains("destroyed from outside"), "{log}");
@@ -977,14 +967,7 @@ fn sigterm_while_starting_exits_cleanly() {
             .status()
             .expect("kill");
         assert!(status.success());
-        let start = Instant::now();
-        let status = loop {
-            if let Ok(Some(status)) = app.child.try_wait() {
-                break status;
-            }
-            assert!(start.elapsed() < Duration::from_secs(60), "did not quit");
-            std::thread::sleep(Duration::from_millis(20));
-        };
+        let status = app.wait_exit(Duration::from_secs(60));
         assert!(
             status.success(),
             "after {delay_ms} ms: {status}:\n{}",

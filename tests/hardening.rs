@@ -876,3 +876,48 @@ fn a_scene_past_one_buffer_is_split_and_drawn_the_same() {
         "{err}"
     );
 }
+
+/// Case 3, end to end: a side-by-side image of an 8192² wall is 16 384 × 8192, 512 MiB: its
+/// read-back needed a staging buffer past the 256 MiB limit and panicked. Now it is read in
+/// bands, and each half holds its eye (the left eye drawn red by the scene, the right blue).
+#[test]
+fn a_side_by_side_image_of_an_8192_wall_reads_back() {
+    use omnicave::cave::omni::OmniSettings;
+    use omnicave::cave::{Head, RenderMode};
+    use omnicave::output::formats::StereoFormat;
+    use omnicave::render::Renderer;
+    use omnicave::render::present::PresentParams;
+    use omnicave::tess::TessSettings;
+    let mut cave = common::cave_at(8192, 8192);
+    cave.walls.retain(|w| w.name == "front"); // one wall: its targets alone are 1 GiB
+    let mut scene = omnicave::scene::Scene::default();
+    // A quad over the middle of the wall, seen by both eyes.
+    let quad = grid(Vec3::new(-0.5, 1.2, -1.5), Vec3::X, Vec3::Y, 1, 1, 1.0);
+    common::add_unlit(&mut scene, &quad, [200, 40, 40]);
+    let mut renderer = Renderer::new(common::gpu(), &cave, common::NO_MSAA).unwrap();
+    renderer.set_scene(&scene).expect("scene upload");
+    let frame = common::test_frame(
+        &cave,
+        Head::at(Vec3::new(0.0, 1.7, 0.0)),
+        RenderMode::Stereo,
+        OmniSettings::default(),
+        TessSettings::default(),
+    );
+    renderer.render(&frame).expect("render");
+    let image = renderer
+        .compose(
+            0,
+            PresentParams {
+                format: StereoFormat::SideBySide { half: false },
+                frame: 0,
+                swap_eyes: false,
+            },
+        )
+        .expect("compose and read back");
+    assert_eq!(image.dimensions(), (16384, 8192));
+    // The quad's colour at the middle of each half.
+    for x in [4096, 4096 + 8192] {
+        let p = image.get_pixel(x, 4096).0;
+        assert!(p[0] > 150 && p[1] < 100, "half at {x}: {p:?}");
+    }
+}

@@ -10,51 +10,22 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
+mod common;
+
 use std::cell::Cell;
 use std::path::Path;
-use std::sync::mpsc;
 use std::time::Duration;
 
 use glam::Vec3;
 use proptest::collection::vec;
 use proptest::prelude::*;
-use proptest::test_runner::{Config as ProptestConfig, RngAlgorithm, TestRng, TestRunner};
 
 use omnicave::config::Config;
 use omnicave::scene::build::grid;
 use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, MeshOptions, NodeDesc};
 use omnicave::scene::{SceneBudget, load_gltf_bytes};
 
-fn cases(default: u32) -> u32 {
-    std::env::var("OMNICAVE_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-fn runner(cases: u32) -> TestRunner {
-    TestRunner::new_with_rng(
-        ProptestConfig {
-            cases,
-            failure_persistence: None,
-            ..ProptestConfig::default()
-        },
-        TestRng::deterministic_rng(RngAlgorithm::ChaCha),
-    )
-}
-
-/// Runs `f` on another thread and fails if it takes longer than `limit` (a hang).
-fn within<T: Send + 'static>(limit: Duration, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    match rx.recv_timeout(limit) {
-        Ok(v) => v,
-        Err(mpsc::RecvTimeoutError::Timeout) => panic!("no result within {limit:?}: a hang"),
-        Err(mpsc::RecvTimeoutError::Disconnected) => panic!("the fuzz thread panicked"),
-    }
-}
+use common::fuzz::{cases, runner, within};
 
 /// The process's peak resident memory so far (Linux `VmHWM`), bytes.
 fn peak_rss() -> Option<u64> {

@@ -11,49 +11,18 @@
 mod common;
 
 use std::net::{SocketAddr, UdpSocket};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use proptest::collection::vec;
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
-use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use rosc::{OscPacket, OscType};
 
 use omnicave::tracking::OscReceiver;
 use omnicave::tracking::osc::{MAX_BUNDLE_DEPTH, OscMapping, PacketOutcome, decode_packet, encode};
 use omnicave::tracking::receiver::{PacketSink, ReceiverSettings};
 
-fn cases(default: u32) -> u32 {
-    std::env::var("OMNICAVE_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-fn runner(cases: u32) -> TestRunner {
-    TestRunner::new_with_rng(
-        Config {
-            cases,
-            failure_persistence: None,
-            ..Config::default()
-        },
-        TestRng::deterministic_rng(RngAlgorithm::ChaCha),
-    )
-}
-
-/// Runs `f` on another thread and fails if it takes longer than `limit` (a hang).
-fn within<T: Send + 'static>(limit: Duration, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    match rx.recv_timeout(limit) {
-        Ok(v) => v,
-        Err(mpsc::RecvTimeoutError::Timeout) => panic!("no result within {limit:?}: a hang"),
-        Err(mpsc::RecvTimeoutError::Disconnected) => panic!("the fuzz thread panicked"),
-    }
-}
+use common::fuzz::{cases, runner, within};
 
 fn float() -> impl Strategy<Value = f32> {
     prop_oneof![

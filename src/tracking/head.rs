@@ -8,7 +8,7 @@ use glam::{Quat, Vec3};
 use super::calibration::Calibration;
 use super::filter::{OneEuro, OneEuroParams};
 use super::plausibility::{Candidate, PlausibilityGate, PlausibilityLimits, Verdict};
-use super::receiver::{LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerSample};
+use super::receiver::{LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerSample, held_back};
 
 /// How samples become head poses.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -236,11 +236,7 @@ impl HeadTracker {
                         position.x,
                         position.y,
                         position.z,
-                        if held > 0 {
-                            format!(" ({held} more not logged)")
-                        } else {
-                            String::new()
-                        }
+                        held_back(held)
                     );
                 }
                 self.check_timeout(now);
@@ -281,11 +277,7 @@ impl HeadTracker {
                         clamped.x,
                         clamped.y,
                         clamped.z,
-                        if held > 0 {
-                            format!(" ({held} more not logged)")
-                        } else {
-                            String::new()
-                        }
+                        held_back(held)
                     );
                 }
                 position = clamped;

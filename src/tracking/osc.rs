@@ -238,6 +238,10 @@ fn number(arg: &OscType) -> Option<f64> {
     }
 }
 
+/// Largest magnitude of any number a tracker sends (positions in any unit, quaternions,
+/// degrees, ids); larger ones count as non-finite.
+pub const MAX_ABS_NUMBER: f64 = 1e9;
+
 fn numbers(address: &str, args: &[OscType]) -> Result<Vec<f64>, Problem> {
     let mut out = Vec::with_capacity(args.len());
     for (i, a) in args.iter().enumerate() {
@@ -251,6 +255,14 @@ fn numbers(address: &str, args: &[OscType]) -> Result<Vec<f64>, Problem> {
         if !v.is_finite() || !(v as f32).is_finite() {
             return Err(Problem::NonFinite(format!(
                 "{address}: argument {i} is {v}"
+            )));
+        }
+        // Nor is any tracker's number this large (a kilometre in micrometres): a corrupt
+        // packet (one flipped exponent bit makes 0.3 into 1.02e38) is dropped here, so it
+        // never replaces the newest good sample the render loop reads.
+        if v.abs() > MAX_ABS_NUMBER {
+            return Err(Problem::NonFinite(format!(
+                "{address}: argument {i} is {v:e}, beyond any tracker's range (±{MAX_ABS_NUMBER:e})"
             )));
         }
         out.push(v);

@@ -59,7 +59,8 @@ pub struct Counters {
     pub ignored: u64,
     /// Not OSC, or a message for us with wrong arguments.
     pub malformed: u64,
-    /// A message for us with NaN or infinite numbers.
+    /// A message for us with NaN, infinite or absurdly large numbers (beyond
+    /// [`super::osc::MAX_ABS_NUMBER`]).
     pub non_finite: u64,
     /// From a sender not in `allowed_senders`.
     pub refused: u64,
@@ -279,7 +280,8 @@ impl PacketSink {
     }
 }
 
-fn held_back(n: u64) -> String {
+/// `" (N more not logged)"`, or nothing when none were held back.
+pub fn held_back(n: u64) -> String {
     if n == 0 {
         String::new()
     } else {

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests: one GPU, marker scenes, pixel analysis.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
+pub mod fuzz;
+
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
