@@ -495,10 +495,11 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            // clap's own message, with a huge value cut (it would echo it whole).
-            let text = omnicave::messages::cut_long_lines(&e.render().to_string());
+            // clap's own error, with a huge value cut (it would echo it whole); help and
+            // version text go out as they are.
+            let text = e.render().to_string();
             if e.use_stderr() {
-                eprint!("{text}");
+                eprint!("{}", omnicave::messages::cut_long_lines(&text));
             } else {
                 let _ = write_stdout(text.as_bytes());
             }
