@@ -918,6 +918,7 @@ fn a_side_by_side_image_of_an_8192_wall_reads_back() {
     // The quad's colour at the middle of each half.
     for x in [4096, 4096 + 8192] {
         let p = image.get_pixel(x, 4096).0;
-        assert!(p[0] > 150 && p[1] < 100, "half at {x}: {p:?}");
+        // Red, as the quad (its exact level depends on the colour encoding, not tested here).
+        assert!(p[0] > p[1] + 80 && p[0] > p[2] + 80, "half at {x}: {p:?}");
     }
 }
