@@ -262,7 +262,11 @@ impl App {
             match std::panic::catch_unwind(AssertUnwindSafe(|| host.run(gpu, win, state, info))) {
                 Ok(frame) => egui_frame = Some(frame),
                 Err(_) => {
-                    self.window_gone(event_loop, index, "lost (its window system call failed)");
+                    self.window_gone(
+                        event_loop,
+                        index,
+                        "destroyed from outside (its window system calls failed)",
+                    );
                     return;
                 }
             }
@@ -274,7 +278,11 @@ impl App {
         let (recovered, lost) = present_windows(gfx, &self.state, egui_frame);
         self.surface_recoveries += recovered;
         if let Some(index) = lost {
-            self.window_gone(event_loop, index, "lost (its window system call failed)");
+            self.window_gone(
+                event_loop,
+                index,
+                "destroyed from outside (its window system calls failed)",
+            );
             return;
         }
         // The newest frame the GPU has finished: its time and tessellation counts (never waits).
