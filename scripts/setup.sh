@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what omnicave needs on a fresh Debian/Ubuntu machine: a Vulkan driver (lavapipe, so
 # it renders even without a GPU), the X libraries and Xvfb for the application and its window
-# tests, libudev for gamepads, and Node.js for the Khronos glTF validator used by the tests.
+# tests, libudev for gamepads, Node.js for the Khronos glTF validator used by the tests, and
+# cmake and g++ to build the VRPN server the tracking tests talk to.
 # Idempotent: packages already present are not reinstalled.
 #
 # On Debian 12 (bookworm) lavapipe comes from bookworm-backports (Mesa 25): bookworm's own Mesa
@@ -36,8 +37,9 @@ fi
 # The application's tests run it in windows on a virtual X server and screenshot it: Xvfb,
 # xwd (x11-apps), ImageMagick's convert, and the X client libraries winit loads at run time.
 # Gamepads (gilrs) need libudev's headers and pkg-config to build.
+# The VRPN tests build the real VRPN server from ../shared/peers: cmake and a C++ compiler.
 wanted=(mesa-vulkan-drivers libvulkan1 xvfb x11-apps imagemagick libx11-6 libx11-xcb1
-  libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0 libudev-dev pkg-config)
+  libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0 libudev-dev pkg-config cmake g++ make)
 # Node may come from elsewhere than Debian's package (e.g. a preinstalled toolchain).
 if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
   wanted+=(nodejs npm)

@@ -355,7 +355,7 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     let mut state = AppState::new(config());
     let mut driver = PanelDriver::new();
     assert!(!state.settings.tracking.enabled);
-    driver.click(&mut state, "Use OSC tracking");
+    driver.click(&mut state, "Use tracking (osc)");
     assert!(state.settings.tracking.enabled);
     let filter = state.settings.tracking.filter.enabled;
     driver.click(&mut state, "One Euro filter");
@@ -364,7 +364,7 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     assert_eq!(state.settings.gamepad.mode, GamepadMode::Head);
 
     // The receiver reports a loss: the panel says so at the top and in its section.
-    driver.info.tracking.listening = Some("127.0.0.1:7000".parse().expect("address"));
+    driver.info.tracking.source = Some("OSC on 127.0.0.1:7000".into());
     driver.info.tracking.status = Some(TrackingStatus::Lost);
     driver.info.tracking.lost_for = Some(2.5);
     let texts = |nodes: &[accesskit::Node]| -> Vec<String> {
@@ -378,22 +378,25 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     assert!(
         shown
             .iter()
-            .any(|t| t == "OSC: tracking lost for 2.5 s: head holds its last pose"),
+            .any(|t| t == "Tracking: tracking lost for 2.5 s: head holds its last pose"),
         "{shown:?}"
     );
     assert!(
-        shown.iter().any(|t| t == "listening on 127.0.0.1:7000"),
+        shown.iter().any(|t| t == "OSC on 127.0.0.1:7000"),
         "{shown:?}"
     );
     driver.info.tracking.status = Some(TrackingStatus::Tracking);
     driver.info.tracking.lost_for = None;
     let shown = texts(&driver.frame(&mut state));
-    assert!(shown.iter().any(|t| t == "OSC: tracking"), "{shown:?}");
+    assert!(shown.iter().any(|t| t == "Tracking: tracking"), "{shown:?}");
     // Switched off, the status line goes.
-    driver.click(&mut state, "Use OSC tracking");
+    driver.click(&mut state, "Use tracking (osc)");
     assert!(!state.settings.tracking.enabled);
     let shown = texts(&driver.frame(&mut state));
-    assert!(!shown.iter().any(|t| t.starts_with("OSC:")), "{shown:?}");
+    assert!(
+        !shown.iter().any(|t| t.starts_with("Tracking:")),
+        "{shown:?}"
+    );
 }
 
 #[test]

@@ -1,5 +1,6 @@
-//! The application's input devices: the OSC receiver with its head tracker, and gamepads
-//! (gilrs, hot-plug). Both are polled once per frame and never block it.
+//! The application's input devices: the tracking source (OSC, VRPN or DTrack) with its head
+//! tracker and buttons, and gamepads (gilrs, hot-plug). Both are polled once per frame and never
+//! block it.
 
 use std::net::SocketAddr;
 use std::time::Instant;
@@ -8,13 +9,19 @@ use super::state::{Action, AppState, NavInput};
 use crate::config::TrackingConfig;
 use crate::gamepad::{GamepadAction, GamepadMapper, GamepadMode, GamepadSettings};
 use crate::tracking::receiver::{LOG_INTERVAL, LogLimiter};
-use crate::tracking::{Counters, HeadTracker, OscReceiver, TrackingStats, TrackingStatus};
+use crate::tracking::{
+    Controls, Counters, HeadTracker, TrackingSource, TrackingStats, TrackingStatus,
+};
 
 /// What the panel and the stats line show about tracking.
 #[derive(Debug, Clone, Default)]
 pub struct TrackingInfo {
-    /// Where the receiver listens (None: not started).
+    /// Where the receiver listens (None: not started, or VRPN).
     pub listening: Option<SocketAddr>,
+    /// The running source in words ("VRPN from localhost:3883").
+    pub source: Option<String>,
+    /// Button presses of the tracked input device that triggered an action, since start.
+    pub button_actions: u64,
     /// Why the receiver could not start.
     pub error: Option<String>,
     pub status: Option<TrackingStatus>,
@@ -27,11 +34,15 @@ pub struct TrackingInfo {
     pub gamepad_error: Option<String>,
 }
 
-/// OSC tracking: the receiver (started when tracking is switched on) and the head tracker.
+/// Tracking: the source (started when tracking is switched on), the head tracker and the
+/// tracked input device's buttons.
 #[derive(Debug)]
 pub struct Tracking {
     config: TrackingConfig,
-    receiver: Option<OscReceiver>,
+    receiver: Option<TrackingSource>,
+    /// Presses of each button already acted on.
+    presses_seen: Option<Controls>,
+    button_actions: u64,
     tracker: HeadTracker,
     error: Option<String>,
     /// Tracking was on last frame (a switch on retries a failed bind once).
@@ -45,6 +56,8 @@ impl Tracking {
             tracker: HeadTracker::new(config.settings),
             config,
             receiver: None,
+            presses_seen: None,
+            button_actions: 0,
             error: None,
             was_on: false,
             refused_log: LogLimiter::default(),
@@ -58,7 +71,7 @@ impl Tracking {
             return;
         }
         if !self.was_on && self.receiver.is_none() {
-            match OscReceiver::start(&self.config.receiver) {
+            match TrackingSource::start(&self.config.source) {
                 Ok(r) => {
                     self.receiver = Some(r);
                     self.error = None;
@@ -74,7 +87,11 @@ impl Tracking {
             return;
         };
         self.tracker.set_filter(state.tracking_filter());
-        let sample = receiver.feed().try_latest();
+        let feed = receiver.feed().clone();
+        if let Some(controls) = feed.try_controls() {
+            self.buttons(&controls, state);
+        }
+        let sample = feed.try_latest();
         if let Some(pose) = self.tracker.update(sample, now, Some(state.head_bounds()))
             && let Err(problem) = state.apply_tracked_pose(pose)
             && let Some(held) = self.refused_log.allow(now, LOG_INTERVAL)
@@ -83,6 +100,22 @@ impl Tracking {
                 "tracked head refused: {problem}; the head holds ({held} more not logged)"
             );
         }
+    }
+
+    /// Applies the action of every button pressed since the last frame (each press once).
+    fn buttons(&mut self, controls: &Controls, state: &mut AppState) {
+        if let Some(seen) = &self.presses_seen {
+            for (&button, &action) in &self.config.buttons {
+                let new = controls.presses[button].wrapping_sub(seen.presses[button]);
+                // A burst is one action per press, but never more than a few per frame.
+                for _ in 0..new.min(4) {
+                    tracing::info!("tracked button {button}: {}", action.name());
+                    state.apply(app_action(action));
+                    self.button_actions += 1;
+                }
+            }
+        }
+        self.presses_seen = Some(controls.clone());
     }
 
     /// Whether the tracker is driving the head (gamepad head mode yields to it; while tracking
@@ -94,7 +127,11 @@ impl Tracking {
     }
 
     pub fn info(&self, now: Instant, into: &mut TrackingInfo) {
-        into.listening = self.receiver.as_ref().map(OscReceiver::local_addr);
+        into.listening = self.receiver.as_ref().and_then(TrackingSource::local_addr);
+        if into.source.is_none() != self.receiver.is_none() {
+            into.source = self.receiver.as_ref().map(TrackingSource::describe);
+        }
+        into.button_actions = self.button_actions;
         if into.error != self.error {
             into.error.clone_from(&self.error);
         }

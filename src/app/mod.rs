@@ -341,19 +341,26 @@ impl App {
             self.surface_recoveries
         );
         let t = &self.info.tracking;
-        let head = self.state.head_position();
+        let head = self.state.head();
         if let Some(status) = t.status.filter(|_| self.state.settings.tracking.enabled) {
             let c = &t.counters;
+            let (p, q) = (head.position, head.orientation);
             tracing::info!(
                 target: "omnicave::stats",
-                "tracking: {}, {:.1} Hz, head ({:.3}, {:.3}, {:.3}) m, latency avg {:.2} ms \
+                "tracking: {}, {:.1} Hz, head ({:.4}, {:.4}, {:.4}) m, orientation xyzw \
+                 ({:.5}, {:.5}, {:.5}, {:.5}), {} button actions, latency avg {:.2} ms \
                  max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
                  {} dropped, {} clamped, {} implausible",
                 status.describe(),
                 t.stats.rate_hz,
-                head.x,
-                head.y,
-                head.z,
+                p.x,
+                p.y,
+                p.z,
+                q.x,
+                q.y,
+                q.z,
+                q.w,
+                t.button_actions,
                 t.stats.latency_avg_ms,
                 t.stats.latency_max_ms,
                 t.stats.latency_max_frames,

@@ -106,10 +106,10 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
     if state.settings.tracking.enabled {
         match (&info.tracking.error, tracking_status(&info.tracking)) {
             (Some(e), _) => {
-                ui.colored_label(egui::Color32::LIGHT_RED, format!("OSC: {e}"));
+                ui.colored_label(egui::Color32::LIGHT_RED, format!("Tracking: {e}"));
             }
             (None, Some((colour, text))) => {
-                ui.colored_label(colour, format!("OSC: {text}"));
+                ui.colored_label(colour, format!("Tracking: {text}"));
             }
             (None, None) => {}
         }
@@ -321,14 +321,18 @@ fn tracking_status(info: &TrackingInfo) -> Option<(egui::Color32, String)> {
 
 fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
     let settings = &mut state.settings;
-    ui.checkbox(&mut settings.tracking.enabled, "Use OSC tracking");
+    let source = settings.tracking.source.name();
+    ui.checkbox(
+        &mut settings.tracking.enabled,
+        format!("Use tracking ({source})"),
+    );
     if let Some(error) = &info.error {
         ui.colored_label(egui::Color32::LIGHT_RED, error);
     }
     if settings.tracking.enabled
-        && let (Some(address), Some((colour, text))) = (info.listening, tracking_status(info))
+        && let (Some(source), Some((colour, text))) = (&info.source, tracking_status(info))
     {
-        ui.label(format!("listening on {address}"));
+        ui.label(source);
         ui.colored_label(colour, text);
         let s = &info.stats;
         ui.label(format!(

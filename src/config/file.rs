@@ -20,8 +20,9 @@ use crate::pano::{PanoRoute, PanoStereoKind, Projection, VOLUME_DEFAULT_PARAMS};
 use crate::scene::{SceneBudget, SceneFit, Shading};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
 use crate::tess::{Criterion, TessSettings};
+use crate::tracking::dtrack::DEFAULT_DTRACK_PORT;
 use crate::tracking::{
-    DEFAULT_OSC_PORT, OneEuroParams, OscMapping, PlausibilityLimits, QuaternionOrder,
+    DEFAULT_OSC_PORT, OneEuroParams, OscMapping, PlausibilityLimits, QuaternionOrder, SourceKind,
     TrackingSettings,
 };
 
@@ -190,16 +191,27 @@ impl Default for SkyboxSection {
     }
 }
 
-/// OSC head tracking (`omnicave run`).
+/// Head tracking (`omnicave run`): OSC, VRPN or ART DTrack.
 #[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrackingSection {
-    /// Listen for head positions over OSC from the start (the panel can switch it).
+    /// Track the head from the start (the panel can switch it).
     pub enabled: bool,
-    /// UDP address:port to listen on; 0.0.0.0 is every interface.
+    /// `osc`, `vrpn` (see `[tracking.vrpn]`) or `dtrack` (see `[tracking.dtrack]`).
+    pub source: SourceKind,
+    /// OSC: UDP address:port to listen on; 0.0.0.0 is every interface.
     pub listen: String,
-    /// Senders allowed to move the head (IP addresses); empty: any.
+    /// OSC and DTrack: senders allowed to move the head (IP addresses); empty: any.
     pub allowed_senders: Vec<String>,
+    /// From the tracked body's origin to the midpoint of the eyes, metres, in the body's own
+    /// frame as calibrated (x right, y up, −z forward of a head looking straight ahead): the
+    /// marker tree sits above the glasses, e.g. [0, -0.08, 0.02].
+    pub eye_offset: [f32; 3],
+    /// Button number of the tracked input device (VRPN button device, DTrack flystick) →
+    /// action (the gamepad's action names); "none" unbinds.
+    pub buttons: BTreeMap<String, String>,
+    pub vrpn: VrpnSection,
+    pub dtrack: DTrackSection,
     /// `x y z` (or + quaternion, or + yaw pitch roll); empty string: off.
     pub position_address: String,
     /// A quaternion; empty string: off.
@@ -225,8 +237,20 @@ impl Default for TrackingSection {
         let mapping = OscMapping::default();
         Self {
             enabled: false,
+            source: SourceKind::default(),
             listen: format!("0.0.0.0:{DEFAULT_OSC_PORT}"),
             allowed_senders: Vec::new(),
+            eye_offset: [0.0; 3],
+            buttons: [
+                ("0", "next-render-mode"),
+                ("1", "previous-render-mode"),
+                ("2", "reset-view"),
+            ]
+            .into_iter()
+            .map(|(b, a)| (b.to_owned(), a.to_owned()))
+            .collect(),
+            vrpn: VrpnSection::default(),
+            dtrack: DTrackSection::default(),
             position_address: mapping.position_address,
             orientation_address: mapping.orientation_address,
             euler_address: mapping.euler_address,
@@ -237,6 +261,67 @@ impl Default for TrackingSection {
             calibration: CalibrationSection::default(),
             filter: FilterSection::default(),
             plausibility: PlausibilitySection::default(),
+        }
+    }
+}
+
+/// A VRPN server's devices, named as VRPN users write them: `Device@host` or
+/// `Device@host:port` (port 3883 unless given).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct VrpnSection {
+    /// The tracker whose sensor is the head.
+    pub head: String,
+    /// The head's sensor number.
+    #[schemars(range(min = 0, max = 65535))]
+    pub head_sensor: i32,
+    /// The wand's tracker (often the head's); empty: no wand.
+    pub wand: String,
+    #[schemars(range(min = 0, max = 65535))]
+    pub wand_sensor: i32,
+    /// The button device; empty: none. A DTrack flystick served by VRPN has the tracker's name.
+    pub buttons: String,
+    /// The analog device (joystick axes); empty: none.
+    pub analogs: String,
+    /// While a server is absent, try again this often, seconds.
+    #[schemars(range(min = 0.1, max = 60.0))]
+    pub retry_seconds: f32,
+}
+
+impl Default for VrpnSection {
+    fn default() -> Self {
+        Self {
+            head: "Tracker0@localhost".into(),
+            head_sensor: 0,
+            wand: String::new(),
+            wand_sensor: 1,
+            buttons: String::new(),
+            analogs: String::new(),
+            retry_seconds: 1.0,
+        }
+    }
+}
+
+/// ART DTrack's ASCII output (DTrack sends its frames to this machine's port).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct DTrackSection {
+    /// UDP address:port to listen on (DTrack's "data output" port).
+    pub listen: String,
+    /// The `6d` body that is the head: its id in the frames, from 0 (DTrack's GUI counts from 1).
+    #[schemars(range(min = 0, max = 1023))]
+    pub head_body: u32,
+    /// The `6df2` flystick that is the wand and gives the buttons, from 0; -1: none.
+    #[schemars(range(min = -1, max = 1023))]
+    pub flystick: i32,
+}
+
+impl Default for DTrackSection {
+    fn default() -> Self {
+        Self {
+            listen: format!("0.0.0.0:{DEFAULT_DTRACK_PORT}"),
+            head_body: 0,
+            flystick: 0,
         }
     }
 }

@@ -13,12 +13,13 @@ mod spans;
 mod strict;
 mod validate;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::cave::Cave;
-use crate::gamepad::GamepadSettings;
+use crate::gamepad::{GamepadAction, GamepadSettings};
 use crate::output::formats::StereoFormat;
-use crate::tracking::{ReceiverSettings, TrackingSettings};
+use crate::tracking::{ReceiverSettings, SourceSettings, TrackingSettings};
 
 pub use bounds::{Bounds, bounds};
 pub use file::*;
@@ -86,7 +87,12 @@ pub struct AppConfig {
 pub struct TrackingConfig {
     /// Start listening at launch.
     pub enabled: bool,
+    /// The OSC receiver's settings (used when the source is OSC).
     pub receiver: ReceiverSettings,
+    /// The source to start.
+    pub source: SourceSettings,
+    /// Button number of the tracked input device → action.
+    pub buttons: BTreeMap<usize, GamepadAction>,
     pub settings: TrackingSettings,
 }
 

@@ -1,6 +1,7 @@
 //! Validation of the config file, section by section: ranges, geometry and cross-field
 //! checks that the file's types cannot express, each error naming the file, line and field.
 
+use std::collections::BTreeMap;
 use std::net::{IpAddr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -11,10 +12,12 @@ use super::file::*;
 use super::spans;
 use super::{AppConfig, Config, ConfigError, PanelPlacement, TrackingConfig, WallWindow};
 use crate::cave::{Cave, Wall, left_of};
-use crate::gamepad::{GamepadSettings, button_map};
+use crate::gamepad::{GamepadAction, GamepadSettings, button_map};
 use crate::pano::{PanoRoute, PanoStereo};
+use crate::tracking::receiver::MAX_BUTTONS;
 use crate::tracking::{
-    Calibration, OneEuroParams, OscMapping, PlausibilityLimits, ReceiverSettings, TrackingSettings,
+    Calibration, DTrackSettings, OneEuroParams, OscMapping, PlausibilityLimits, ReceiverSettings,
+    SourceKind, SourceSettings, TrackingSettings, VrpnDevice, VrpnSettings,
 };
 
 /// Builds errors that name the file, the field's line (where the text is known) and value.
@@ -292,11 +295,82 @@ impl ConfigFile {
             beta: f.beta,
             derivative_cutoff_hz: f.derivative_cutoff_hz,
         };
+        let eye_offset = ck.finite3("tracking.eye_offset", t.eye_offset)?;
+        if eye_offset.length() > 0.5 {
+            return Err(ck.fail(
+                "tracking.eye_offset",
+                t.eye_offset,
+                "is more than 0.5 m from the tracked body: not an offset to the eyes",
+            ));
+        }
+        let mut buttons = BTreeMap::new();
+        for (key, action) in &t.buttons {
+            let field = format!("tracking.buttons.{key}");
+            let index: usize = key
+                .parse()
+                .ok()
+                .filter(|&i| i < MAX_BUTTONS)
+                .ok_or_else(|| {
+                    ck.fail(
+                        &field,
+                        key,
+                        &format!("must be a button number, 0 to {}", MAX_BUTTONS - 1),
+                    )
+                })?;
+            if action == "none" {
+                continue;
+            }
+            let action = GamepadAction::from_name(action).ok_or_else(|| {
+                ck.fail(
+                    &field,
+                    action,
+                    &format!(
+                        "is not an action; one of: none, {}",
+                        GamepadAction::NAMES.join(", ")
+                    ),
+                )
+            })?;
+            buttons.insert(index, action);
+        }
+        let source = match t.source {
+            SourceKind::Osc => None,
+            SourceKind::Vrpn => Some(SourceSettings::Vrpn(self.validate_vrpn(ck)?)),
+            SourceKind::DTrack => {
+                let d = &t.dtrack;
+                let listen: SocketAddr = d.listen.trim().parse().map_err(|_| {
+                    ck.fail(
+                        "tracking.dtrack.listen",
+                        &d.listen,
+                        "must be an address:port such as \"0.0.0.0:5000\"",
+                    )
+                })?;
+                Some(SourceSettings::DTrack(DTrackSettings {
+                    listen,
+                    allowed_senders: allowed_senders.clone(),
+                    head_body: d.head_body,
+                    flystick: u32::try_from(d.flystick).ok(),
+                }))
+            }
+        };
+        let receiver = ReceiverSettings {
+            listen,
+            allowed_senders,
+            mapping: OscMapping {
+                position_address: t.position_address.clone(),
+                orientation_address: t.orientation_address.clone(),
+                euler_address: t.euler_address.clone(),
+                quaternion_order: t.quaternion_order,
+                natnet_address: t.natnet_address.clone(),
+                natnet_rigid_body: t.natnet_rigid_body,
+            },
+        };
         Ok(TrackingConfig {
             enabled: t.enabled,
+            source: source.unwrap_or_else(|| SourceSettings::Osc(receiver.clone())),
+            buttons,
             receiver: ReceiverSettings {
-                listen,
-                allowed_senders,
+                listen: receiver.listen,
+                allowed_senders: receiver.allowed_senders,
                 mapping: OscMapping {
                     position_address: t.position_address.clone(),
                     orientation_address: t.orientation_address.clone(),
@@ -314,6 +388,7 @@ impl ConfigFile {
                     offset,
                 },
                 filter: f.enabled.then_some(params),
+                eye_offset,
                 plausibility: PlausibilityLimits {
                     outside_margin_m: t.plausibility.outside_margin_m,
                     max_speed_mps: t.plausibility.max_speed_mps,
@@ -327,6 +402,56 @@ impl ConfigFile {
                     )
                 })?,
             },
+        })
+    }
+
+    fn validate_vrpn(&self, ck: &Checker<'_>) -> Result<VrpnSettings, ConfigError> {
+        let v = &self.tracking.vrpn;
+        let device = |field: &str, text: &str| -> Result<Option<VrpnDevice>, ConfigError> {
+            if text.trim().is_empty() {
+                return Ok(None);
+            }
+            text.trim()
+                .parse::<VrpnDevice>()
+                .map(Some)
+                .map_err(|why| ck.fail(&format!("tracking.vrpn.{field}"), text, &why))
+        };
+        let head = device("head", &v.head)?.ok_or_else(|| {
+            ck.fail(
+                "tracking.vrpn.head",
+                &v.head,
+                "names the head's tracker, e.g. Tracker0@localhost",
+            )
+        })?;
+        let retry = Duration::try_from_secs_f32(v.retry_seconds)
+            .ok()
+            .filter(|d| (0.1..=60.0).contains(&d.as_secs_f32()))
+            .ok_or_else(|| {
+                ck.fail(
+                    "tracking.vrpn.retry_seconds",
+                    v.retry_seconds,
+                    "must be 0.1 to 60 seconds",
+                )
+            })?;
+        for (field, sensor) in [
+            ("head_sensor", v.head_sensor),
+            ("wand_sensor", v.wand_sensor),
+        ] {
+            if !(0..=65535).contains(&sensor) {
+                return Err(ck.fail(
+                    &format!("tracking.vrpn.{field}"),
+                    sensor,
+                    "must be 0 to 65535",
+                ));
+            }
+        }
+        Ok(VrpnSettings {
+            head,
+            head_sensor: v.head_sensor,
+            wand: device("wand", &v.wand)?.map(|d| (d, v.wand_sensor)),
+            buttons: device("buttons", &v.buttons)?,
+            analogs: device("analogs", &v.analogs)?,
+            retry,
         })
     }
 

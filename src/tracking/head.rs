@@ -20,6 +20,9 @@ pub struct TrackingSettings {
     pub timeout: Duration,
     /// What a head can do: samples beyond it are refused before the filter.
     pub plausibility: PlausibilityLimits,
+    /// From the tracked body's origin to the midpoint of the eyes, in the body's calibrated
+    /// frame (metres): the eyes are at `position + orientation · eye_offset`.
+    pub eye_offset: Vec3,
 }
 
 impl Default for TrackingSettings {
@@ -29,6 +32,7 @@ impl Default for TrackingSettings {
             filter: Some(OneEuroParams::default()),
             timeout: Duration::from_millis(500),
             plausibility: PlausibilityLimits::default(),
+            eye_offset: Vec3::ZERO,
         }
     }
 }
@@ -215,6 +219,9 @@ impl HeadTracker {
             },
             None => None,
         };
+        // The tracked body's origin is not between the eyes: move to them along the body's
+        // own axes (unrotated while the tracker sends positions only).
+        let position = position + orientation.unwrap_or(Quat::IDENTITY) * self.settings.eye_offset;
         let candidate = Candidate {
             position,
             orientation,

@@ -1,23 +1,31 @@
-//! Head tracking over OSC (thesis 7.2): decoding, tracker-to-CAVE calibration, filtering, the
-//! receiver thread and the simulator. No GPU and no windows here.
+//! Head and wand tracking: the sources (OSC as in thesis 7.2, VRPN, ART DTrack), tracker-to-CAVE
+//! calibration with the eye offset, plausibility, filtering, and the simulator. No GPU and no
+//! windows here.
 
 pub mod calibration;
+pub mod dtrack;
 pub mod filter;
 pub mod head;
 pub mod osc;
 pub mod plausibility;
 pub mod receiver;
 pub mod sim;
+pub mod source;
+pub mod vrpn;
+pub mod vrpn_wire;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
 pub use calibration::Calibration;
+pub use dtrack::DTrackSettings;
 pub use filter::OneEuroParams;
 pub use head::{HeadPose, HeadTracker, TrackingSettings, TrackingStats, TrackingStatus};
 pub use osc::{OscMapping, QuaternionOrder};
 pub use plausibility::PlausibilityLimits;
-pub use receiver::{Counters, OscReceiver, ReceiverSettings, TrackerFeed, TrackerSample};
+pub use receiver::{Controls, Counters, OscReceiver, ReceiverSettings, TrackerFeed, TrackerSample};
+pub use source::{SourceKind, SourceSettings, TrackingSource};
+pub use vrpn::{VrpnClient, VrpnDevice, VrpnSettings};
 
 /// Default UDP port for OSC head tracking (documented in `config/cave.toml`).
 pub const DEFAULT_OSC_PORT: u16 = 7000;

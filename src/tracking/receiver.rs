@@ -92,11 +92,96 @@ struct AtomicCounters {
     socket_errors: AtomicU64,
 }
 
+/// Most buttons a source reports (VRPN's own limit is 256; a wand has a handful).
+pub const MAX_BUTTONS: usize = 64;
+/// Most analog channels a source reports (VRPN's `vrpn_CHANNEL_MAX` is 128).
+pub const MAX_ANALOGS: usize = 32;
+
+/// The buttons and analogs of the tracked input device (VRPN button and analog devices, a DTrack
+/// flystick, OSC buttons).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Controls {
+    /// Bit `i`: button `i` is held now.
+    pub held: u64,
+    /// Presses of each button so far: a press released again before the next frame still
+    /// counts, so the application compares counts rather than states.
+    pub presses: [u32; MAX_BUTTONS],
+    /// The newest value of each analog channel (joystick axes: −1 to 1).
+    pub analogs: Vec<f64>,
+}
+
+impl Default for Controls {
+    fn default() -> Self {
+        Self {
+            held: 0,
+            presses: [0; MAX_BUTTONS],
+            analogs: Vec::new(),
+        }
+    }
+}
+
+impl Controls {
+    /// Records button `index`'s state; buttons past [`MAX_BUTTONS`] are ignored.
+    pub fn set_button(&mut self, index: usize, down: bool) {
+        if index >= MAX_BUTTONS {
+            return;
+        }
+        let bit = 1u64 << index;
+        if down && self.held & bit == 0 {
+            self.presses[index] = self.presses[index].wrapping_add(1);
+        }
+        if down {
+            self.held |= bit;
+        } else {
+            self.held &= !bit;
+        }
+    }
+
+    /// Replaces the analog channels (at most [`MAX_ANALOGS`]; non-finite values read as 0).
+    pub fn set_analogs(&mut self, values: impl IntoIterator<Item = f64>) {
+        self.analogs.clear();
+        self.analogs.extend(
+            values
+                .into_iter()
+                .take(MAX_ANALOGS)
+                .map(|v| if v.is_finite() { v } else { 0.0 }),
+        );
+    }
+
+    pub fn is_held(&self, index: usize) -> bool {
+        index < MAX_BUTTONS && self.held & (1 << index) != 0
+    }
+}
+
 /// What the receiver shares with the render loop.
 #[derive(Debug, Default)]
 struct Shared {
     latest: Mutex<Option<TrackerSample>>,
+    wand: Mutex<Option<TrackerSample>>,
+    controls: Mutex<Controls>,
     counters: AtomicCounters,
+}
+
+/// One packet's (or message's) fate, for [`TrackerFeed::count`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fate {
+    Accepted,
+    Ignored,
+    Malformed,
+    NonFinite,
+    Refused,
+}
+
+/// Tries a slot a few spins; `None` if the writer holds it (the next frame gets it).
+fn try_copy<T: Clone>(slot: &Mutex<T>) -> Option<T> {
+    for _ in 0..64 {
+        match slot.try_lock() {
+            Ok(guard) => return Some(guard.clone()),
+            Err(TryLockError::Poisoned(p)) => return Some(p.into_inner().clone()),
+            Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
+        }
+    }
+    None
 }
 
 /// The render loop's view of a receiver: the newest sample and the counters.
@@ -110,14 +195,54 @@ impl TrackerFeed {
     /// slot only to copy a few fields in, so a few spins find it free; should they not, this
     /// frame goes without and the next one gets the sample.
     pub fn try_latest(&self) -> Option<TrackerSample> {
-        for _ in 0..64 {
-            match self.shared.latest.try_lock() {
-                Ok(guard) => return *guard,
-                Err(TryLockError::Poisoned(p)) => return *p.into_inner(),
-                Err(TryLockError::WouldBlock) => std::hint::spin_loop(),
-            }
-        }
-        None
+        try_copy(&self.shared.latest).flatten()
+    }
+
+    /// The newest sample of the wand (the second tracked body), like [`Self::try_latest`].
+    pub fn try_wand(&self) -> Option<TrackerSample> {
+        try_copy(&self.shared.wand).flatten()
+    }
+
+    /// The buttons and analogs; `None` only if the source holds them this instant.
+    pub fn try_controls(&self) -> Option<Controls> {
+        try_copy(&self.shared.controls)
+    }
+
+    /// A source stores the head's newest sample.
+    pub fn publish_head(&self, sample: TrackerSample) {
+        *lock(&self.shared.latest) = Some(sample);
+    }
+
+    /// A source stores the wand's newest sample.
+    pub fn publish_wand(&self, sample: TrackerSample) {
+        *lock(&self.shared.wand) = Some(sample);
+    }
+
+    /// A source changes the buttons and analogs.
+    pub fn update_controls(&self, change: impl FnOnce(&mut Controls)) {
+        change(&mut lock(&self.shared.controls));
+    }
+
+    /// A source counts one received packet or message and its fate.
+    pub fn count(&self, fate: Fate) {
+        let c = &self.shared.counters;
+        let counter = match fate {
+            Fate::Accepted => &c.accepted,
+            Fate::Ignored => &c.ignored,
+            Fate::Malformed => &c.malformed,
+            Fate::NonFinite => &c.non_finite,
+            Fate::Refused => &c.refused,
+        };
+        counter.fetch_add(1, Ordering::AcqRel);
+        c.received.fetch_add(1, Ordering::AcqRel);
+    }
+
+    /// A source counts a socket error (not a packet).
+    pub fn count_socket_error(&self) {
+        self.shared
+            .counters
+            .socket_errors
+            .fetch_add(1, Ordering::AcqRel);
     }
 
     pub fn counters(&self) -> Counters {
@@ -278,6 +403,11 @@ impl PacketSink {
             .unwrap_or_else(|p| p.into_inner());
         *slot = Some(sample);
     }
+}
+
+fn lock<T>(slot: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    slot.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// `" (N more not logged)"`, or nothing when none were held back.

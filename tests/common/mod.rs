@@ -2,6 +2,7 @@
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
 pub mod fuzz;
+pub mod vrpn_peer;
 
 use std::collections::HashMap;
 use std::sync::OnceLock;
