@@ -62,6 +62,30 @@ enum ConfigCommand {
     /// Print the config file's JSON Schema (what `config/omnicave.schema.json` holds), for
     /// editors that validate and complete TOML.
     Schema,
+    /// Convert the walls of an Equalizer `.eqc`, a CalVR XML or an nDisplay `.ndisplay` file
+    /// into omnicave's `[[wall]]` tables (CAVE space: metres, +y up).
+    Import(ImportArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ImportArgs {
+    /// The file to read.
+    file: PathBuf,
+    /// Its format; default: from the extension (.eqc, .xml, .ndisplay/.json).
+    #[arg(long)]
+    format: Option<omnicave::config::import::ImportFormat>,
+    /// The file's length unit; default: the format's (Equalizer m, CalVR mm, nDisplay cm).
+    #[arg(long)]
+    units: Option<omnicave::cave::placement::LengthUnit>,
+    /// Pixels of a wall whose window or viewport the file does not give, WxH.
+    #[arg(long, value_parser = parse_size, default_value = "1920x1080")]
+    resolution: [u32; 2],
+    /// Write a whole config: this one, with its walls replaced (comments kept).
+    #[arg(long, value_name = "CONFIG")]
+    base: Option<PathBuf>,
+    /// Where to write; default: standard output.
+    #[arg(long, short)]
+    output: Option<PathBuf>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -547,6 +571,43 @@ impl Progress {
 
 /// Writes a command's output to standard output; a reader that closed the pipe early (`| head`)
 /// is not an error.
+/// `config import`: the walls, as tables or in a whole config, checked by loading the result.
+fn import_walls(args: &ImportArgs) -> anyhow::Result<()> {
+    use omnicave::config::import;
+    let walls = import::import_walls(&args.file, args.format, args.units)?;
+    let text = match &args.base {
+        None => import::walls_toml(&walls, args.resolution, &args.file),
+        Some(base) => {
+            let base_text = omnicave::read_capped::read_capped_text(
+                base,
+                omnicave::read_capped::MAX_CONFIG_BYTES,
+                "config files",
+            )
+            .with_context(|| format!("cannot read {}", base.display()))?;
+            let text = import::replace_walls(&base_text, &walls, args.resolution)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", base.display()))?;
+            // The result must load: its walls are checked as any config's are.
+            omnicave::config::Config::from_toml(&text, base)
+                .with_context(|| format!("the walls of {}", args.file.display()))?;
+            text
+        }
+    };
+    for w in &walls {
+        tracing::info!(
+            "wall {}: {:.3} × {:.3} m",
+            w.name,
+            (w.lower_right - w.lower_left).length(),
+            (w.upper_left - w.lower_left).length()
+        );
+    }
+    match &args.output {
+        Some(path) => {
+            std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+        }
+        None => write_stdout(text.as_bytes()),
+    }
+}
+
 fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
@@ -667,6 +728,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Config(ConfigCommand::Schema) => {
             write_stdout(omnicave::config::schema::json_schema_text().as_bytes())
         }
+        Command::Config(ConfigCommand::Import(args)) => import_walls(&args),
         Command::Render(args) => {
             let overrides = Overrides {
                 scene: args.scene,

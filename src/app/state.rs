@@ -7,7 +7,7 @@ use glam::{Mat4, Quat, Vec3};
 
 use crate::cave::omni::{OmniSettings, WarpVariant};
 use crate::cave::{Cave, Head, RenderMode};
-use crate::config::{Config, ConfigFile};
+use crate::config::{Config, ConfigFile, WallSection};
 use crate::gamepad::GamepadMode;
 use crate::output::formats::StereoFormat;
 use crate::render::{FrameParams, RenderSettings};
@@ -208,13 +208,25 @@ impl AppState {
         let o = self.scale_origin;
         let map = |p: Vec3| o + (p - o) * scale;
         let mut cave = self.base_cave.clone();
+        let frame = self.settings.cave.wall_frame();
+        let in_file = |p: Vec3| Some(frame.from_cave(p.as_dvec3()).as_vec3().to_array());
         for (wall, section) in cave.walls.iter_mut().zip(&mut self.settings.walls) {
             wall.lower_left = map(wall.lower_left);
             wall.lower_right = map(wall.lower_right);
             wall.upper_left = map(wall.upper_left);
-            section.lower_left = wall.lower_left.to_array();
-            section.lower_right = wall.lower_right.to_array();
-            section.upper_left = wall.upper_left.to_array();
+            // A resized wall is saved as corners, in the file's units and axes.
+            *section = WallSection {
+                lower_left: in_file(wall.lower_left),
+                lower_right: in_file(wall.lower_right),
+                upper_left: in_file(wall.upper_left),
+                centre: None,
+                yaw_pitch_roll_degrees: None,
+                origin: None,
+                horizontal_axis: None,
+                vertical_axis: None,
+                size: None,
+                ..std::mem::take(section)
+            };
         }
         cave.projection_centre = map(cave.projection_centre);
         self.settings.cave.projection_centre = Some(cave.projection_centre.to_array());

@@ -4,6 +4,7 @@
 //! at the centre of the CAVE floor, +x towards the right wall, +y up, −z towards the front wall.
 
 pub mod omni;
+pub mod placement;
 mod projection;
 
 pub use projection::{WallProjection, off_axis_projection};

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cave::RenderMode;
 use crate::cave::omni::{PoleMerge, WarpVariant};
+use crate::cave::placement::{LengthUnit, UpAxis};
 use crate::gamepad::{GamepadMode, GamepadSettings};
 use crate::output::formats::StereoFormat;
 use crate::pano::{PanoRoute, PanoStereoKind, Projection, VOLUME_DEFAULT_PARAMS};
@@ -68,6 +69,21 @@ pub struct CaveSection {
     pub stereo_view_direction: [f32; 3],
     /// Projective viewpoint of the on-axis omnistereo warp; default: the room's centre.
     pub projection_centre: Option<[f32; 3]>,
+    /// The unit of the walls' coordinates and sizes: m, cm, mm, inch or foot.
+    pub wall_units: LengthUnit,
+    /// The axis that points up in the walls' coordinates: "y" (CAVE space) or "z" (right-handed
+    /// z-up: x right, y to the front). Wall angles do not depend on it (yaw is about up).
+    pub wall_up_axis: UpAxis,
+}
+
+impl CaveSection {
+    /// The frame the `[[wall]]` geometry is written in.
+    pub fn wall_frame(&self) -> crate::cave::placement::FileFrame {
+        crate::cave::placement::FileFrame {
+            unit: self.wall_units,
+            up: self.wall_up_axis,
+        }
+    }
 }
 
 impl Default for CaveSection {
@@ -78,6 +94,8 @@ impl Default for CaveSection {
             far: 2000.0,
             stereo_view_direction: [0.0, 0.0, -1.0],
             projection_centre: None,
+            wall_units: LengthUnit::Metre,
+            wall_up_axis: UpAxis::Y,
         }
     }
 }
@@ -702,19 +720,46 @@ impl Default for PointLightSection {
     }
 }
 
-/// One projection wall: a planar rectangle given by three corners as seen from inside.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+/// One projection wall: a planar rectangle seen from inside, given one of three ways (in
+/// `cave.wall_units`, with `cave.wall_up_axis` up): three corners; `centre` +
+/// `yaw_pitch_roll_degrees` + `size` (nDisplay, CalVR); or `origin` (the lower-left corner) +
+/// `horizontal_axis` + `vertical_axis` + `size` (Vrui).
+#[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct WallSection {
     /// 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files).
     pub name: String,
-    /// Corners in CAVE metres (within ±100 km: the projection math is f32).
+    /// Corners (within ±100 km: the projection math is f32).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(inner(range(min = -1e5, max = 1e5)))]
-    pub lower_left: [f32; 3],
+    pub lower_left: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(inner(range(min = -1e5, max = 1e5)))]
-    pub lower_right: [f32; 3],
+    pub lower_right: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(inner(range(min = -1e5, max = 1e5)))]
-    pub upper_left: [f32; 3],
+    pub upper_left: Option<[f32; 3]>,
+    /// The wall's centre (with `size`; `yaw_pitch_roll_degrees` default 0: a front wall).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub centre: Option<[f32; 3]>,
+    /// Yaw about the up axis (+ turns left), pitch about the wall's horizontal edge (+ tilts
+    /// its top back), roll about its normal, degrees. At 0 the wall faces the viewer as the
+    /// front wall does (its right edge along +x).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(inner(range(min = -360.0, max = 360.0)))]
+    pub yaw_pitch_roll_degrees: Option<[f32; 3]>,
+    /// The lower-left corner (with `horizontal_axis`, `vertical_axis` and `size`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<[f32; 3]>,
+    /// The direction of the lower edge, left to right (any length).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub horizontal_axis: Option<[f32; 3]>,
+    /// The direction of the left edge, bottom to top (any length).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertical_axis: Option<[f32; 3]>,
+    /// Width and height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<[f32; 2]>,
     /// Pixels (width, height).
     #[schemars(inner(range(min = 1, max = MAX_WALL_PIXELS)))]
     pub resolution: [u32; 2],

@@ -8,6 +8,7 @@
 mod bounds;
 mod convert;
 mod file;
+pub mod import;
 pub mod schema;
 mod spans;
 mod strict;

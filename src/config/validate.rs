@@ -11,6 +11,7 @@ use glam::Vec3;
 use super::file::*;
 use super::spans;
 use super::{AppConfig, Config, ConfigError, PanelPlacement, TrackingConfig, WallWindow};
+use crate::cave::placement::{FileFrame, corners_from_axes, corners_from_centre, wall_rotation};
 use crate::cave::{Cave, Wall, left_of};
 use crate::gamepad::{GamepadAction, GamepadSettings, button_map};
 use crate::pano::{PanoRoute, PanoStereo};
@@ -99,8 +100,9 @@ impl ConfigFile {
         }
         let mut walls = Vec::with_capacity(self.walls.len());
         let mut names = std::collections::HashSet::with_capacity(self.walls.len());
+        let frame = self.cave.wall_frame();
         for (i, w) in self.walls.iter().enumerate() {
-            let wall = validate_wall(&ck, i, w)?;
+            let wall = validate_wall(&ck, i, w, frame)?;
             if !names.insert(wall.name.clone()) {
                 return Err(ck.fail(
                     &format!("wall[{i}].name"),
@@ -537,7 +539,101 @@ impl ConfigFile {
     }
 }
 
-fn validate_wall(ck: &Checker<'_>, index: usize, w: &WallSection) -> Result<Wall, ConfigError> {
+/// A wall's three corners in CAVE space, from whichever form the file gives (exactly one).
+fn wall_corners(
+    ck: &Checker<'_>,
+    index: usize,
+    w: &WallSection,
+    frame: FileFrame,
+) -> Result<[Vec3; 3], ConfigError> {
+    let field = |name: &str| format!("wall[{index}].{name}");
+    let corners = [w.lower_left, w.lower_right, w.upper_left];
+    let centre_form = [w.centre.is_some(), w.yaw_pitch_roll_degrees.is_some()];
+    let axes_form = [w.origin, w.horizontal_axis, w.vertical_axis];
+    let forms = [
+        corners.iter().any(Option::is_some),
+        centre_form.iter().any(|&b| b),
+        axes_form.iter().any(Option::is_some),
+    ];
+    let given = forms.iter().filter(|&&b| b).count();
+    let name = w.name.as_str();
+    if given != 1 {
+        return Err(ck.fail_text(
+            &field("lower_left"),
+            format!("{given} forms"),
+            &format!(
+                "wall '{name}' needs exactly one of: lower_left + lower_right + upper_left; centre                  + size (+ yaw_pitch_roll_degrees); origin + horizontal_axis + vertical_axis +                  size"
+            ),
+        ));
+    }
+    let point = |f: &str, v: Option<[f32; 3]>| -> Result<glam::DVec3, ConfigError> {
+        let v = v.ok_or_else(|| {
+            ck.fail_text(
+                &field(f),
+                "missing".into(),
+                "is needed by the other fields given",
+            )
+        })?;
+        Ok(frame.to_cave(ck.finite3(&field(f), v)?.as_dvec3()))
+    };
+    let size = || -> Result<[f64; 2], ConfigError> {
+        let s = w.size.ok_or_else(|| {
+            ck.fail_text(
+                &field("size"),
+                "missing".into(),
+                "is needed: [width, height]",
+            )
+        })?;
+        if !s.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return Err(ck.fail(&field("size"), s, "must be a positive width and height"));
+        }
+        Ok(s.map(|v| f64::from(v) * frame.unit.metres()))
+    };
+    let corners = if forms[0] {
+        if w.size.is_some() {
+            return Err(ck.fail(
+                &field("size"),
+                w.size,
+                "goes with centre or origin, not corners",
+            ));
+        }
+        [
+            point("lower_left", w.lower_left)?,
+            point("lower_right", w.lower_right)?,
+            point("upper_left", w.upper_left)?,
+        ]
+    } else if forms[1] {
+        let centre = point("centre", w.centre)?;
+        let ypr = w.yaw_pitch_roll_degrees.unwrap_or_default();
+        if !ypr.iter().all(|a| a.is_finite() && a.abs() <= 360.0) {
+            return Err(ck.fail(
+                &field("yaw_pitch_roll_degrees"),
+                ypr,
+                "must be angles from −360 to 360 degrees",
+            ));
+        }
+        corners_from_centre(centre, wall_rotation(ypr.map(f64::from)), size()?)
+    } else {
+        let origin = point("origin", w.origin)?;
+        let horizontal = point("horizontal_axis", w.horizontal_axis)?;
+        let vertical = point("vertical_axis", w.vertical_axis)?;
+        corners_from_axes(origin, horizontal, vertical, size()?).ok_or_else(|| {
+            ck.fail(
+                &field("horizontal_axis"),
+                (w.horizontal_axis, w.vertical_axis),
+                "the axes must not be zero",
+            )
+        })?
+    };
+    Ok(corners.map(|c| c.as_vec3()))
+}
+
+fn validate_wall(
+    ck: &Checker<'_>,
+    index: usize,
+    w: &WallSection,
+    frame: FileFrame,
+) -> Result<Wall, ConfigError> {
     let field = |name: &str| format!("wall[{index}].{name}");
     let name_ok = !w.name.is_empty()
         && w.name.len() <= 64
@@ -551,9 +647,16 @@ fn validate_wall(ck: &Checker<'_>, index: usize, w: &WallSection) -> Result<Wall
             "must be 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files)",
         ));
     }
-    let ll = ck.finite3(&field("lower_left"), w.lower_left)?;
-    let lr = ck.finite3(&field("lower_right"), w.lower_right)?;
-    let ul = ck.finite3(&field("upper_left"), w.upper_left)?;
+    let [ll, lr, ul] = wall_corners(ck, index, w, frame)?;
+    for (f, c) in [("lower_left", ll), ("lower_right", lr), ("upper_left", ul)] {
+        if !c.is_finite() || c.abs().max_element() > 1e5 {
+            return Err(ck.fail(
+                &field(f),
+                c,
+                "is beyond ±100 km (or not finite) in CAVE metres",
+            ));
+        }
+    }
     // A wall narrower than a millimetre is a typo, not a screen. Lengths and the angle are
     // worked in f64 so that huge corners cannot overflow into a NaN that passes the tests
     // (1e30 squared is infinite in f32); anything not finite even so is refused.
@@ -563,7 +666,7 @@ fn validate_wall(ck: &Checker<'_>, index: usize, w: &WallSection) -> Result<Wall
     if !width.is_finite() || width < MIN_SIDE_M {
         return Err(ck.fail(
             &field("lower_right"),
-            w.lower_right,
+            lr,
             "coincides with lower_left: the wall has no width",
         ));
     }
@@ -571,7 +674,7 @@ fn validate_wall(ck: &Checker<'_>, index: usize, w: &WallSection) -> Result<Wall
     if !height.is_finite() || height < MIN_SIDE_M {
         return Err(ck.fail(
             &field("upper_left"),
-            w.upper_left,
+            ul,
             "coincides with lower_left: the wall has no height",
         ));
     }
@@ -581,7 +684,7 @@ fn validate_wall(ck: &Checker<'_>, index: usize, w: &WallSection) -> Result<Wall
     if !cosine.is_finite() || cosine.abs() > 1e-3 {
         return Err(ck.fail(
             &field("upper_left"),
-            w.upper_left,
+            ul,
             &format!(
                 "edges lower_left→lower_right and lower_left→upper_left are not perpendicular \
                  (angle {:.2}°): walls must be rectangles",
