@@ -12,6 +12,11 @@ struct PresentUniforms {
     // xy: top-left of the tile in target pixels; zw: composed pixels per target pixel (a window
     // or preview tile of another size than the format's output is scaled, nearest texel).
     viewport: vec4<f32>,
+    // A projector's alignment (per-eye outputs): xy: offset of the image in composed pixels,
+    // zw: top-left of the crop in the eye image.
+    shift: vec4<i32>,
+    // xy: the crop's size in pixels; z: 1 if the crop and shift apply.
+    crop: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> present: PresentUniforms;
@@ -115,7 +120,17 @@ fn composed(p: vec2<i32>) -> vec3<f32> {
 @fragment
 fn fs_present(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> {
     let p = (position.xy - present.viewport.xy) * present.viewport.zw;
-    var c = composed(vec2<i32>(floor(p)));
+    var q = vec2<i32>(floor(p));
+    var c = vec3<f32>(0.0);
+    if present.crop.z == 0u {
+        c = composed(q);
+    } else {
+        // Moved by the offset, then cut to the crop: what falls outside is black.
+        q = q - present.shift.xy;
+        if all(q >= vec2<i32>(0)) && all(q < vec2<i32>(present.crop.xy)) {
+            c = composed(q + present.shift.zw);
+        }
+    }
     if present.size.z != 0u {
         c = srgb_encode(c);
     }

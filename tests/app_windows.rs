@@ -162,6 +162,11 @@ struct AppProcess {
 
 impl AppProcess {
     fn start(display: &str, args: &[&str]) -> AppProcess {
+        Self::start_with_log(display, args, "info")
+    }
+
+    /// Starts it with `RUST_LOG` set to `filter`.
+    fn start_with_log(display: &str, args: &[&str], filter: &str) -> AppProcess {
         let runtime = std::env::temp_dir().join("omnicave-xdg");
         std::fs::create_dir_all(&runtime).expect("runtime dir");
         #[cfg(unix)]
@@ -176,7 +181,7 @@ impl AppProcess {
             .args(["--stats-every", "0.5"])
             .env("DISPLAY", display)
             .env("XDG_RUNTIME_DIR", &runtime)
-            .env("RUST_LOG", "info")
+            .env("RUST_LOG", filter)
             .env("NO_COLOR", "1")
             .env_remove("WAYLAND_DISPLAY")
             .stdout(Stdio::null())
@@ -976,4 +981,265 @@ fn sigterm_while_starting_exits_cleanly() {
             app.log()
         );
     }
+}
+
+/// The CAVE config with a window per eye for every wall (`[[wall.output]]`): left eyes in the
+/// top row, right eyes below; the front wall's right projector moved by (3, −2) pixels and the
+/// right wall's left projector cropped to the wall's top-left quarter. No panel.
+fn write_eye_outputs_config(dir: &Path, name: &str) -> PathBuf {
+    let base = std::fs::read_to_string(write_config(dir, &format!("base-{name}"))).expect("base");
+    let mut parts: Vec<String> = base.split("[[wall]]").map(str::to_owned).collect();
+    parts[0] = parts[0].replace("panel = \"window\"", "panel = \"hidden\"");
+    for (i, part) in parts.iter_mut().skip(1).enumerate() {
+        // The wall's own window settings give way to its outputs.
+        let kept: Vec<&str> = part
+            .lines()
+            .filter(|l| {
+                !(l.starts_with("window_position")
+                    || l.starts_with("output")
+                    || l.starts_with("monitor"))
+            })
+            .collect();
+        let x = 330 * i as i32;
+        let (left_extra, right_extra) = match i {
+            1 => ("", "offset = [3, -2]\n"),
+            2 => ("crop = [0, 0, 160, 120]\n", ""),
+            _ => ("", ""),
+        };
+        *part = format!(
+            "{}\n\n[[wall.output]]\neye = \"left\"\nwindow_position = [{x}, 0]\n{left_extra}\n\
+             [[wall.output]]\neye = \"right\"\nwindow_position = [{x}, 300]\n{right_extra}\n",
+            kept.join("\n").trim_end()
+        );
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, parts.join("[[wall]]")).expect("write");
+    path
+}
+
+/// `img` moved by `offset` pixels (right, down); what it uncovers is black.
+fn shifted(img: &RgbaImage, offset: [i32; 2]) -> RgbaImage {
+    RgbaImage::from_fn(img.width(), img.height(), |x, y| {
+        let (sx, sy) = (x as i32 - offset[0], y as i32 - offset[1]);
+        if sx < 0 || sy < 0 || sx >= img.width() as i32 || sy >= img.height() as i32 {
+            image::Rgba([0, 0, 0, 255])
+        } else {
+            *img.get_pixel(sx as u32, sy as u32)
+        }
+    })
+}
+
+/// Issue 19: a passive wall fed by two projectors. Three walls with two outputs each open six
+/// windows, each showing exactly its eye (as the headless render composes it), with a
+/// projector's offset and crop applied; the eyes are still rendered once each per frame.
+#[test]
+fn two_outputs_per_wall_open_six_windows_each_showing_its_eye() {
+    let out = out_dir();
+    let config_path = write_eye_outputs_config(&out, "eyes-test.toml");
+    let config = Config::load(&config_path).expect("config");
+    let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
+    let sky = setup::load_config_sky(&config);
+    let mut renderer =
+        setup::render_frame(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
+
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let mut app = AppProcess::start(
+        &x.display,
+        &["--config", config_path.to_str().expect("utf8")],
+    );
+    app.wait_frames(3);
+    let shot = x.screenshot(&out.join("eyes-screen.png"));
+    let (_conn, windows) = x_windows(&x.display);
+    let log = app.quit();
+    assert!(log.contains("6 window(s) open"), "{log}");
+    assert_eq!(windows.len(), 6, "{windows:?}");
+    // Each eye of each wall is rendered once per frame: six views, as three stereo walls.
+    assert!(
+        log.lines()
+            .any(|l| l.contains("stats:") && l.contains("| views 6 |")),
+        "{log}"
+    );
+
+    for (index, (name, _, _)) in WALLS.iter().enumerate() {
+        for (row, (eye, format)) in [("left", "left-only"), ("right", "right-only")]
+            .into_iter()
+            .enumerate()
+        {
+            let format = StereoFormat::from_name(format).expect("format");
+            let mut expected = renderer
+                .compose(
+                    index,
+                    PresentParams {
+                        format,
+                        frame: 0,
+                        swap_eyes: false,
+                    },
+                )
+                .expect("compose");
+            let (mut w, mut h) = (WALL[0], WALL[1]);
+            if index == 1 && eye == "right" {
+                expected = shifted(&expected, [3, -2]);
+            }
+            if index == 2 && eye == "left" {
+                expected = image::imageops::crop_imm(&expected, 0, 0, 160, 120).to_image();
+                (w, h) = (160, 120);
+            }
+            let (x0, y0) = (330 * index as u32, 300 * row as u32);
+            assert!(
+                windows
+                    .iter()
+                    .any(|(_, p, s)| *p == [x0 as i32, y0 as i32] && *s == [w, h]),
+                "no {w}×{h} window at ({x0}, {y0}): {windows:?}"
+            );
+            let got = crop(&shot, x0, y0, w, h);
+            got.save(out.join(format!("eyes-{name}-{eye}.png")))
+                .expect("save");
+            // As the CAVE-mode test: one level of sRGB rounding between the two paths.
+            let (mean, share) = difference(&got, &expected, 2);
+            println!(
+                "wall {name}, {eye} eye: mean |Δ| {mean:.3}, {:.3}% off",
+                share * 100.0
+            );
+            assert!(
+                mean < 0.5 && share < 0.001,
+                "wall {name} {eye}: mean {mean}, share {share}"
+            );
+            // And not the other eye: the two differ by far more than the tolerance.
+            let other = renderer
+                .compose(
+                    index,
+                    PresentParams {
+                        format: if eye == "left" {
+                            StereoFormat::RightOnly
+                        } else {
+                            StereoFormat::LeftOnly
+                        },
+                        frame: 0,
+                        swap_eyes: false,
+                    },
+                )
+                .expect("compose");
+            if index == 0 {
+                let (_, other_share) = difference(&got, &other, 2);
+                assert!(other_share > 0.01, "the two eyes look alike: {other_share}");
+            }
+        }
+    }
+}
+
+/// Issue 19: frame-sequential windows take their eye from one shared frame counter. Every
+/// window presents the same eye in every frame; a window stalled from outside (resized, so
+/// its surface goes out of date and it misses presents) is counted as a re-sync and presents
+/// the others' eye from its next frame on.
+#[test]
+fn frame_sequential_windows_share_one_eye_phase_even_after_a_stall() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{ConfigureWindowAux, ConnectionExt};
+    let out = out_dir();
+    let base = std::fs::read_to_string(write_config(&out, "phase-base.toml")).expect("base");
+    let text = base
+        .replace("panel = \"window\"", "panel = \"hidden\"")
+        .replace("output = \"left-only\"", "output = \"frame-sequential\"")
+        .replace(
+            "output = \"side-by-side-half\"",
+            "output = \"frame-sequential\"",
+        )
+        .replace("output = \"anaglyph\"", "output = \"frame-sequential\"");
+    let config_path = out.join("phase-test.toml");
+    std::fs::write(&config_path, text).expect("write");
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let runtime_log = "info,omnicave::eye_phase=debug";
+    let mut app = AppProcess::start_with_log(
+        &x.display,
+        &["--config", config_path.to_str().expect("utf8")],
+        runtime_log,
+    );
+    app.wait_frames(5);
+    let (conn, windows) = x_windows(&x.display);
+    let front = windows
+        .iter()
+        .find(|(_, p, _)| *p == WALLS[1].1)
+        .expect("front window")
+        .0;
+    // Stall the front wall's window: stretched past the largest surface, its clamped surface
+    // goes out of date frame after frame on Mesa's X11 swapchain and it misses presents while
+    // the others go on; then back to its size.
+    for (width, hold) in [(20_000, 2000), (WALL[0], 0)] {
+        conn.configure_window(front, &ConfigureWindowAux::new().width(width))
+            .unwrap();
+        conn.flush().unwrap();
+        std::thread::sleep(Duration::from_millis(hold));
+    }
+    let resyncs = |app: &AppProcess| {
+        app.log()
+            .lines()
+            .filter_map(|l| l.split("eye re-syncs ").nth(1))
+            .filter_map(|rest| rest.split_whitespace().next()?.parse::<u64>().ok())
+            .max()
+            .unwrap_or(0)
+    };
+    let start = Instant::now();
+    while resyncs(&app) == 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no re-sync:\n{}",
+            app.log()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let frames = app
+        .log()
+        .lines()
+        .filter_map(|l| l.split("| frames ").nth(1))
+        .filter_map(|rest| rest.split_whitespace().next()?.parse::<u64>().ok())
+        .max()
+        .unwrap_or(0);
+    app.wait_frames(frames + 5);
+    let log = app.quit();
+    // frame → (window, eye) of every present.
+    let mut by_frame: std::collections::BTreeMap<u64, Vec<(String, String)>> = Default::default();
+    let mut resynced_windows = Vec::new();
+    for line in log.lines() {
+        let Some(rest) = line.split("present window ").nth(1) else {
+            continue;
+        };
+        let mut words = rest.split_whitespace();
+        let window = words.next().expect("window").to_owned();
+        assert_eq!(words.next(), Some("frame"));
+        let frame: u64 = words.next().expect("n").parse().expect("frame number");
+        assert_eq!(words.next(), Some("eye"));
+        let eye = words.next().expect("eye").to_owned();
+        if rest.contains("(re-sync)") {
+            resynced_windows.push((window.clone(), frame));
+        }
+        by_frame.entry(frame).or_default().push((window, eye));
+    }
+    assert!(by_frame.len() > 10, "too few frames logged:\n{log}");
+    let mut all_three = 0;
+    for (frame, presents) in &by_frame {
+        let want = if frame % 2 == 0 { "left" } else { "right" };
+        for (window, eye) in presents {
+            assert_eq!(eye, want, "frame {frame}: {window} shows the {eye} eye");
+        }
+        all_three += usize::from(presents.len() == 3);
+    }
+    assert!(all_three > 10, "frames with all three windows: {all_three}");
+    // The stalled window was the one re-synced, and it presented again afterwards in phase.
+    assert!(
+        resynced_windows.iter().any(|(w, _)| w.contains("Wall(1)")),
+        "{resynced_windows:?}"
+    );
+    let (_, at) = resynced_windows[0];
+    assert!(
+        by_frame
+            .range(at + 1..)
+            .any(|(_, p)| p.iter().any(|(w, _)| w.contains("Wall(1)"))),
+        "the stalled window never presented again"
+    );
+    println!(
+        "{} frames logged, {all_three} with all three windows; re-syncs at {resynced_windows:?}",
+        by_frame.len()
+    );
 }

@@ -205,6 +205,8 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "params" => params,
                 "size" => size,
                 "viewport" => viewport,
+                "shift" => shift,
+                "crop" => crop,
             ),
         ),
         (

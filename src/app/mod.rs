@@ -107,6 +107,8 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         last_stats_log: Instant::now(),
         info,
         surface_recoveries: 0,
+        eye_frame: 0,
+        eye_resyncs: 0,
         tracking,
         gamepads,
     };
@@ -142,6 +144,11 @@ struct App {
     last_stats_log: Instant,
     info: PanelInfo,
     surface_recoveries: u64,
+    /// The frame counter every window's eye phase comes from (frame-sequential: left eye on
+    /// even frames), advanced once per frame.
+    eye_frame: u64,
+    /// Frame-sequential windows brought back into the shared eye phase after missing presents.
+    eye_resyncs: u64,
     tracking: Tracking,
     gamepads: Option<Gamepads>,
 }
@@ -169,7 +176,15 @@ impl App {
             AppMode::Preview => plans.push(Role::Preview),
             AppMode::Cave => {
                 for i in 0..config.cave.walls.len() {
-                    plans.push(Role::Wall(i));
+                    // A passive wall with a projector per eye: a window per eye, both showing
+                    // the eye images rendered once for the wall.
+                    let eyes = config.app.walls.get(i).map_or(0, |w| w.eye_outputs.len());
+                    if eyes == 0 {
+                        plans.push(Role::Wall(i));
+                    }
+                    for output in 0..eyes {
+                        plans.push(Role::WallEye { wall: i, output });
+                    }
                 }
                 if config.app.panel == PanelPlacement::Window {
                     plans.push(Role::Operator);
@@ -213,7 +228,7 @@ impl App {
                 windows.iter().position(|w| w.role == Role::Operator)
             }
             (AppMode::Cave, PanelPlacement::Overlay(wall)) => {
-                windows.iter().position(|w| w.role == Role::Wall(*wall))
+                windows.iter().position(|w| w.role.wall() == Some(*wall))
             }
             (AppMode::Cave, PanelPlacement::Hidden) => None,
         };
@@ -275,8 +290,11 @@ impl App {
             self.fail(event_loop, e);
             return;
         }
-        let (recovered, lost) = present_windows(gfx, &self.state, egui_frame);
-        self.surface_recoveries += recovered;
+        let presented = present_windows(gfx, &self.state, egui_frame, self.eye_frame);
+        self.eye_frame += 1;
+        let lost = presented.lost;
+        self.surface_recoveries += presented.recovered;
+        self.eye_resyncs += presented.resynced;
         if let Some(index) = lost {
             self.window_gone(
                 event_loop,
@@ -333,12 +351,15 @@ impl App {
         self.last_stats_log = Instant::now();
         tracing::info!(
             target: "omnicave::stats",
-            "stats: {} | frames {} | mode {} | windows {} | surface recoveries {}",
+            "stats: {} | frames {} | mode {} | windows {} | views {} | surface recoveries {} \
+             | eye re-syncs {}",
             self.clock.summary,
             self.clock.total_frames,
             self.state.settings.render.mode.name(),
             self.gfx.as_ref().map_or(0, |g| g.windows.len()),
-            self.surface_recoveries
+            self.gfx.as_ref().map_or(0, |g| g.renderer.last_views().len()),
+            self.surface_recoveries,
+            self.eye_resyncs
         );
         let t = &self.info.tracking;
         let head = self.state.head();
@@ -404,7 +425,7 @@ impl App {
             return;
         };
         let name = role.name(&self.state.config);
-        if !(matches!(role, Role::Wall(_)) && gfx.windows.len() > 1) {
+        if !(role.wall().is_some() && gfx.windows.len() > 1) {
             self.quit_now(event_loop, &format!("window {name} {how}"));
             return;
         }
@@ -582,22 +603,26 @@ fn present_windows(
     gfx: &mut Graphics,
     state: &AppState,
     egui_frame: Option<window::EguiFrame>,
-) -> (u64, Option<usize>) {
-    let mut recovered = 0;
-    let mut lost = None;
+    eye_frame: u64,
+) -> Presented {
+    let mut out = Presented::default();
     for (index, win) in gfx.windows.iter_mut().enumerate() {
         let egui = match (&mut gfx.egui, &egui_frame) {
             (Some(host), Some(frame)) if host.window_index == index => Some((host, frame)),
             _ => None,
         };
         let (gpu, renderer) = (&gfx.gpu, &gfx.renderer);
-        let drawn =
-            std::panic::catch_unwind(AssertUnwindSafe(|| win.draw(gpu, renderer, state, egui)));
+        let drawn = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            win.draw(gpu, renderer, state, egui, eye_frame)
+        }));
         match drawn {
-            Ok(Ok(r)) => recovered += u64::from(r),
+            Ok(Ok(r)) => {
+                out.recovered += u64::from(r.recovered);
+                out.resynced += u64::from(r.resynced);
+            }
             Ok(Err(e)) => tracing::warn!("{e}"),
             Err(_) => {
-                lost = Some(index);
+                out.lost = Some(index);
                 break;
             }
         }
@@ -605,7 +630,18 @@ fn present_windows(
     if let (Some(host), Some(frame)) = (gfx.egui.as_mut(), egui_frame) {
         host.free_textures(frame);
     }
-    (recovered, lost)
+    out
+}
+
+/// What presenting every window did.
+#[derive(Debug, Default)]
+struct Presented {
+    /// Surfaces recovered.
+    recovered: u64,
+    /// Frame-sequential windows brought back into the shared eye phase.
+    resynced: u64,
+    /// A window lost on the way (its window system calls panicked).
+    lost: Option<usize>,
 }
 
 /// The tessellator's counts of the newest frame read back, summed per wall (both eyes), into

@@ -409,10 +409,10 @@ fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     if info.cave_mode {
         let default = s.app.wall_output;
         for wall in &mut s.walls {
-            let mut format = wall.output.unwrap_or(default);
+            let mut format = wall.format().unwrap_or(default);
             format_combo(ui, &format!("output {}", wall.name), &mut format);
-            if format != wall.output.unwrap_or(default) {
-                wall.output = Some(format);
+            if format != wall.format().unwrap_or(default) {
+                wall.set_format(format);
             }
         }
     } else {

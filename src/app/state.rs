@@ -348,7 +348,7 @@ impl AppState {
     /// The output format of wall `index`'s window.
     pub fn wall_output(&self, index: usize) -> Option<StereoFormat> {
         let wall = self.settings.walls.get(index)?;
-        Some(wall.output.unwrap_or(self.settings.app.wall_output))
+        Some(wall.format().unwrap_or(self.settings.app.wall_output))
     }
 
     /// Where the CAVE stands in the scene: the configured placement moved by navigation.
@@ -420,7 +420,11 @@ impl AppState {
                 s.app.preview_output = next(&StereoFormat::ALL, s.app.preview_output, 1);
                 let default = s.app.wall_output;
                 for wall in &mut s.walls {
-                    wall.output = Some(next(&StereoFormat::ALL, wall.output.unwrap_or(default), 1));
+                    wall.set_format(next(
+                        &StereoFormat::ALL,
+                        wall.format().unwrap_or(default),
+                        1,
+                    ));
                 }
             }
             Action::SwapEyes => self.swap_eyes = !self.swap_eyes,

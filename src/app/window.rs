@@ -14,15 +14,19 @@ use super::panel::{self, PanelInfo};
 use super::state::AppState;
 use crate::cave::Eye;
 use crate::config::{Config, MonitorRef};
+use crate::output::formats::StereoFormat;
 use crate::render::Renderer;
 use crate::render::gpu::Gpu;
-use crate::render::present::{PresentBinding, PresentParams, PresentPass, Tile};
+use crate::render::present::{Crop, PresentBinding, PresentParams, PresentPass, Tile};
 
 /// What a window shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
     /// One wall's image in its output format (CAVE mode).
     Wall(usize),
+    /// One eye of a wall with a window per eye (`[[wall.output]]`): the wall and the output's
+    /// index among its eye outputs.
+    WallEye { wall: usize, output: usize },
     /// The control panel alone (CAVE mode's operator window).
     Operator,
     /// The walls unfolded side by side with the panel docked.
@@ -37,8 +41,25 @@ impl Role {
                 .walls
                 .get(i)
                 .map_or_else(|| format!("wall {i}"), |w| w.name.clone()),
+            Role::WallEye { wall, output } => {
+                let eye = config
+                    .app
+                    .walls
+                    .get(wall)
+                    .and_then(|w| w.eye_outputs.get(output))
+                    .map_or("eye", |o| o.eye.name());
+                format!("{}-{eye}", Role::Wall(wall).name(config))
+            }
             Role::Operator => "operator".into(),
             Role::Preview => "preview".into(),
+        }
+    }
+
+    /// The wall this window shows alone, if it shows one.
+    pub fn wall(self) -> Option<usize> {
+        match self {
+            Role::Wall(i) | Role::WallEye { wall: i, .. } => Some(i),
+            Role::Operator | Role::Preview => None,
         }
     }
 }
@@ -52,16 +73,21 @@ pub fn create_window(
     let name = role.name(config);
     let mut attrs = Window::default_attributes().with_title(format!("omnicave — {name}"));
     match role {
-        Role::Wall(i) => {
-            let placement = config.app.walls.get(i).ok_or_else(|| AppError::Window {
+        Role::Wall(_) | Role::WallEye { .. } => {
+            let missing = || AppError::Window {
                 name: name.clone(),
                 message: "no window settings for this wall".into(),
-            })?;
+            };
+            let wall = config.app.walls.get(role.wall().unwrap_or(usize::MAX));
+            let placement = match role {
+                Role::WallEye { output, .. } => wall
+                    .and_then(|w| w.eye_outputs.get(output))
+                    .map(|o| (o.monitor.as_ref(), o.size, o.position)),
+                _ => wall.map(|w| (w.monitor.as_ref(), w.size, w.position)),
+            };
+            let (monitor, size, position) = placement.ok_or_else(missing)?;
             attrs = attrs.with_decorations(false);
-            let monitor = placement
-                .monitor
-                .as_ref()
-                .and_then(|m| find_monitor(event_loop, m, &name));
+            let monitor = monitor.and_then(|m| find_monitor(event_loop, m, &name));
             match monitor {
                 Some(m) => {
                     tracing::info!(
@@ -71,9 +97,8 @@ pub fn create_window(
                     attrs = attrs.with_fullscreen(Some(Fullscreen::Borderless(Some(m))));
                 }
                 None => {
-                    attrs = attrs
-                        .with_inner_size(PhysicalSize::new(placement.size[0], placement.size[1]));
-                    if let Some([x, y]) = placement.position {
+                    attrs = attrs.with_inner_size(PhysicalSize::new(size[0], size[1]));
+                    if let Some([x, y]) = position {
                         attrs = attrs.with_position(PhysicalPosition::new(x, y));
                     }
                 }
@@ -139,9 +164,23 @@ pub struct OutputWindow {
     bound: Option<(u64, bool)>,
     /// The panorama's eye images, and the (panorama generation, stereo) they were bound for.
     pano_binding: Option<(PresentBinding, (u64, bool))>,
-    /// Frames presented (frame-sequential alternates eyes on this).
+    /// Frames presented.
     presented: u64,
+    /// The shared eye frame of this window's last present, and when it was.
+    last_present: Option<(u64, std::time::Instant)>,
+    /// Smoothed time between this window's presents, seconds (0: none yet).
+    present_interval: f64,
     background: wgpu::Color,
+}
+
+/// What drawing a window did besides presenting.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DrawOutcome {
+    /// The surface had to be recovered (the frame was skipped).
+    pub recovered: bool,
+    /// A frame-sequential window missed presents (it skipped frames, or its present came late
+    /// by its timing) and was brought back to the shared eye phase.
+    pub resynced: bool,
 }
 
 impl OutputWindow {
@@ -221,6 +260,8 @@ impl OutputWindow {
             bound: None,
             pano_binding: None,
             presented: 0,
+            last_present: None,
+            present_interval: 0.0,
             background,
         })
     }
@@ -272,7 +313,7 @@ impl OutputWindow {
             return;
         }
         let shown: Vec<usize> = match self.role {
-            Role::Wall(i) => vec![i],
+            Role::Wall(i) | Role::WallEye { wall: i, .. } => vec![i],
             Role::Preview => (0..walls).collect(),
             Role::Operator => Vec::new(),
         };
@@ -304,17 +345,25 @@ impl OutputWindow {
         }
     }
 
-    /// Composes and presents this window's frame; returns whether the surface had to be
-    /// recovered (the frame is then skipped, not an error).
+    /// Composes and presents this window's frame `eye_frame` (the frame counter every window
+    /// shares: frame-sequential outputs show the left eye on even frames, so all windows show
+    /// the same eye in a frame, whatever each one missed before).
     pub fn draw(
         &mut self,
         gpu: &Gpu,
         renderer: &Renderer,
         state: &AppState,
         egui: Option<(&mut EguiHost, &EguiFrame)>,
-    ) -> Result<bool, AppError> {
+        eye_frame: u64,
+    ) -> Result<DrawOutcome, AppError> {
+        let recovered = |r: bool| {
+            Ok(DrawOutcome {
+                recovered: r,
+                resynced: false,
+            })
+        };
         if !self.configured {
-            return Ok(false);
+            return recovered(false);
         }
         let present = renderer.present_pass();
         let walls = &state.cave().walls;
@@ -328,7 +377,7 @@ impl OutputWindow {
             wgpu::CurrentSurfaceTexture::Success(t) => (t, false),
             wgpu::CurrentSurfaceTexture::Suboptimal(t) => (t, true),
             wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
-                return Ok(false);
+                return recovered(false);
             }
             wgpu::CurrentSurfaceTexture::Outdated => {
                 let size = self.window.inner_size();
@@ -337,7 +386,7 @@ impl OutputWindow {
                 // some drivers (Mesa's X11 swapchain): expected while the clamp holds, so
                 // not counted as a recovery.
                 let clamped = clamp_surface_size(gpu, size.width, size.height);
-                return Ok(clamped == [size.width, size.height]);
+                return recovered(clamped == [size.width, size.height]);
             }
             wgpu::CurrentSurfaceTexture::Lost => {
                 // Recreate the surface on the same window (e.g. after a display change).
@@ -347,7 +396,7 @@ impl OutputWindow {
                         self.surface = surface;
                         let size = self.window.inner_size();
                         self.resize(gpu, size.width, size.height);
-                        return Ok(true);
+                        return recovered(true);
                     }
                     Err(e) => {
                         return Err(AppError::Surface {
@@ -372,7 +421,7 @@ impl OutputWindow {
         let [w, h] = self.size();
         let params = |format| PresentParams {
             format,
-            frame: self.presented,
+            frame: eye_frame,
             swap_eyes: state.swap_eyes,
         };
         let pano_binding = self
@@ -390,6 +439,30 @@ impl OutputWindow {
                         binding,
                         params: params(format),
                         rect: [0.0, 0.0, w as f32, h as f32],
+                        crop: None,
+                    });
+                }
+            }
+            Role::WallEye { wall, output } => {
+                let out = state
+                    .config
+                    .app
+                    .walls
+                    .get(wall)
+                    .and_then(|w| w.eye_outputs.get(output));
+                if let (Some(binding), Some(out)) = (self.bindings.first(), out) {
+                    let format = match out.eye {
+                        Eye::Left => StereoFormat::LeftOnly,
+                        Eye::Right => StereoFormat::RightOnly,
+                    };
+                    tiles.push(Tile {
+                        binding,
+                        params: params(format),
+                        rect: [0.0, 0.0, w as f32, h as f32],
+                        crop: Some(Crop {
+                            rect: out.crop,
+                            offset: out.offset,
+                        }),
                     });
                 }
             }
@@ -406,6 +479,7 @@ impl OutputWindow {
                         binding,
                         params: params(state.settings.app.preview_output),
                         rect: clamp_rect(fit(below, state.settings.panorama.size), [w, h]),
+                        crop: None,
                     });
                     area = [x, y, aw, 0.5 * ah];
                 }
@@ -415,6 +489,7 @@ impl OutputWindow {
                         binding,
                         params: params(state.settings.app.preview_output),
                         rect: clamp_rect(rect, [w, h]),
+                        crop: None,
                     });
                 }
             }
@@ -428,6 +503,7 @@ impl OutputWindow {
                         binding,
                         params: params(state.settings.app.preview_output),
                         rect: clamp_rect(fit(area, state.settings.panorama.size), [w, h]),
+                        crop: None,
                     });
                 }
             }
@@ -454,17 +530,59 @@ impl OutputWindow {
         self.window.pre_present_notify();
         gpu.queue.present(frame);
         self.presented += 1;
+        let resynced = self.note_present(eye_frame, tiles.first().map(|t| t.params.format));
         if suboptimal {
             let size = self.window.inner_size();
             // A surface clamped below its window's size is suboptimal by design: nothing to
             // recover while the clamp holds.
             let clamped = clamp_surface_size(gpu, size.width, size.height);
             if clamped != [size.width, size.height] && clamped == self.size() {
-                return Ok(false);
+                return Ok(DrawOutcome {
+                    recovered: false,
+                    resynced,
+                });
             }
             self.resize(gpu, size.width, size.height);
         }
-        Ok(suboptimal)
+        Ok(DrawOutcome {
+            recovered: suboptimal,
+            resynced,
+        })
+    }
+
+    /// Records a present of `eye_frame`: whether this frame-sequential window had fallen out of
+    /// step (it skipped frames the others presented, or this present came more than 1.8 times
+    /// its usual interval after the last: a stall the projector showed as a repeated eye). It
+    /// is back in phase with this present either way, as it takes its eye from the shared
+    /// counter.
+    fn note_present(&mut self, eye_frame: u64, format: Option<StereoFormat>) -> bool {
+        let now = std::time::Instant::now();
+        let sequential = format == Some(StereoFormat::FrameSequential);
+        let mut resynced = false;
+        if let Some((last, at)) = self.last_present {
+            let gap = now.saturating_duration_since(at).as_secs_f64();
+            let skipped = eye_frame > last + 1;
+            let late = self.present_interval > 0.0 && gap > 1.8 * self.present_interval;
+            resynced = sequential && (skipped || late);
+            if !skipped && !late {
+                self.present_interval = if self.present_interval == 0.0 {
+                    gap
+                } else {
+                    0.9 * self.present_interval + 0.1 * gap
+                };
+            }
+        }
+        if sequential {
+            tracing::debug!(
+                target: "omnicave::eye_phase",
+                "present window {:?} frame {eye_frame} eye {}{}",
+                self.role,
+                if eye_frame.is_multiple_of(2) { "left" } else { "right" },
+                if resynced { " (re-sync)" } else { "" }
+            );
+        }
+        self.last_present = Some((eye_frame, now));
+        resynced
     }
 }
 
@@ -617,7 +735,7 @@ impl EguiHost {
                     egui::CentralPanel::default_margins()
                         .show(ui, |ui| panel::panel_ui(ui, state, info));
                 }
-                Role::Wall(_) => {
+                Role::Wall(_) | Role::WallEye { .. } => {
                     if state.show_panel {
                         egui::Window::new("omnicave controls")
                             .default_width(340.0)

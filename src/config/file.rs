@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::wall_output::{EyeOutputSection, WallOutput};
 use crate::cave::RenderMode;
 use crate::cave::omni::{PoleMerge, WarpVariant};
 use crate::cave::placement::{LengthUnit, UpAxis};
@@ -773,9 +774,36 @@ pub struct WallSection {
     /// Window size (pixels) when no monitor is named or found; default: `resolution`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub window_size: Option<[u32; 2]>,
-    /// Stereo output format of this wall's window; default: `app.wall_output`.
+    /// Stereo output format of this wall's window (default: `app.wall_output`), or one
+    /// window per eye: `[[wall.output]]` tables with `eye = "left"` or `"right"` (a passive
+    /// wall with a projector per eye).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub output: Option<StereoFormat>,
+    pub output: Option<WallOutput>,
+}
+
+impl WallSection {
+    /// The stereo format of the wall's one window, if the file sets one.
+    pub fn format(&self) -> Option<StereoFormat> {
+        match &self.output {
+            Some(WallOutput::Format(f)) => Some(*f),
+            _ => None,
+        }
+    }
+
+    /// Sets the format of the wall's one window (a wall with a window per eye keeps them).
+    pub fn set_format(&mut self, format: StereoFormat) {
+        if !matches!(self.output, Some(WallOutput::PerEye(_))) {
+            self.output = Some(WallOutput::Format(format));
+        }
+    }
+
+    /// The windows per eye, if the wall has them.
+    pub fn eye_outputs(&self) -> &[EyeOutputSection] {
+        match &self.output {
+            Some(WallOutput::PerEye(o)) => o,
+            _ => &[],
+        }
+    }
 }
 
 /// The panorama view (wide field of view up to 360°): the operator's overview of everything

@@ -13,6 +13,7 @@ pub mod schema;
 mod spans;
 mod strict;
 mod validate;
+pub mod wall_output;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -67,6 +68,21 @@ pub struct WallWindow {
     pub position: Option<[i32; 2]>,
     pub size: [u32; 2],
     pub output: StereoFormat,
+    /// A window per eye instead of the one window (a passive wall with two projectors).
+    pub eye_outputs: Vec<EyeWindow>,
+}
+
+/// One eye's window of a wall (`[[wall.output]]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EyeWindow {
+    pub eye: crate::cave::Eye,
+    pub monitor: Option<MonitorRef>,
+    pub position: Option<[i32; 2]>,
+    pub size: [u32; 2],
+    /// x, y, width, height of the eye image shown (wall pixels).
+    pub crop: [u32; 4],
+    /// The image moves by this many pixels in the window (right, down).
+    pub offset: [i32; 2],
 }
 
 /// The validated `[app]` section and per-wall window settings.

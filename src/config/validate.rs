@@ -10,7 +10,9 @@ use glam::Vec3;
 
 use super::file::*;
 use super::spans;
-use super::{AppConfig, Config, ConfigError, PanelPlacement, TrackingConfig, WallWindow};
+use super::{
+    AppConfig, Config, ConfigError, EyeWindow, PanelPlacement, TrackingConfig, WallWindow,
+};
 use crate::cave::placement::{FileFrame, corners_from_axes, corners_from_centre, wall_rotation};
 use crate::cave::{Cave, Wall, left_of};
 use crate::gamepad::{GamepadAction, GamepadSettings, button_map};
@@ -518,12 +520,57 @@ impl ConfigFile {
                     &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
                 ));
             }
-            let output = w.output.unwrap_or(a.wall_output);
+            let output = w.format().unwrap_or(a.wall_output);
+            let mut eye_outputs = Vec::with_capacity(w.eye_outputs().len());
+            for (k, o) in w.eye_outputs().iter().enumerate() {
+                let field = |f: &str| format!("wall[{i}].output[{k}].{f}");
+                let [rw, rh] = w.resolution;
+                let crop = o.crop.unwrap_or([0, 0, rw, rh]);
+                let [cx, cy, cw, ch] = crop;
+                if cw == 0
+                    || ch == 0
+                    || u64::from(cx) + u64::from(cw) > u64::from(rw)
+                    || u64::from(cy) + u64::from(ch) > u64::from(rh)
+                {
+                    return Err(ck.fail(
+                        &field("crop"),
+                        crop,
+                        &format!("must be x, y, width, height inside the wall's {rw}×{rh} pixels"),
+                    ));
+                }
+                if o.offset.iter().any(|v| v.abs() > 4096) {
+                    return Err(ck.fail(&field("offset"), o.offset, "must be within ±4096 pixels"));
+                }
+                let size = o.window_size.unwrap_or([cw, ch]);
+                if !size.iter().all(|v| (1..=MAX_WALL_PIXELS).contains(v)) {
+                    return Err(ck.fail(
+                        &field("window_size"),
+                        size,
+                        &format!("both sides must be 1..={MAX_WALL_PIXELS} pixels"),
+                    ));
+                }
+                eye_outputs.push(EyeWindow {
+                    eye: o.eye.eye(),
+                    monitor: o.monitor.clone(),
+                    position: o.window_position,
+                    size,
+                    crop,
+                    offset: o.offset,
+                });
+            }
+            if w.output.is_some() && w.eye_outputs().is_empty() && w.format().is_none() {
+                return Err(ck.fail_text(
+                    &format!("wall[{i}].output"),
+                    "[]".into(),
+                    "has no [[wall.output]] tables: give one per eye, or a format",
+                ));
+            }
             walls.push(WallWindow {
                 monitor: w.monitor.clone(),
                 position: w.window_position,
                 size,
                 output,
+                eye_outputs,
             });
         }
         Ok(AppConfig {

@@ -19,6 +19,19 @@ pub struct PresentUniforms {
     pub size: [u32; 4],
     /// Tile origin (target pixels) and composed pixels per target pixel.
     pub viewport: [f32; 4],
+    /// Offset of the image (composed pixels) and the crop's top-left in the eye image.
+    pub shift: [i32; 4],
+    /// The crop's size, and 1 if crop and shift apply.
+    pub crop: [u32; 4],
+}
+
+/// A projector's alignment: the part of the eye image it shows and how far it is moved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Crop {
+    /// x, y, width, height in eye-image pixels.
+    pub rect: [u32; 4],
+    /// Right and down, in eye-image pixels.
+    pub offset: [i32; 2],
 }
 
 /// What one composed frame shows.
@@ -38,6 +51,8 @@ pub struct Tile<'a> {
     pub params: PresentParams,
     /// x, y, width, height in target pixels.
     pub rect: [f32; 4],
+    /// Crop and offset (single-eye formats; the composed image is the crop's size).
+    pub crop: Option<Crop>,
 }
 
 /// One pair of eye images bound for composing (made when the eye textures change, not per
@@ -202,6 +217,7 @@ impl PresentPass {
             binding,
             params,
             rect: [0.0, 0.0, w as f32, h as f32],
+            crop: None,
         };
         self.encode_tiles(
             queue,
@@ -231,8 +247,23 @@ impl PresentPass {
         };
         for tile in tiles {
             let [w, h] = tile.binding.eye_size;
-            let [out_w, out_h] = tile.params.format.output_size([w, h]);
+            let [out_w, out_h] = match tile.crop {
+                Some(c) => [c.rect[2], c.rect[3]],
+                None => tile.params.format.output_size([w, h]),
+            };
             let [x, y, tw, th] = tile.rect;
+            let (shift, crop) = match tile.crop {
+                Some(c) => (
+                    [
+                        c.offset[0],
+                        c.offset[1],
+                        c.rect[0].min(i32::MAX as u32) as i32,
+                        c.rect[1].min(i32::MAX as u32) as i32,
+                    ],
+                    [c.rect[2], c.rect[3], 1, 0],
+                ),
+                None => ([0; 4], [0; 4]),
+            };
             let uniforms = PresentUniforms {
                 params: [
                     tile.params.format.code(),
@@ -242,6 +273,8 @@ impl PresentPass {
                 ],
                 size: [w, h, u32::from(!target_format.is_srgb()), 0],
                 viewport: [x, y, out_w as f32 / tw.max(1.0), out_h as f32 / th.max(1.0)],
+                shift,
+                crop,
             };
             queue.write_buffer(&tile.binding.uniforms, 0, bytemuck::bytes_of(&uniforms));
         }
