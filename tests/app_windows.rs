@@ -1243,3 +1243,126 @@ fn frame_sequential_windows_share_one_eye_phase_even_after_a_stall() {
         by_frame.len()
     );
 }
+
+/// The head pose and orientation (x, y, z, w) from a stats line, with the mode and the count
+/// of tracked-button actions.
+fn tracked_pose(line: &str) -> Option<(glam::Vec3, glam::Quat, u64)> {
+    let rest = line.split("tracking: tracking, ").nth(1)?;
+    let numbers = |text: &str| -> Vec<f32> {
+        text.split(", ")
+            .filter_map(|c| c.trim().parse().ok())
+            .collect()
+    };
+    let p = numbers(rest.split("head (").nth(1)?.split(") m").next()?);
+    let q = numbers(rest.split("orientation xyzw (").nth(1)?.split(')').next()?);
+    let actions = rest
+        .split(" button actions")
+        .next()?
+        .rsplit(", ")
+        .next()?
+        .parse()
+        .ok()?;
+    (p.len() == 3 && q.len() == 4).then(|| {
+        (
+            glam::Vec3::new(p[0], p[1], p[2]),
+            glam::Quat::from_xyzw(q[0], q[1], q[2], q[3]),
+            actions,
+        )
+    })
+}
+
+/// Issue 19: `omnicave run` in the preview, tracked by the real VRPN server (built from
+/// ../shared/peers), whose DTrack driver we feed: the head follows the pose the server reports
+/// through the calibration (1 mm, 0.1°), and a flystick button press triggers its action.
+#[test]
+fn the_preview_follows_a_vrpn_tracked_head_and_a_button_press() {
+    use common::vrpn_peer::{VrpnServer, dtrack_frame, free_port, server_binary};
+    let Some(binary) = server_binary() else {
+        return;
+    };
+    let server = VrpnServer::start(&binary, free_port());
+    let out = out_dir();
+    let desktop = std::fs::read_to_string(repo().join("config/desktop.toml")).expect("config");
+    let text = desktop.replace(
+        "\"../assets/",
+        &format!("\"{}/", repo().join("assets").display()),
+    ) + &format!(
+        r#"
+[tracking]
+enabled = true
+source = "vrpn"
+timeout_seconds = 5.0
+
+[tracking.vrpn]
+head = "DTrack@127.0.0.1:{port}"
+buttons = "DTrack@127.0.0.1:{port}"
+retry_seconds = 0.2
+
+[tracking.calibration]
+axes = ["x", "z", "-y"]
+rotation_degrees = [90.0, 0.0, 0.0]
+offset = [0.1, 0.0, -0.2]
+
+[tracking.filter]
+enabled = false
+"#,
+        port = server.port
+    );
+    let config_path = out.join("vrpn-preview.toml");
+    std::fs::write(&config_path, text).expect("write");
+    // DTrack frames at 60 Hz in the background: the head at (400, 300, 1600) mm in the z-up
+    // room, turned 30° about z; the trigger held while `press` is set.
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let q = glam::DQuat::from_rotation_z(30f64.to_radians());
+    let m = glam::DMat3::from_quat(q).to_cols_array();
+    let stop = Arc::new(AtomicBool::new(false));
+    let press = Arc::new(AtomicBool::new(false));
+    let feeder = {
+        let (stop, press) = (stop.clone(), press.clone());
+        let dtrack_port = server.dtrack_port;
+        std::thread::spawn(move || {
+            let socket = std::net::UdpSocket::bind("127.0.0.1:0").expect("udp");
+            let mut n = 0u64;
+            while !stop.load(Ordering::Acquire) {
+                n += 1;
+                let buttons = u32::from(press.load(Ordering::Acquire));
+                let frame = dtrack_frame(n, [400.0, 300.0, 1600.0], m, [0.0; 3], buttons, [0.0; 2]);
+                let _ = socket.send_to(frame.as_bytes(), ("127.0.0.1", dtrack_port));
+                std::thread::sleep(Duration::from_millis(16));
+            }
+        })
+    };
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let mut app = AppProcess::start(
+        &x.display,
+        &["--config", config_path.to_str().expect("utf8")],
+    );
+    // Hand-worked as in tests/lab_tracking.rs: (−0.2, 1.6, −0.6) m, yaw 30° + 90°.
+    let want = glam::Vec3::new(-0.2, 1.6, -0.6);
+    let (head, orientation, actions) =
+        app.wait_for_line("the tracked head", Duration::from_secs(120), tracked_pose);
+    assert_eq!(actions, 0, "no button pressed yet");
+    let forward = orientation * glam::Vec3::NEG_Z;
+    let yaw = (-forward.x).atan2(-forward.z).to_degrees();
+    let error_mm = (head - want).length() * 1e3;
+    println!("preview head {head} ({error_mm:.3} mm off), yaw {yaw:.4}°");
+    // The stats line prints 0.1 mm and 1e-5 of a quaternion: well inside 1 mm and 0.1°.
+    assert!(error_mm < 1.0, "head {head}, want {want}");
+    assert!((yaw - 120.0).abs() < 0.1, "yaw {yaw}");
+    // Press the trigger for half a second.
+    press.store(true, Ordering::Release);
+    std::thread::sleep(Duration::from_millis(500));
+    press.store(false, Ordering::Release);
+    app.wait_for_line("the button's action", Duration::from_secs(120), |l| {
+        l.contains("tracked button 0: next-render-mode")
+            .then_some(())
+    });
+    app.wait_for_line("the action counted", Duration::from_secs(60), |l| {
+        tracked_pose(l).filter(|(_, _, actions)| *actions >= 1)
+    });
+    stop.store(true, Ordering::Release);
+    let _ = feeder.join();
+    let log = app.quit();
+    assert!(log.contains("VRPN 127.0.0.1:"), "{log}");
+}
