@@ -42,6 +42,7 @@ pub enum GamepadAction {
     SpeedDown,
     TogglePanel,
     ToggleTracking,
+    Screenshot,
 }
 
 crate::named_enum!(GamepadAction {
@@ -62,6 +63,7 @@ crate::named_enum!(GamepadAction {
     Self::SpeedDown => "speed-down",
     Self::TogglePanel => "toggle-panel",
     Self::ToggleTracking => "toggle-tracking",
+    Self::Screenshot => "screenshot",
 });
 
 /// Button names in the config: the Xbox labels (and gilrs's own names).

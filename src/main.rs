@@ -32,6 +32,9 @@ struct Cli {
     /// Without a command: the bundled scene in the desktop preview (`run --preview`).
     #[command(subcommand)]
     command: Option<Command>,
+    /// Also write the log to FILE (appended, without colours), for a CAVE's unattended runs.
+    #[arg(long, global = true, value_name = "FILE")]
+    log_file: Option<PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -46,6 +49,9 @@ enum Command {
     /// Send a moving head over OSC (circle, figure eight or a recorded path), as a tracker
     /// would: to test head tracking without one.
     TrackSim(TrackSimArgs),
+    /// List the monitors `[[wall]] monitor` can name (its index or its name), with their
+    /// sizes, positions and refresh rates.
+    Monitors,
     /// Print a shell completion script (e.g. `omnicave completions bash > omnicave.bash`).
     Completions {
         /// The shell to complete in.
@@ -503,19 +509,6 @@ fn main() -> ExitCode {
     // First: a SIGTERM while the scene loads must not kill the process by signal.
     let signal_handler =
         omnicave::signals::install(omnicave::signals::command_polls(std::env::args()));
-    // Log lines go through the progress bars' layer, so they print above a bar, not inside it.
-    let bars = tracing_indicatif::IndicatifLayer::new();
-    tracing_subscriber::registry()
-        .with(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "info,wgpu_core=warn,wgpu_hal=warn,naga=warn".into()),
-        )
-        .with(tracing_subscriber::fmt::layer().with_writer(bars.get_stderr_writer()))
-        .with(bars.with_span_field_formatter(tracing_subscriber::fmt::format::DefaultFields::new()))
-        .init();
-    if let Err(e) = signal_handler {
-        tracing::warn!("no signal handler ({e}): SIGTERM ends the process at once");
-    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
@@ -530,6 +523,38 @@ fn main() -> ExitCode {
             return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
         }
     };
+    let log_file = match &cli.log_file {
+        None => None,
+        Some(path) => match std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+        {
+            Ok(file) => Some(std::sync::Mutex::new(file)),
+            Err(e) => {
+                eprintln!("error: cannot open the log file {}: {e}", path.display());
+                return ExitCode::FAILURE;
+            }
+        },
+    };
+    // Log lines go through the progress bars' layer, so they print above a bar, not inside it.
+    let bars = tracing_indicatif::IndicatifLayer::new();
+    tracing_subscriber::registry()
+        .with(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "info,wgpu_core=warn,wgpu_hal=warn,naga=warn".into()),
+        )
+        .with(tracing_subscriber::fmt::layer().with_writer(bars.get_stderr_writer()))
+        .with(log_file.map(|file| {
+            tracing_subscriber::fmt::layer()
+                .with_ansi(false)
+                .with_writer(file)
+        }))
+        .with(bars.with_span_field_formatter(tracing_subscriber::fmt::format::DefaultFields::new()))
+        .init();
+    if let Err(e) = signal_handler {
+        tracing::warn!("no signal handler ({e}): SIGTERM ends the process at once");
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -718,6 +743,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::TrackSim(args) => track_sim(args),
+        Command::Monitors => {
+            let monitors = omnicave::app::monitors::list_monitors()?;
+            let mut text = String::new();
+            for m in &monitors {
+                text.push_str(&format!("{m}\n"));
+            }
+            if monitors.is_empty() {
+                text.push_str("no monitors\n");
+            }
+            write_stdout(text.as_bytes())
+        }
         Command::Completions { shell } => {
             // Into memory first: clap_complete panics on a failed write (a closed pipe).
             let mut script = Vec::new();

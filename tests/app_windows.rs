@@ -167,6 +167,11 @@ impl AppProcess {
 
     /// Starts it with `RUST_LOG` set to `filter`.
     fn start_with_log(display: &str, args: &[&str], filter: &str) -> AppProcess {
+        Self::start_in(display, args, filter, &repo())
+    }
+
+    /// Starts it in the folder `cwd`, with `RUST_LOG` set to `filter`.
+    fn start_in(display: &str, args: &[&str], filter: &str, cwd: &Path) -> AppProcess {
         let runtime = std::env::temp_dir().join("omnicave-xdg");
         std::fs::create_dir_all(&runtime).expect("runtime dir");
         #[cfg(unix)]
@@ -181,6 +186,7 @@ impl AppProcess {
             .args(["--stats-every", "0.5"])
             .env("DISPLAY", display)
             .env("XDG_RUNTIME_DIR", &runtime)
+            .current_dir(cwd)
             .env("RUST_LOG", filter)
             .env("NO_COLOR", "1")
             .env_remove("WAYLAND_DISPLAY")
@@ -1365,4 +1371,86 @@ enabled = false
     let _ = feeder.join();
     let log = app.quit();
     assert!(log.contains("VRPN 127.0.0.1:"), "{log}");
+}
+
+/// Issue 19: F12 writes every wall's eye images and the settings beside them. The key comes
+/// from another X client (XTEST), as a keyboard would send it.
+#[test]
+fn f12_writes_every_walls_eye_images_and_the_settings() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{ConnectionExt, InputFocus};
+    use x11rb::protocol::xtest::ConnectionExt as _;
+    let out = out_dir();
+    let config_path = write_config(&out, "shot-base.toml");
+    let text = std::fs::read_to_string(&config_path)
+        .expect("config")
+        .replace("mode = \"cave\"", "mode = \"preview\"");
+    let config_path = out.join("shot-test.toml");
+    std::fs::write(&config_path, text).expect("write");
+    let cwd = out.join("shot-cwd");
+    let _ = std::fs::remove_dir_all(&cwd);
+    std::fs::create_dir_all(&cwd).expect("cwd");
+    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start();
+    let mut app = AppProcess::start_in(
+        &x.display,
+        &["--config", config_path.to_str().expect("utf8")],
+        "info",
+        &cwd,
+    );
+    app.wait_frames(3);
+    let (conn, windows) = x_windows(&x.display);
+    let preview = windows.first().expect("the preview window").0;
+    conn.set_input_focus(InputFocus::PARENT, preview, x11rb::CURRENT_TIME)
+        .unwrap();
+    // The keycode of F12 (keysym 0xffc9) in the server's keymap.
+    let setup = conn.setup();
+    let (min, max) = (setup.min_keycode, setup.max_keycode);
+    let map = conn
+        .get_keyboard_mapping(min, max - min + 1)
+        .unwrap()
+        .reply()
+        .unwrap();
+    let per = usize::from(map.keysyms_per_keycode);
+    let index = map
+        .keysyms
+        .iter()
+        .position(|&k| k == 0xffc9)
+        .expect("F12 in the keymap");
+    let f12 = min + (index / per) as u8;
+    for press in [2u8, 3] {
+        // KeyPress, KeyRelease.
+        conn.xtest_fake_input(press, f12, x11rb::CURRENT_TIME, preview, 0, 0, 0)
+            .unwrap();
+        conn.flush().unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let dir = app.wait_for_line("the screenshot", Duration::from_secs(120), |l| {
+        l.split("screenshot written to ").nth(1).map(str::to_owned)
+    });
+    let log = app.quit();
+    let dir = cwd.join(dir.trim());
+    let config = Config::load(&config_path).expect("config");
+    for wall in &config.cave.walls {
+        for eye in ["left", "right"] {
+            let path = dir.join(format!("{}-{eye}.png", wall.name));
+            let img = image::open(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}\n{log}", path.display()))
+                .to_rgba8();
+            assert_eq!(
+                [img.width(), img.height()],
+                wall.resolution,
+                "{}",
+                path.display()
+            );
+            assert!(
+                img.pixels().any(|p| p.0[..3] != [0, 0, 0]),
+                "{} is black",
+                path.display()
+            );
+        }
+    }
+    // The settings side file loads back as a config with the same walls.
+    let saved = Config::load(&dir.join("settings.toml")).expect("settings.toml loads");
+    assert_eq!(saved.cave.walls.len(), config.cave.walls.len());
 }

@@ -268,5 +268,6 @@ pub fn app_action(action: GamepadAction) -> Action {
         GamepadAction::SpeedDown => Action::ScaleNavigationSpeed(1.0 / SPEED_STEP),
         GamepadAction::TogglePanel => Action::TogglePanel,
         GamepadAction::ToggleTracking => Action::ToggleTracking,
+        GamepadAction::Screenshot => Action::Screenshot,
     }
 }

@@ -47,6 +47,10 @@ pub const KEY_MAP: &[(&str, &str)] = &[
         "Ctrl+S",
         "save the settings to the save path shown in the panel",
     ),
+    (
+        "F12",
+        "screenshot: every wall's eye images and the settings, to screenshots/",
+    ),
 ];
 
 /// The action of a key press, if it has one (`shift`/`ctrl`: modifier state).
@@ -54,6 +58,7 @@ pub fn action_for_key(key: KeyCode, shift: bool, ctrl: bool) -> Option<Action> {
     let head = |x: f32, y: f32, z: f32| Some(Action::MoveHead(Vec3::new(x, y, z) * HEAD_STEP_M));
     match key {
         KeyCode::F1 => Some(Action::ToggleHelp),
+        KeyCode::F12 => Some(Action::Screenshot),
         KeyCode::Escape => Some(Action::Quit),
         KeyCode::Tab => Some(Action::TogglePanel),
         KeyCode::Digit1 => Some(Action::SetMode(RenderMode::Mono)),

@@ -4,6 +4,7 @@
 pub mod devices;
 mod error;
 pub mod keys;
+pub mod monitors;
 pub mod panel;
 pub mod state;
 pub mod stats;
@@ -289,6 +290,19 @@ impl App {
         if let Err(e) = render_views(gfx, &mut self.state, &mut self.info) {
             self.fail(event_loop, e);
             return;
+        }
+        if self.state.screenshot_requested {
+            self.state.screenshot_requested = false;
+            self.info.save_message = Some(match screenshot(gfx, &self.state, self.eye_frame) {
+                Ok(dir) => {
+                    tracing::info!("screenshot written to {}", dir.display());
+                    format!("screenshot in {}", dir.display())
+                }
+                Err(e) => {
+                    tracing::error!("screenshot: {e}");
+                    format!("screenshot failed: {e}")
+                }
+            });
         }
         let presented = present_windows(gfx, &self.state, egui_frame, self.eye_frame);
         self.eye_frame += 1;
@@ -631,6 +645,42 @@ fn present_windows(
         host.free_textures(frame);
     }
     out
+}
+
+/// Where screenshots go (a folder per shot, named by time and frame).
+const SCREENSHOT_DIR: &str = "screenshots";
+
+/// Writes every wall's eye images as PNG (`<wall>-left.png`, `<wall>-right.png`) and the
+/// settings they were rendered with (`settings.toml`, loadable as a config) to a new folder.
+/// Reads the images back once, on request: never in the frame loop otherwise.
+fn screenshot(gfx: &Graphics, state: &AppState, frame: u64) -> Result<PathBuf, String> {
+    let seconds = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let dir = PathBuf::from(SCREENSHOT_DIR).join(format!("shot-{seconds}-frame{frame}"));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let mut textures = Vec::new();
+    let mut names = Vec::new();
+    for (i, wall) in state.cave().walls.iter().enumerate() {
+        for eye in crate::cave::Eye::BOTH {
+            if let Some(t) = gfx.renderer.eye_texture(i, eye) {
+                textures.push(t);
+                names.push(format!("{}-{}.png", wall.name, eye.name()));
+            }
+        }
+    }
+    let images = crate::render::targets::read_textures(&gfx.gpu.device, &gfx.gpu.queue, &textures)
+        .map_err(|e| e.to_string())?;
+    for (image, name) in images.iter().zip(&names) {
+        let path = dir.join(name);
+        image
+            .save(&path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
+    state
+        .save(&dir.join("settings.toml"))
+        .map_err(|e| e.to_string())?;
+    Ok(dir)
 }
 
 /// What presenting every window did.

@@ -110,6 +110,8 @@ pub enum Action {
     ToggleHelp,
     TogglePanel,
     Save,
+    /// Write every wall's eye images and the settings to the screenshot folder.
+    Screenshot,
     Quit,
 }
 
@@ -134,6 +136,8 @@ pub struct AppState {
     pub show_panel: bool,
     pub quit_requested: bool,
     pub save_requested: bool,
+    /// A screenshot was asked for (taken after this frame is rendered).
+    pub screenshot_requested: bool,
     /// Where "save" writes.
     pub save_path: PathBuf,
     /// Width (x), height (y) and depth (z) of the walls' bounding box, metres.
@@ -176,6 +180,7 @@ impl AppState {
             show_panel: true,
             quit_requested: false,
             save_requested: false,
+            screenshot_requested: false,
             save_path: default_save_path(&config.source),
             cave_size: base_size,
             base_cave: config.cave.clone(),
@@ -456,6 +461,7 @@ impl AppState {
             Action::ToggleHelp => self.show_help = !self.show_help,
             Action::TogglePanel => self.show_panel = !self.show_panel,
             Action::Save => self.save_requested = true,
+            Action::Screenshot => self.screenshot_requested = true,
             Action::Quit => self.quit_requested = true,
         }
     }
