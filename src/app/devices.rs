@@ -71,7 +71,7 @@ impl Tracking {
             return;
         }
         if !self.was_on && self.receiver.is_none() {
-            match TrackingSource::start(&self.config.source) {
+            match TrackingSource::start(&self.config.source, &self.config.receiver) {
                 Ok(r) => {
                     self.receiver = Some(r);
                     self.error = None;

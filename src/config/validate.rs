@@ -370,20 +370,9 @@ impl ConfigFile {
         };
         Ok(TrackingConfig {
             enabled: t.enabled,
-            source: source.unwrap_or_else(|| SourceSettings::Osc(receiver.clone())),
+            source: source.unwrap_or(SourceSettings::Osc),
             buttons,
-            receiver: ReceiverSettings {
-                listen: receiver.listen,
-                allowed_senders: receiver.allowed_senders,
-                mapping: OscMapping {
-                    position_address: t.position_address.clone(),
-                    orientation_address: t.orientation_address.clone(),
-                    euler_address: t.euler_address.clone(),
-                    quaternion_order: t.quaternion_order,
-                    natnet_address: t.natnet_address.clone(),
-                    natnet_rigid_body: t.natnet_rigid_body,
-                },
-            },
+            receiver,
             settings: TrackingSettings {
                 calibration: Calibration {
                     remap,

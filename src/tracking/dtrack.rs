@@ -3,19 +3,16 @@
 //! flysticks with buttons and joystick; every other line is ignored), and the receiver thread
 //! that turns them into head, wand and button updates on the same [`TrackerFeed`] as OSC.
 
-use std::net::{IpAddr, SocketAddr, UdpSocket};
-use std::panic::AssertUnwindSafe;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::net::{IpAddr, SocketAddr};
+use std::time::Instant;
 
 use glam::{DMat3, DQuat, Quat, Vec3};
 
 use super::TrackingError;
 use super::osc::MAX_ABS_NUMBER;
 use super::receiver::{
-    Fate, LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerFeed, TrackerSample, held_back,
+    Fate, LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerFeed, TrackerSample, UdpThread,
+    held_back,
 };
 
 /// The UDP port DTrack sends to unless configured otherwise (the manuals' examples use 5000).
@@ -25,9 +22,6 @@ pub const MAX_TARGETS: usize = 1024;
 /// Budget: buttons and controllers of one flystick (a Flystick3 has 4 buttons and 2 axes).
 pub const MAX_FLYSTICK_BUTTONS: usize = 256;
 pub const MAX_FLYSTICK_CONTROLLERS: usize = 32;
-/// Largest UDP payload read.
-const MAX_DATAGRAM: usize = 65_536;
-const POLL: Duration = Duration::from_millis(50);
 
 /// A 6DOF body (`6d`) or flystick (`6df2`) as DTrack sends it, in DTrack's room frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -381,86 +375,34 @@ fn empty_target() -> Target {
     }
 }
 
-/// A running DTrack receiver: a UDP socket and its thread.
+/// A running DTrack receiver: its socket's thread and the feed.
 #[derive(Debug)]
 pub struct DTrackReceiver {
     feed: TrackerFeed,
-    local_addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    udp: UdpThread,
 }
 
 impl DTrackReceiver {
     pub fn start(settings: &DTrackSettings) -> Result<Self, TrackingError> {
-        let bind = |source| TrackingError::Bind {
-            address: settings.listen,
-            source,
-        };
-        let socket = UdpSocket::bind(settings.listen).map_err(bind)?;
-        let local_addr = socket.local_addr().map_err(bind)?;
-        socket.set_read_timeout(Some(POLL)).map_err(bind)?;
         let mut sink = FrameSink::new(settings.clone());
         let feed = sink.feed();
-        let stop = Arc::new(AtomicBool::new(false));
-        let thread_stop = stop.clone();
-        let thread = std::thread::Builder::new()
-            .name("dtrack-receiver".into())
-            .spawn(move || {
-                let mut buf = vec![0u8; MAX_DATAGRAM];
-                let mut error_log = LogLimiter::default();
-                while !thread_stop.load(Ordering::Acquire) {
-                    match socket.recv_from(&mut buf) {
-                        Ok((n, from)) => {
-                            let arrived = Instant::now();
-                            let handled = std::panic::catch_unwind(AssertUnwindSafe(|| {
-                                sink.handle(&buf[..n], from, arrived);
-                            }));
-                            if handled.is_err() {
-                                tracing::error!("DTrack: a frame from {from} could not be handled");
-                            }
-                        }
-                        Err(e)
-                            if matches!(
-                                e.kind(),
-                                std::io::ErrorKind::WouldBlock
-                                    | std::io::ErrorKind::TimedOut
-                                    | std::io::ErrorKind::Interrupted
-                            ) => {}
-                        Err(e) => {
-                            sink.feed.count_socket_error();
-                            if let Some(held) = error_log.allow(Instant::now(), LOG_INTERVAL) {
-                                tracing::warn!("DTrack: socket error: {e}{}", held_back(held));
-                            }
-                            std::thread::sleep(Duration::from_millis(10));
-                        }
-                    }
-                }
-            })
-            .map_err(|source| TrackingError::Thread { source })?;
-        tracing::info!("DTrack tracking: listening on {local_addr}");
-        Ok(Self {
-            feed,
-            local_addr,
-            stop,
-            thread: Some(thread),
-        })
+        let udp = UdpThread::start(
+            "dtrack-receiver",
+            "DTrack",
+            settings.listen,
+            feed.clone(),
+            move |bytes, from, arrived| sink.handle(bytes, from, arrived),
+        )?;
+        tracing::info!("DTrack tracking: listening on {}", udp.local_addr());
+        Ok(Self { feed, udp })
     }
 
     pub fn local_addr(&self) -> SocketAddr {
-        self.local_addr
+        self.udp.local_addr()
     }
 
     pub fn feed(&self) -> &TrackerFeed {
         &self.feed
-    }
-}
-
-impl Drop for DTrackReceiver {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Release);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 

@@ -419,43 +419,74 @@ pub fn held_back(n: u64) -> String {
     }
 }
 
-/// A running receiver: a socket, its thread, and the feed the render loop reads.
+/// A UDP socket read on its own thread until dropped (the OSC and DTrack receivers): every
+/// datagram goes to a handler with its sender and arrival time; socket errors are counted on
+/// the feed and logged at most once per [`LOG_INTERVAL`].
 #[derive(Debug)]
-pub struct OscReceiver {
-    feed: TrackerFeed,
+pub struct UdpThread {
     local_addr: SocketAddr,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
 }
 
-impl OscReceiver {
-    /// Binds the socket and starts the thread.
-    pub fn start(settings: &ReceiverSettings) -> Result<Self, TrackingError> {
-        let socket = UdpSocket::bind(settings.listen).map_err(|source| TrackingError::Bind {
-            address: settings.listen,
+impl UdpThread {
+    /// Binds `listen` and starts the thread `name`; `what` names the source in log lines.
+    pub fn start(
+        name: &str,
+        what: &'static str,
+        listen: SocketAddr,
+        feed: TrackerFeed,
+        mut handle: impl FnMut(&[u8], SocketAddr, Instant) + Send + 'static,
+    ) -> Result<Self, TrackingError> {
+        let bind = |source| TrackingError::Bind {
+            address: listen,
             source,
-        })?;
-        let local_addr = socket.local_addr().map_err(|source| TrackingError::Bind {
-            address: settings.listen,
-            source,
-        })?;
-        socket
-            .set_read_timeout(Some(POLL))
-            .map_err(|source| TrackingError::Bind {
-                address: settings.listen,
-                source,
-            })?;
-        let mut sink = PacketSink::new(settings);
-        let feed = sink.feed();
+        };
+        let socket = UdpSocket::bind(listen).map_err(bind)?;
+        let local_addr = socket.local_addr().map_err(bind)?;
+        socket.set_read_timeout(Some(POLL)).map_err(bind)?;
         let stop = Arc::new(AtomicBool::new(false));
         let thread_stop = stop.clone();
         let thread = std::thread::Builder::new()
-            .name("osc-receiver".into())
-            .spawn(move || receive_loop(&socket, &mut sink, &thread_stop))
+            .name(name.into())
+            .spawn(move || {
+                let mut buf = vec![0u8; MAX_DATAGRAM];
+                let mut error_log = LogLimiter::default();
+                while !thread_stop.load(Ordering::Acquire) {
+                    match socket.recv_from(&mut buf) {
+                        Ok((n, from)) => {
+                            let arrived = Instant::now();
+                            // The handlers catch their decoders' panics themselves; this
+                            // second net keeps the thread alive should anything else panic.
+                            let handled = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                                handle(&buf[..n], from, arrived);
+                            }));
+                            if handled.is_err() {
+                                tracing::error!(
+                                    "{what}: a packet from {from} could not be handled (panic)"
+                                );
+                            }
+                        }
+                        Err(e)
+                            if matches!(
+                                e.kind(),
+                                std::io::ErrorKind::WouldBlock
+                                    | std::io::ErrorKind::TimedOut
+                                    | std::io::ErrorKind::Interrupted
+                            ) => {}
+                        Err(e) => {
+                            feed.count_socket_error();
+                            if let Some(held) = error_log.allow(Instant::now(), LOG_INTERVAL) {
+                                tracing::warn!("{what}: socket error: {e}{}", held_back(held));
+                            }
+                            // Do not spin on a persistent error.
+                            std::thread::sleep(Duration::from_millis(10));
+                        }
+                    }
+                }
+            })
             .map_err(|source| TrackingError::Thread { source })?;
-        tracing::info!("OSC head tracking: listening on {local_addr}");
         Ok(Self {
-            feed,
             local_addr,
             stop,
             thread: Some(thread),
@@ -466,13 +497,9 @@ impl OscReceiver {
     pub fn local_addr(&self) -> SocketAddr {
         self.local_addr
     }
-
-    pub fn feed(&self) -> &TrackerFeed {
-        &self.feed
-    }
 }
 
-impl Drop for OscReceiver {
+impl Drop for UdpThread {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Release);
         if let Some(t) = self.thread.take() {
@@ -482,41 +509,35 @@ impl Drop for OscReceiver {
     }
 }
 
-fn receive_loop(socket: &UdpSocket, sink: &mut PacketSink, stop: &AtomicBool) {
-    let mut buf = vec![0u8; MAX_DATAGRAM];
-    let mut error_log = LogLimiter::default();
-    while !stop.load(Ordering::Acquire) {
-        match socket.recv_from(&mut buf) {
-            Ok((n, from)) => {
-                let arrived = Instant::now();
-                // `handle` catches decoder panics itself; this second net keeps the thread
-                // alive should anything else in it ever panic.
-                let handled = std::panic::catch_unwind(AssertUnwindSafe(|| {
-                    sink.handle(&buf[..n], from, arrived);
-                }));
-                if handled.is_err() {
-                    tracing::error!("OSC: a packet from {from} could not be handled (panic)");
-                }
-            }
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock
-                        | std::io::ErrorKind::TimedOut
-                        | std::io::ErrorKind::Interrupted
-                ) => {}
-            Err(e) => {
-                sink.feed
-                    .shared
-                    .counters
-                    .socket_errors
-                    .fetch_add(1, Ordering::AcqRel);
-                if let Some(held) = error_log.allow(Instant::now(), LOG_INTERVAL) {
-                    tracing::warn!("OSC: socket error: {e}{}", held_back(held));
-                }
-                // Do not spin on a persistent error.
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        }
+/// A running OSC receiver: its socket's thread and the feed the render loop reads.
+#[derive(Debug)]
+pub struct OscReceiver {
+    feed: TrackerFeed,
+    udp: UdpThread,
+}
+
+impl OscReceiver {
+    /// Binds the socket and starts the thread.
+    pub fn start(settings: &ReceiverSettings) -> Result<Self, TrackingError> {
+        let mut sink = PacketSink::new(settings);
+        let feed = sink.feed();
+        let udp = UdpThread::start(
+            "osc-receiver",
+            "OSC",
+            settings.listen,
+            feed.clone(),
+            move |bytes, from, arrived| sink.handle(bytes, from, arrived),
+        )?;
+        tracing::info!("OSC head tracking: listening on {}", udp.local_addr());
+        Ok(Self { feed, udp })
+    }
+
+    /// The address the socket is bound to (with the port chosen when 0 was asked for).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.udp.local_addr()
+    }
+
+    pub fn feed(&self) -> &TrackerFeed {
+        &self.feed
     }
 }

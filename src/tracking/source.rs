@@ -31,7 +31,8 @@ crate::named_enum!(SourceKind {
 /// A validated source, ready to start.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SourceSettings {
-    Osc(ReceiverSettings),
+    /// OSC, with the receiver settings kept beside it (`TrackingConfig::receiver`).
+    Osc,
     Vrpn(VrpnSettings),
     DTrack(DTrackSettings),
 }
@@ -45,9 +46,10 @@ pub enum TrackingSource {
 }
 
 impl TrackingSource {
-    pub fn start(settings: &SourceSettings) -> Result<Self, TrackingError> {
+    /// Starts the source; OSC listens as `osc` says.
+    pub fn start(settings: &SourceSettings, osc: &ReceiverSettings) -> Result<Self, TrackingError> {
         Ok(match settings {
-            SourceSettings::Osc(s) => Self::Osc(OscReceiver::start(s)?),
+            SourceSettings::Osc => Self::Osc(OscReceiver::start(osc)?),
             SourceSettings::Vrpn(s) => Self::Vrpn(VrpnClient::start(s)?),
             SourceSettings::DTrack(s) => Self::DTrack(DTrackReceiver::start(s)?),
         })
