@@ -35,6 +35,7 @@ pub fn frame_params_from<'a>(
         omni: settings.omni(),
         tess: settings.tess(),
         sky: settings.sky(),
+        wand_ray: None,
     }
 }
 

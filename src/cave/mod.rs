@@ -6,6 +6,7 @@
 pub mod omni;
 pub mod placement;
 mod projection;
+pub mod wand;
 
 pub use projection::{WallProjection, off_axis_projection};
 

@@ -21,7 +21,7 @@ use image::RgbaImage;
 
 pub use error::RenderError;
 pub use gpu::Gpu;
-use scene_pass::{SceneGpu, ScenePass};
+use scene_pass::{GpuVertex, SceneGpu, ScenePass};
 use sky_pass::{SkyFrame, SkyPass};
 use targets::WallTargets;
 use tessellator::{TessUniforms, Tessellator};
@@ -74,6 +74,8 @@ pub struct FrameParams<'a> {
     pub tess: TessSettings,
     /// Sky mode and parameters (drawn when a cube map is set with `Renderer::set_sky`).
     pub sky: SkySettings,
+    /// The tracked wand's ray, drawn into every view (CAVE space).
+    pub wand_ray: Option<crate::cave::wand::WandRay>,
 }
 
 /// Milliseconds between two resolved timestamps (`None` if the counter wrapped or a driver
@@ -138,6 +140,11 @@ pub struct Renderer {
     pano_views: usize,
     /// The sky's irradiance (computed once per sky), for its light on the scene.
     sky_irradiance: Option<crate::sky::irradiance::SkyIrradiance>,
+    /// The wand ray's mesh, uploaded once; its positions are rewritten in place each frame.
+    wand: SceneGpu,
+    /// The wand ray's vertices (reused every frame: nothing is allocated per frame).
+    wand_positions: Vec<glam::Vec3>,
+    wand_vertices: Vec<GpuVertex>,
 }
 
 /// Two timestamps around a frame's GPU work, resolved into a buffer that the read-back ring
@@ -200,10 +207,17 @@ impl Renderer {
         );
         let sky_pass = SkyPass::new(&gpu.device, settings.msaa, cave.walls.len() * 2);
         let pano = panorama::PanoPass::new(&gpu.device, sky_pass.cube_layout(), settings.msaa);
+        let wand_template = crate::scene::wand_mesh::template();
+        let wand = scene_pass.upload_scene(&gpu.device, &gpu.queue, &wand_template, None)?;
+        let wand_vertices: Vec<GpuVertex> =
+            wand_template.vertices.iter().map(GpuVertex::from).collect();
         let mut renderer = Self {
             device: gpu.device.clone(),
             queue: gpu.queue.clone(),
             settings,
+            wand,
+            wand_positions: vec![glam::Vec3::ZERO; crate::scene::wand_mesh::VERTICES],
+            wand_vertices,
             scene_pass,
             scene: None,
             scene_buffer_limit: None,
@@ -590,6 +604,17 @@ impl Renderer {
             frame.sky.mode.resolve(frame.mode),
             &sky_frame,
         );
+        if let Some(ray) = &frame.wand_ray {
+            crate::scene::wand_mesh::positions(
+                ray,
+                frame.world_from_cave,
+                &mut self.wand_positions,
+            );
+            for (v, p) in self.wand_vertices.iter_mut().zip(&self.wand_positions) {
+                v.position = p.to_array();
+            }
+            self.wand.write_vertices(&self.queue, &self.wand_vertices);
+        }
         let rounds = tessellator::rounds(&frame.tess);
         let clear = srgb_to_linear_color(frame.background);
         let wireframe = self.settings.wireframe && self.wireframe_supported;
@@ -628,6 +653,11 @@ impl Renderer {
                     wireframe,
                 ),
                 (None, _) => {}
+            }
+            if frame.wand_ray.is_some() {
+                // Never tessellated: its segments are short enough for the per-vertex warp.
+                self.scene_pass
+                    .draw(&mut pass, &self.wand, self.walls.bind_group(), index, false);
             }
             self.sky_pass.draw(&mut pass, index, view.wall);
         }

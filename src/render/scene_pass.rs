@@ -167,6 +167,14 @@ impl SceneGpu {
         }
     }
 
+    /// Overwrites the first vertices of the first buffer (the wand ray's per-frame positions;
+    /// the counts never change, so nothing is allocated).
+    pub(crate) fn write_vertices(&self, queue: &wgpu::Queue, vertices: &[GpuVertex]) {
+        if let Some(c) = self.chunks.first() {
+            queue.write_buffer(&c.vertex_buffer, 0, bytemuck::cast_slice(vertices));
+        }
+    }
+
     /// The buffers of the whole scene, if it is one chunk (the tessellator binds them whole).
     pub(crate) fn whole(&self) -> Result<&SceneChunk, super::error::TessError> {
         match self.chunks.as_slice() {

@@ -11,6 +11,7 @@ mod gltf_draco;
 mod gltf_loader;
 mod lighting;
 mod tangents;
+pub mod wand_mesh;
 
 pub use budget::SceneBudget;
 pub use gltf_data::MAX_DECODED_VIEW_BYTES;

@@ -141,6 +141,7 @@ pub fn test_frame<'a>(
         omni,
         tess,
         sky: omnicave::sky::SkySettings::default(),
+        wand_ray: None,
     }
 }
 
