@@ -1302,6 +1302,8 @@ timeout_seconds = 5.0
 [tracking.vrpn]
 head = "DTrack@127.0.0.1:{port}"
 buttons = "DTrack@127.0.0.1:{port}"
+wand = "DTrack@127.0.0.1:{port}"
+wand_sensor = 1
 retry_seconds = 0.2
 
 [tracking.calibration]
@@ -1318,11 +1320,11 @@ enabled = false
     std::fs::write(&config_path, text).expect("write");
     // DTrack frames at 60 Hz in the background: the head at (400, 300, 1600) mm in the z-up
     // room, turned 30° about z; the trigger held while `press` is set.
-    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
     let q = glam::DQuat::from_rotation_z(30f64.to_radians());
     let m = glam::DMat3::from_quat(q).to_cols_array();
     let stop = Arc::new(AtomicBool::new(false));
-    let press = Arc::new(AtomicBool::new(false));
+    let press = Arc::new(AtomicU32::new(0));
     let feeder = {
         let (stop, press) = (stop.clone(), press.clone());
         let dtrack_port = server.dtrack_port;
@@ -1331,8 +1333,15 @@ enabled = false
             let mut n = 0u64;
             while !stop.load(Ordering::Acquire) {
                 n += 1;
-                let buttons = u32::from(press.load(Ordering::Acquire));
-                let frame = dtrack_frame(n, [400.0, 300.0, 1600.0], m, [0.0; 3], buttons, [0.0; 2]);
+                let buttons = press.load(Ordering::Acquire);
+                let frame = dtrack_frame(
+                    n,
+                    [400.0, 300.0, 1600.0],
+                    m,
+                    [0.0, 0.0, 1000.0],
+                    buttons,
+                    [0.0; 2],
+                );
                 let _ = socket.send_to(frame.as_bytes(), ("127.0.0.1", dtrack_port));
                 std::thread::sleep(Duration::from_millis(16));
             }
@@ -1356,17 +1365,45 @@ enabled = false
     // The stats line prints 0.1 mm and 1e-5 of a quaternion: well inside 1 mm and 0.1°.
     assert!(error_mm < 1.0, "head {head}, want {want}");
     assert!((yaw - 120.0).abs() < 0.1, "yaw {yaw}");
-    // Press the trigger for half a second.
-    press.store(true, Ordering::Release);
+    // Press button 2 (by default the next render mode) for half a second.
+    press.store(0b100, Ordering::Release);
     std::thread::sleep(Duration::from_millis(500));
-    press.store(false, Ordering::Release);
+    press.store(0, Ordering::Release);
     app.wait_for_line("the button's action", Duration::from_secs(120), |l| {
-        l.contains("tracked button 0: next-render-mode")
+        l.contains("tracked button 2: next-render-mode")
             .then_some(())
     });
     app.wait_for_line("the action counted", Duration::from_secs(60), |l| {
         tracked_pose(l).filter(|(_, _, actions)| *actions >= 1)
     });
+    // The flystick (sensor 1, 1 m above the floor) is the wand: button 1 selects what its ray
+    // hits.
+    press.store(0b010, Ordering::Release);
+    std::thread::sleep(Duration::from_millis(500));
+    press.store(0, Ordering::Release);
+    let selected = app.wait_for_line("the selection", Duration::from_secs(60), |l| {
+        l.split("selected: ").nth(1).map(str::to_owned)
+    });
+    println!("selected: {selected}");
+    // What the CPU pick says for that ray. The flystick's rotation is the identity, so, as a
+    // head with that pose would look, it points along the calibration's 90° turn of the
+    // CAVE's −z: −x, level, from (0.1, 1.0, −0.2) m; through the config's placement of the
+    // CAVE in the scene.
+    let config = Config::load(&config_path).expect("config");
+    let scene = load_gltf(config.scene_path.as_ref().expect("scene")).expect("scene");
+    let world = config.settings.world_from_cave();
+    let origin = world.transform_point3(glam::Vec3::new(0.1, 1.0, -0.2));
+    let far = world.transform_point3(glam::Vec3::new(0.1 - 4.0, 1.0, -0.2));
+    let reach = (far - origin).length();
+    let hit = omnicave::scene::pick::pick(&scene, origin, (far - origin) / reach, reach)
+        .expect("the floor is under the wand");
+    let want = format!(
+        "{} (material {}), {:.2} m along the ray",
+        hit.material_name,
+        hit.material,
+        hit.distance * 4.0 / reach
+    );
+    assert!(selected.starts_with(&want), "{selected} (CPU: {want})");
     stop.store(true, Ordering::Release);
     let _ = feeder.join();
     let log = app.quit();

@@ -211,12 +211,14 @@ fn dtrack_frames_drive_the_head_and_the_flystick_buttons() {
         },
         |r| (r.state.head_position() - Vec3::new(0.4, 1.6, -0.3)).length() < 1e-5,
     );
-    // The trigger (button 0): its action (next render mode) once per press.
+    // Button 2: its action (next render mode) once per press.
     rig.frames_until(
-        "trigger press",
+        "button 2 press",
         Duration::from_secs(5),
         |_| {
-            socket.send_to(frame(1).as_bytes(), target).expect("send");
+            socket
+                .send_to(frame(0b100).as_bytes(), target)
+                .expect("send");
         },
         |r| r.info().button_actions == 1,
     );
@@ -225,6 +227,49 @@ fn dtrack_frames_drive_the_head_and_the_flystick_buttons() {
         next_mode(mode),
         "one step per press"
     );
+    // The flystick is the wand: at (0.1, 1.0, −0.2) m in CAVE space, pointing along −z.
+    let wand = rig.state.wand.expect("the wand is tracked");
+    assert!(
+        (wand.position - Vec3::new(0.1, 1.0, -0.2)).length() < 1e-5,
+        "{wand:?}"
+    );
+    let ray = rig.state.wand_ray().expect("ray");
+    assert!((ray.direction - Vec3::NEG_Z).length() < 1e-5);
+    assert!(
+        rig.state.frame_params().wand_ray.is_some(),
+        "the ray is drawn"
+    );
+    // Button 1 asks for a selection (the application answers it with the scene).
+    rig.frames_until(
+        "button 1: select",
+        Duration::from_secs(5),
+        |_| {
+            socket
+                .send_to(frame(0b010).as_bytes(), target)
+                .expect("send");
+        },
+        |r| r.state.select_requested,
+    );
+    // Hold the trigger (button 0, "fly"): the CAVE flies along the ray (−z) at the
+    // navigation speed.
+    let before = rig.state.world_from_cave().transform_point3(Vec3::ZERO);
+    let start = Instant::now();
+    rig.frames_until(
+        "flying",
+        Duration::from_secs(5),
+        |_| {
+            socket
+                .send_to(frame(0b001).as_bytes(), target)
+                .expect("send");
+        },
+        |_| start.elapsed() > Duration::from_millis(500),
+    );
+    let moved = rig.state.world_from_cave().transform_point3(Vec3::ZERO) - before;
+    assert!(
+        moved.z < -0.1 && moved.x.abs() < 1e-3 && moved.y.abs() < 1e-3,
+        "moved {moved}"
+    );
+    println!("flew {moved} in 0.5 s");
     let counters = rig.info().counters;
     assert!(
         counters.adds_up() && counters.malformed == 0,
@@ -289,7 +334,7 @@ fn the_real_vrpn_server_drives_the_calibrated_head_and_a_button_action() {
     rig.frames_until(
         "VRPN button action",
         Duration::from_secs(10),
-        |n| server.send_dtrack(&frame(n, 1)),
+        |n| server.send_dtrack(&frame(n, 0b100)),
         |r| r.info().button_actions >= 1,
     );
     assert_eq!(rig.state.settings.render.mode, next_mode(mode));

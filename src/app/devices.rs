@@ -5,13 +5,19 @@
 use std::net::SocketAddr;
 use std::time::Instant;
 
+use super::state::WandPose;
 use super::state::{Action, AppState, NavInput};
 use crate::config::TrackingConfig;
 use crate::gamepad::{GamepadAction, GamepadMapper, GamepadMode, GamepadSettings};
+use crate::tracking::receiver::TrackedOrientation;
 use crate::tracking::receiver::{LOG_INTERVAL, LogLimiter};
 use crate::tracking::{
-    Controls, Counters, HeadTracker, TrackingSource, TrackingStats, TrackingStatus,
+    ButtonAction, Controls, Counters, HeadTracker, TrackerSample, TrackingSource, TrackingStats,
+    TrackingStatus,
 };
+
+/// Joystick deflection below which it does not fly (a resting stick reads a few hundredths).
+const JOYSTICK_DEAD_ZONE: f64 = 0.1;
 
 /// What the panel and the stats line show about tracking.
 #[derive(Debug, Clone, Default)]
@@ -22,6 +28,8 @@ pub struct TrackingInfo {
     pub source: Option<String>,
     /// Button presses of the tracked input device that triggered an action, since start.
     pub button_actions: u64,
+    /// What the wand's ray hit at the last "select".
+    pub selection: Option<String>,
     /// Why the receiver could not start.
     pub error: Option<String>,
     pub status: Option<TrackingStatus>,
@@ -43,6 +51,10 @@ pub struct Tracking {
     /// Presses of each button already acted on.
     presses_seen: Option<Controls>,
     button_actions: u64,
+    /// The wand's newest sample used (its sequence number) and when it arrived.
+    wand_seen: Option<(u64, Instant)>,
+    /// The previous poll (for flying: distance = speed × time).
+    last_poll: Option<Instant>,
     tracker: HeadTracker,
     error: Option<String>,
     /// Tracking was on last frame (a switch on retries a failed bind once).
@@ -58,6 +70,8 @@ impl Tracking {
             receiver: None,
             presses_seen: None,
             button_actions: 0,
+            wand_seen: None,
+            last_poll: None,
             error: None,
             was_on: false,
             refused_log: LogLimiter::default(),
@@ -88,8 +102,13 @@ impl Tracking {
         };
         self.tracker.set_filter(state.tracking_filter());
         let feed = receiver.feed().clone();
+        let dt = self.last_poll.map_or(0.0, |t| {
+            now.saturating_duration_since(t).as_secs_f32().min(0.25)
+        });
+        self.last_poll = Some(now);
+        self.wand(feed.try_wand(), state, now);
         if let Some(controls) = feed.try_controls() {
-            self.buttons(&controls, state);
+            self.buttons(&controls, state, dt);
         }
         let sample = feed.try_latest();
         if let Some(pose) = self.tracker.update(sample, now, Some(state.head_bounds()))
@@ -102,18 +121,73 @@ impl Tracking {
         }
     }
 
-    /// Applies the action of every button pressed since the last frame (each press once).
-    fn buttons(&mut self, controls: &Controls, state: &mut AppState) {
+    /// The wand's pose in CAVE space (the head's calibration; no eye offset), held until
+    /// no sample came for the tracking timeout.
+    fn wand(&mut self, sample: Option<TrackerSample>, state: &mut AppState, now: Instant) {
+        if let Some(s) = sample
+            && self.wand_seen.map(|(seq, _)| seq) != Some(s.seq)
+        {
+            self.wand_seen = Some((s.seq, s.arrived));
+            let cal = &self.tracker.settings.calibration;
+            let orientation = s.orientation.map(|o| match o {
+                TrackedOrientation::Tracker(q) => cal.orientation(q),
+                TrackedOrientation::CaveAxes(q) => cal.orientation_in_cave_axes(q),
+            });
+            if let (Some(p), Some(q), None | Some(true)) = (s.position, orientation, s.tracked) {
+                let position = cal.position(p);
+                let q = q.normalize();
+                if position.is_finite() && q.is_finite() {
+                    state.wand = Some(WandPose {
+                        position,
+                        orientation: q,
+                    });
+                }
+            }
+        }
+        let stale = self.wand_seen.is_none_or(|(_, at)| {
+            now.saturating_duration_since(at) > self.tracker.settings.timeout
+        });
+        if stale {
+            state.wand = None;
+        }
+    }
+
+    /// Applies the action of every button pressed since the last frame (each press once), and
+    /// flies along the wand's ray while a "fly" button is held (`dt` seconds since the last
+    /// frame) or the joystick is pushed (its second axis: forward and back).
+    fn buttons(&mut self, controls: &Controls, state: &mut AppState, dt: f32) {
         if let Some(seen) = &self.presses_seen {
             for (&button, &action) in &self.config.buttons {
                 let new = controls.presses[button].wrapping_sub(seen.presses[button]);
                 // A burst is one action per press, but never more than a few per frame.
                 for _ in 0..new.min(4) {
                     tracing::info!("tracked button {button}: {}", action.name());
-                    state.apply(app_action(action));
                     self.button_actions += 1;
+                    match action {
+                        ButtonAction::Action(a) => state.apply(app_action(a)),
+                        ButtonAction::Select => state.select_requested = true,
+                        ButtonAction::Fly => {}
+                    }
                 }
             }
+        }
+        let flying = self
+            .config
+            .buttons
+            .iter()
+            .any(|(&b, &a)| a == ButtonAction::Fly && controls.is_held(b));
+        // The joystick's forward axis, past a dead zone.
+        let stick = controls
+            .analogs
+            .get(1)
+            .copied()
+            .filter(|v| v.abs() > JOYSTICK_DEAD_ZONE)
+            .unwrap_or(0.0) as f32;
+        let throttle = if flying { 1.0 } else { stick.clamp(-1.0, 1.0) };
+        if throttle != 0.0
+            && let Some(ray) = state.wand_ray()
+        {
+            state.fly(ray.direction * throttle, dt);
         }
         self.presses_seen = Some(controls.clone());
     }

@@ -291,6 +291,13 @@ impl App {
             self.fail(event_loop, e);
             return;
         }
+        if self.state.select_requested {
+            self.state.select_requested = false;
+            self.info.tracking.selection = Some(select(&self.scene, &self.state));
+            if let Some(s) = &self.info.tracking.selection {
+                tracing::info!("selected: {s}");
+            }
+        }
         if self.state.screenshot_requested {
             self.state.screenshot_requested = false;
             self.info.save_message = Some(match screenshot(gfx, &self.state, self.eye_frame) {
@@ -645,6 +652,39 @@ fn present_windows(
         host.free_textures(frame);
     }
     out
+}
+
+/// What the wand's ray hits, in words for the panel (scene space is the scene file's units).
+fn select(scene: &Scene, state: &AppState) -> String {
+    let Some(ray) = state.wand_ray() else {
+        return "no wand tracked".into();
+    };
+    let world = state.world_from_cave();
+    let origin = world.transform_point3(ray.origin);
+    let far = world.transform_point3(ray.tip());
+    let Some(dir) = (far - origin).try_normalize() else {
+        return "no wand ray".into();
+    };
+    let reach = (far - origin).length();
+    match crate::scene::pick::pick(scene, origin, dir, reach) {
+        Some(p) => format!(
+            "{} (material {}), {:.2} m along the ray, triangle {} (wand at {:.3}, pointing {:.3})",
+            if p.material_name.is_empty() {
+                "unnamed"
+            } else {
+                &p.material_name
+            },
+            p.material,
+            p.distance * ray.length / reach,
+            p.triangle,
+            ray.origin,
+            ray.direction
+        ),
+        None => format!(
+            "nothing within {:.1} m (wand at {:.3}, pointing {:.3})",
+            ray.length, ray.origin, ray.direction
+        ),
+    }
 }
 
 /// Where screenshots go (a folder per shot, named by time and frame).

@@ -352,6 +352,22 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
             s.clamped,
             s.implausible
         ));
+        match state.wand {
+            Some(w) => {
+                let d = w.orientation * glam::Vec3::NEG_Z;
+                ui.label(format!(
+                    "wand at ({:.2}, {:.2}, {:.2}) m, pointing ({:.2}, {:.2}, {:.2})",
+                    w.position.x, w.position.y, w.position.z, d.x, d.y, d.z
+                ));
+            }
+            None => {
+                ui.label("no wand tracked");
+            }
+        }
+        if let Some(s) = &info.selection {
+            ui.label(format!("selected: {s}"));
+        }
+        ui.checkbox(&mut settings.tracking.show_wand_ray, "Show the wand's ray");
     }
     let f = &mut settings.tracking.filter;
     ui.checkbox(&mut f.enabled, "One Euro filter");

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Quat, Vec3};
 
 use crate::cave::omni::{OmniSettings, WarpVariant};
+use crate::cave::wand::WandRay;
 use crate::cave::{Cave, Head, RenderMode};
 use crate::config::{Config, ConfigFile, WallSection};
 use crate::gamepad::GamepadMode;
@@ -115,6 +116,13 @@ pub enum Action {
     Quit,
 }
 
+/// The tracked wand's pose, CAVE space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WandPose {
+    pub position: Vec3,
+    pub orientation: Quat,
+}
+
 /// The application's state: the live settings (the config file's model, edited by the panel,
 /// keys, buttons and trackers, and saved as it is) and what only a running application has
 /// (navigation, the moved walls, the tracked orientation, requests).
@@ -138,6 +146,10 @@ pub struct AppState {
     pub save_requested: bool,
     /// A screenshot was asked for (taken after this frame is rendered).
     pub screenshot_requested: bool,
+    /// The tracked wand's pose, CAVE space (`None`: no wand, or lost).
+    pub wand: Option<WandPose>,
+    /// A pick along the wand's ray was asked for (answered with the scene in the next frame).
+    pub select_requested: bool,
     /// Where "save" writes.
     pub save_path: PathBuf,
     /// Width (x), height (y) and depth (z) of the walls' bounding box, metres.
@@ -181,6 +193,8 @@ impl AppState {
             quit_requested: false,
             save_requested: false,
             screenshot_requested: false,
+            wand: None,
+            select_requested: false,
             save_path: default_save_path(&config.source),
             cave_size: base_size,
             base_cave: config.cave.clone(),
@@ -365,12 +379,16 @@ impl AppState {
 
     /// The renderer's parameters for this frame.
     pub fn frame_params(&self) -> FrameParams<'_> {
-        setup::frame_params_from(
+        let mut frame = setup::frame_params_from(
             &self.settings,
             &self.cave,
             self.head(),
             self.world_from_cave(),
-        )
+        );
+        if self.settings.tracking.enabled && self.settings.tracking.show_wand_ray {
+            frame.wand_ray = self.wand_ray();
+        }
+        frame
     }
 
     /// Settings that change pipelines or targets.
@@ -394,6 +412,27 @@ impl AppState {
         ) * speed
             * dt;
         nav.position += rotation * step;
+    }
+
+    /// The wand's ray as drawn (`None` without a tracked wand).
+    pub fn wand_ray(&self) -> Option<WandRay> {
+        let pose = self.wand?;
+        WandRay::from_pose(
+            pose.position,
+            pose.orientation,
+            self.settings.tracking.wand_ray_length_m,
+        )
+    }
+
+    /// Flies the CAVE through the scene along `direction` (CAVE space, its length the
+    /// fraction of the navigation speed) for `dt` seconds: point-and-fly.
+    pub fn fly(&mut self, direction: Vec3, dt: f32) {
+        if !(dt.is_finite() && dt > 0.0 && direction.is_finite()) {
+            return;
+        }
+        let speed = self.settings.app.navigation_speed;
+        let rotation = Quat::from_rotation_y(self.navigation.yaw);
+        self.navigation.position += rotation * direction.clamp_length_max(1.0) * speed * dt;
     }
 
     /// Turns by a mouse movement (radians).

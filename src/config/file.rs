@@ -227,8 +227,14 @@ pub struct TrackingSection {
     /// marker tree sits above the glasses, e.g. [0, -0.08, 0.02].
     pub eye_offset: [f32; 3],
     /// Button number of the tracked input device (VRPN button device, DTrack flystick) →
-    /// action (the gamepad's action names); "none" unbinds.
+    /// "fly" (along the wand's ray while held), "select" (what the ray hits, shown in the
+    /// panel) or one of the gamepad's action names; "none" unbinds.
     pub buttons: BTreeMap<String, String>,
+    /// Draw the wand's ray (when a wand is tracked).
+    pub show_wand_ray: bool,
+    /// How far the wand's ray is drawn (and a selection looks), metres.
+    #[schemars(range(min = 0.1, max = 100.0))]
+    pub wand_ray_length_m: f32,
     pub vrpn: VrpnSection,
     pub dtrack: DTrackSection,
     /// `x y z` (or + quaternion, or + yaw pitch roll); empty string: off.
@@ -261,13 +267,17 @@ impl Default for TrackingSection {
             allowed_senders: Vec::new(),
             eye_offset: [0.0; 3],
             buttons: [
-                ("0", "next-render-mode"),
-                ("1", "previous-render-mode"),
-                ("2", "reset-view"),
+                ("0", "fly"),
+                ("1", "select"),
+                ("2", "next-render-mode"),
+                ("3", "previous-render-mode"),
+                ("4", "reset-view"),
             ]
             .into_iter()
             .map(|(b, a)| (b.to_owned(), a.to_owned()))
             .collect(),
+            show_wand_ray: true,
+            wand_ray_length_m: 4.0,
             vrpn: VrpnSection::default(),
             dtrack: DTrackSection::default(),
             position_address: mapping.position_address,

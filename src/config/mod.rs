@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::cave::Cave;
-use crate::gamepad::{GamepadAction, GamepadSettings};
+use crate::gamepad::GamepadSettings;
 use crate::output::formats::StereoFormat;
 use crate::tracking::{ReceiverSettings, SourceSettings, TrackingSettings};
 
@@ -109,7 +109,7 @@ pub struct TrackingConfig {
     /// The source to start.
     pub source: SourceSettings,
     /// Button number of the tracked input device → action.
-    pub buttons: BTreeMap<usize, GamepadAction>,
+    pub buttons: BTreeMap<usize, crate::tracking::ButtonAction>,
     pub settings: TrackingSettings,
 }
 

@@ -17,6 +17,7 @@ use crate::cave::placement::{FileFrame, corners_from_axes, corners_from_centre, 
 use crate::cave::{Cave, Wall, left_of};
 use crate::gamepad::{GamepadAction, GamepadSettings, button_map};
 use crate::pano::{PanoRoute, PanoStereo};
+use crate::tracking::ButtonAction;
 use crate::tracking::receiver::MAX_BUTTONS;
 use crate::tracking::{
     Calibration, DTrackSettings, OneEuroParams, OscMapping, PlausibilityLimits, ReceiverSettings,
@@ -324,12 +325,12 @@ impl ConfigFile {
             if action == "none" {
                 continue;
             }
-            let action = GamepadAction::from_name(action).ok_or_else(|| {
+            let action = ButtonAction::from_name(action).ok_or_else(|| {
                 ck.fail(
                     &field,
                     action,
                     &format!(
-                        "is not an action; one of: none, {}",
+                        "is not an action; one of: none, fly, select, {}",
                         GamepadAction::NAMES.join(", ")
                     ),
                 )

@@ -10,6 +10,7 @@ mod gltf_data;
 mod gltf_draco;
 mod gltf_loader;
 mod lighting;
+pub mod pick;
 mod tangents;
 pub mod wand_mesh;
 

@@ -27,6 +27,34 @@ pub use receiver::{Controls, Counters, OscReceiver, ReceiverSettings, TrackerFee
 pub use source::{SourceKind, SourceSettings, TrackingSource};
 pub use vrpn::{VrpnClient, VrpnDevice, VrpnSettings};
 
+/// What a button of the tracked input device does: fly along the wand's ray while held, pick
+/// what the ray hits, or one of the gamepad's actions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ButtonAction {
+    Fly,
+    Select,
+    Action(crate::gamepad::GamepadAction),
+}
+
+impl ButtonAction {
+    /// "fly", "select" or a gamepad action's name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "fly" => Some(Self::Fly),
+            "select" => Some(Self::Select),
+            other => crate::gamepad::GamepadAction::from_name(other).map(Self::Action),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fly => "fly",
+            Self::Select => "select",
+            Self::Action(a) => a.name(),
+        }
+    }
+}
+
 /// Default UDP port for OSC head tracking (documented in `config/cave.toml`).
 pub const DEFAULT_OSC_PORT: u16 = 7000;
 
