@@ -1,5 +1,6 @@
 //! The lab's trackers through the application's tracking, as `omnicave run` uses it: DTrack
-//! frames written as the DTrack manual shows them, and the real VRPN server, each through the
+//! frames written as the DTrack manual shows them, the real VRPN server, and NatNet from a
+//! stand-in for Motive (the `natnet` crate's synthetic server), each through the
 //! calibration, the eye offset and the head tracker to the head and eyes the renderer is given,
 //! with the tracked device's buttons triggering their actions.
 
@@ -341,5 +342,174 @@ fn the_real_vrpn_server_drives_the_calibrated_head_and_a_button_action() {
     assert_eq!(
         rig.info().source.as_deref(),
         Some(&*format!("VRPN from 127.0.0.1:{port}"))
+    );
+}
+
+/// A stand-in for Motive, unicast: it answers the NatNet handshake with its server info and
+/// then streams frames of the crate's synthetic server to whoever connected, until dropped.
+struct FakeMotive {
+    port: u16,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl FakeMotive {
+    /// Streams `bodies(frame_number)` at 120 Hz once a client has connected.
+    fn start(bodies: impl Fn(i32) -> Vec<natnet::PlannedBody> + Send + 'static) -> FakeMotive {
+        use natnet::serverinfo::{ConnectionInfo, ServerInfo};
+        use natnet::{MessageHeader, NAT_CONNECT, SyntheticServer, Version};
+        use std::sync::atomic::Ordering;
+        let socket = UdpSocket::bind("127.0.0.1:0").expect("command socket");
+        socket
+            .set_read_timeout(Some(Duration::from_millis(5)))
+            .expect("timeout");
+        let port = socket.local_addr().expect("addr").port();
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let thread_stop = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let info = ServerInfo {
+                application_name: "Motive".into(),
+                server_version: Version::new(3, 1, 0, 0),
+                protocol_version: Version::V4_1,
+                high_res_clock_frequency: 10_000_000,
+                connection: ConnectionInfo {
+                    data_port: 1511,
+                    multicast: false,
+                    multicast_group: [239, 255, 42, 99],
+                },
+            };
+            let server = SyntheticServer::new(Version::V4_1, 10_000_000);
+            let mut client = None;
+            let mut frame = 0;
+            let mut buf = [0u8; 2048];
+            while !thread_stop.load(Ordering::Acquire) {
+                if let Ok((n, from)) = socket.recv_from(&mut buf)
+                    && MessageHeader::parse(&buf[..n]).is_ok_and(|h| h.message_id == NAT_CONNECT)
+                {
+                    let reply = info.to_datagram().expect("server info");
+                    socket.send_to(&reply, from).expect("reply");
+                    client = Some(from);
+                }
+                if let Some(to) = client {
+                    frame += 1;
+                    let d = server
+                        .datagram(frame, f64::from(frame) / 120.0, &bodies(frame))
+                        .expect("frame");
+                    let _ = socket.send_to(&d, to);
+                    std::thread::sleep(Duration::from_millis(8));
+                }
+            }
+        });
+        FakeMotive {
+            port,
+            stop,
+            thread: Some(thread),
+        }
+    }
+}
+
+impl Drop for FakeMotive {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Release);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn natnet_config(port: u16) -> Config {
+    // Motive streams metres, y up: the calibration only turns the room 90° and moves it.
+    config(
+        &format!(
+            "source = \"natnet\"\n[tracking.natnet]\nserver = \"127.0.0.1:{port}\"\ninterface = \
+             \"127.0.0.1\"\nhead_rigid_body = 7\nwand_rigid_body = 3\nretry_seconds = 0.2\n"
+        ),
+        "rotation_degrees = [90.0, 0.0, 0.0]\noffset = [0.1, 0.0, -0.2]",
+    )
+}
+
+#[test]
+fn natnet_from_motive_drives_the_head_and_the_wand() {
+    // Rigid body 7 is the head at (0.3, 1.6, 0.4) m turned 30° about y; 3 is the wand; 5 is
+    // someone else. From frame 400 on, the head is present but untracked.
+    let q = glam::Quat::from_rotation_y(30f32.to_radians());
+    let motive = FakeMotive::start(move |frame| {
+        let head = if frame < 400 {
+            natnet::PlannedBody::tracked(7, [0.3, 1.6, 0.4], q.to_array())
+        } else {
+            natnet::PlannedBody::dropout(7)
+        };
+        vec![
+            natnet::PlannedBody::tracked(5, [9.0, 9.0, 9.0], [0.0, 0.0, 0.0, 1.0]),
+            head,
+            natnet::PlannedBody::tracked(3, [0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]),
+        ]
+    });
+    let mut rig = Rig::new(natnet_config(motive.port));
+    // Hand-worked: a 90° yaw takes (x, y, z) to (z, y, −x): (0.4, 1.6, −0.3); plus the offset:
+    // (0.5, 1.6, −0.5). The yaw is 30° + 90°.
+    let want = Vec3::new(0.5, 1.6, -0.5);
+    rig.frames_until(
+        "the NatNet head",
+        Duration::from_secs(10),
+        |_| {},
+        |r| (r.state.head_position() - want).length() < 1e-5,
+    );
+    let forward = rig.state.head().orientation * Vec3::NEG_Z;
+    let yaw = (-forward.x).atan2(-forward.z).to_degrees();
+    assert!((yaw - 120.0).abs() < 0.01, "yaw {yaw}");
+    let wand = rig.state.wand.expect("rigid body 3 is the wand");
+    assert!(
+        (wand.position - Vec3::new(0.1, 1.0, -0.2)).length() < 1e-5,
+        "{wand:?}"
+    );
+    assert_eq!(
+        rig.info().source.as_deref(),
+        Some(&*format!("NatNet from 127.0.0.1:{}", motive.port))
+    );
+    // Motive loses the head: "tracker cannot see the head", the head holds.
+    rig.frames_until(
+        "the head untracked",
+        Duration::from_secs(10),
+        |_| {},
+        |r| r.info().status == Some(omnicave::tracking::TrackingStatus::NotVisible),
+    );
+    assert!((rig.state.head_position() - want).length() < 1e-5);
+    let c = rig.info().counters;
+    assert!(c.adds_up() && c.malformed == 0 && c.accepted > 100, "{c:?}");
+    println!("NatNet: head {want}, yaw {yaw:.3}°, {c:?}");
+}
+
+#[test]
+fn natnet_without_motive_retries_and_never_blocks() {
+    // A port nothing answers on: the handshake times out, the client retries, frames go on.
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .expect("probe")
+        .local_addr()
+        .expect("addr")
+        .port();
+    let mut rig = Rig::new(natnet_config(port));
+    let head = rig.state.head_position();
+    let start = Instant::now();
+    for _ in 0..100 {
+        rig.tracking.poll(&mut rig.state, Instant::now());
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "a frame waited on the client"
+    );
+    assert_eq!(rig.state.head_position(), head);
+    assert_eq!(
+        rig.info().status,
+        Some(omnicave::tracking::TrackingStatus::Waiting)
+    );
+    // Dropping the client stops its thread promptly, handshake or not.
+    let t = Instant::now();
+    drop(rig);
+    assert!(
+        t.elapsed() < Duration::from_secs(3),
+        "stopping took {:?}",
+        t.elapsed()
     );
 }

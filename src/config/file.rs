@@ -23,6 +23,7 @@ use crate::scene::{SceneBudget, SceneFit, Shading};
 use crate::sky::{DEFAULT_PIXELS_PER_SLICE, SkyMode};
 use crate::tess::{Criterion, TessSettings};
 use crate::tracking::dtrack::DEFAULT_DTRACK_PORT;
+use crate::tracking::natnet::DEFAULT_COMMAND_PORT as DEFAULT_NATNET_PORT;
 use crate::tracking::{
     DEFAULT_OSC_PORT, OneEuroParams, OscMapping, PlausibilityLimits, QuaternionOrder, SourceKind,
     TrackingSettings,
@@ -216,7 +217,8 @@ impl Default for SkyboxSection {
 pub struct TrackingSection {
     /// Track the head from the start (the panel can switch it).
     pub enabled: bool,
-    /// `osc`, `vrpn` (see `[tracking.vrpn]`) or `dtrack` (see `[tracking.dtrack]`).
+    /// `osc`, `vrpn` (see `[tracking.vrpn]`), `dtrack` (`[tracking.dtrack]`) or `natnet`
+    /// (`[tracking.natnet]`).
     pub source: SourceKind,
     /// OSC: UDP address:port to listen on; 0.0.0.0 is every interface.
     pub listen: String,
@@ -237,6 +239,7 @@ pub struct TrackingSection {
     pub wand_ray_length_m: f32,
     pub vrpn: VrpnSection,
     pub dtrack: DTrackSection,
+    pub natnet: NatNetSection,
     /// `x y z` (or + quaternion, or + yaw pitch roll); empty string: off.
     pub position_address: String,
     /// A quaternion; empty string: off.
@@ -280,6 +283,7 @@ impl Default for TrackingSection {
             wand_ray_length_m: 4.0,
             vrpn: VrpnSection::default(),
             dtrack: DTrackSection::default(),
+            natnet: NatNetSection::default(),
             position_address: mapping.position_address,
             orientation_address: mapping.orientation_address,
             euler_address: mapping.euler_address,
@@ -351,6 +355,35 @@ impl Default for DTrackSection {
             listen: format!("0.0.0.0:{DEFAULT_DTRACK_PORT}"),
             head_body: 0,
             flystick: 0,
+        }
+    }
+}
+
+/// OptiTrack Motive's NatNet stream (Motive: metres, y up).
+#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct NatNetSection {
+    /// Motive's command address, IPv4 (port 1510 unless Motive says otherwise).
+    pub server: String,
+    /// The local IPv4 interface to talk and join multicast on; "0.0.0.0": the system's choice.
+    pub interface: String,
+    /// The streaming id of the rigid body that is the head.
+    pub head_rigid_body: i32,
+    /// The rigid body that is the wand; -1: none.
+    pub wand_rigid_body: i32,
+    /// While Motive is absent or quiet, try again this often, seconds.
+    #[schemars(range(min = 0.1, max = 60.0))]
+    pub retry_seconds: f32,
+}
+
+impl Default for NatNetSection {
+    fn default() -> Self {
+        Self {
+            server: format!("127.0.0.1:{DEFAULT_NATNET_PORT}"),
+            interface: "0.0.0.0".into(),
+            head_rigid_body: 1,
+            wand_rigid_body: -1,
+            retry_seconds: 1.0,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! checks that the file's types cannot express, each error naming the file, line and field.
 
 use std::collections::BTreeMap;
-use std::net::{IpAddr, SocketAddr};
+use std::net::{IpAddr, SocketAddr, SocketAddrV4};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -20,8 +20,8 @@ use crate::pano::{PanoRoute, PanoStereo};
 use crate::tracking::ButtonAction;
 use crate::tracking::receiver::MAX_BUTTONS;
 use crate::tracking::{
-    Calibration, DTrackSettings, OneEuroParams, OscMapping, PlausibilityLimits, ReceiverSettings,
-    SourceKind, SourceSettings, TrackingSettings, VrpnDevice, VrpnSettings,
+    Calibration, DTrackSettings, NatNetSettings, OneEuroParams, OscMapping, PlausibilityLimits,
+    ReceiverSettings, SourceKind, SourceSettings, TrackingSettings, VrpnDevice, VrpnSettings,
 };
 
 /// Builds errors that name the file, the field's line (where the text is known) and value.
@@ -340,6 +340,49 @@ impl ConfigFile {
         let source = match t.source {
             SourceKind::Osc => None,
             SourceKind::Vrpn => Some(SourceSettings::Vrpn(self.validate_vrpn(ck)?)),
+            SourceKind::NatNet => {
+                let n = &t.natnet;
+                let server = n.server.trim();
+                let server: SocketAddrV4 = server
+                    .parse()
+                    .or_else(|_| {
+                        server.parse::<std::net::Ipv4Addr>().map(|ip| {
+                            SocketAddrV4::new(ip, crate::tracking::natnet::DEFAULT_COMMAND_PORT)
+                        })
+                    })
+                    .map_err(|_| {
+                        ck.fail(
+                            "tracking.natnet.server",
+                            &n.server,
+                            "must be Motive's IPv4 address, with its command port if not 1510 \
+                             (\"192.168.1.10\" or \"192.168.1.10:1510\")",
+                        )
+                    })?;
+                let interface = n.interface.trim().parse().map_err(|_| {
+                    ck.fail(
+                        "tracking.natnet.interface",
+                        &n.interface,
+                        "must be a local IPv4 address, or \"0.0.0.0\"",
+                    )
+                })?;
+                let retry = Duration::try_from_secs_f32(n.retry_seconds)
+                    .ok()
+                    .filter(|d| (0.1..=60.0).contains(&d.as_secs_f32()))
+                    .ok_or_else(|| {
+                        ck.fail(
+                            "tracking.natnet.retry_seconds",
+                            n.retry_seconds,
+                            "must be 0.1 to 60 seconds",
+                        )
+                    })?;
+                Some(SourceSettings::NatNet(NatNetSettings {
+                    server,
+                    interface,
+                    head_rigid_body: n.head_rigid_body,
+                    wand_rigid_body: (n.wand_rigid_body >= 0).then_some(n.wand_rigid_body),
+                    retry,
+                }))
+            }
             SourceKind::DTrack => {
                 let d = &t.dtrack;
                 let listen: SocketAddr = d.listen.trim().parse().map_err(|_| {

@@ -1,4 +1,4 @@
-//! Where tracking comes from: OSC, a VRPN server or ART DTrack. Each source runs on its own
+//! Where tracking comes from: OSC, a VRPN server, ART DTrack or OptiTrack NatNet. Each source runs on its own
 //! threads and fills the same [`TrackerFeed`]: the head, the wand, buttons and analogs, with
 //! the same counters. Calibration, plausibility, filter, timeout and latency figures are
 //! applied after it, the same for all.
@@ -7,6 +7,7 @@ use std::net::SocketAddr;
 
 use super::TrackingError;
 use super::dtrack::{DTrackReceiver, DTrackSettings};
+use super::natnet::{NatNetClient, NatNetSettings};
 use super::receiver::{OscReceiver, ReceiverSettings, TrackerFeed};
 use super::vrpn::{VrpnClient, VrpnSettings};
 
@@ -20,12 +21,15 @@ pub enum SourceKind {
     Vrpn,
     /// ART DTrack's ASCII frames over UDP.
     DTrack,
+    /// OptiTrack Motive's NatNet stream.
+    NatNet,
 }
 
 crate::named_enum!(SourceKind {
     Self::Osc => "osc",
     Self::Vrpn => "vrpn",
     Self::DTrack => "dtrack",
+    Self::NatNet => "natnet",
 });
 
 /// A validated source, ready to start.
@@ -35,6 +39,7 @@ pub enum SourceSettings {
     Osc,
     Vrpn(VrpnSettings),
     DTrack(DTrackSettings),
+    NatNet(NatNetSettings),
 }
 
 /// A running source.
@@ -43,6 +48,7 @@ pub enum TrackingSource {
     Osc(OscReceiver),
     Vrpn(VrpnClient),
     DTrack(DTrackReceiver),
+    NatNet(NatNetClient),
 }
 
 impl TrackingSource {
@@ -52,6 +58,7 @@ impl TrackingSource {
             SourceSettings::Osc => Self::Osc(OscReceiver::start(osc)?),
             SourceSettings::Vrpn(s) => Self::Vrpn(VrpnClient::start(s)?),
             SourceSettings::DTrack(s) => Self::DTrack(DTrackReceiver::start(s)?),
+            SourceSettings::NatNet(s) => Self::NatNet(NatNetClient::start(s)?),
         })
     }
 
@@ -60,6 +67,7 @@ impl TrackingSource {
             Self::Osc(r) => r.feed(),
             Self::Vrpn(c) => c.feed(),
             Self::DTrack(r) => r.feed(),
+            Self::NatNet(c) => c.feed(),
         }
     }
 
@@ -67,7 +75,7 @@ impl TrackingSource {
     pub fn local_addr(&self) -> Option<SocketAddr> {
         match self {
             Self::Osc(r) => Some(r.local_addr()),
-            Self::Vrpn(_) => None,
+            Self::Vrpn(_) | Self::NatNet(_) => None,
             Self::DTrack(r) => Some(r.local_addr()),
         }
     }
@@ -78,6 +86,7 @@ impl TrackingSource {
             Self::Osc(r) => format!("OSC on {}", r.local_addr()),
             Self::Vrpn(c) => format!("VRPN from {}", c.servers().join(", ")),
             Self::DTrack(r) => format!("DTrack on {}", r.local_addr()),
+            Self::NatNet(c) => format!("NatNet from {}", c.server()),
         }
     }
 }
