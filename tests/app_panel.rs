@@ -397,6 +397,60 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
         !shown.iter().any(|t| t.starts_with("Tracking:")),
         "{shown:?}"
     );
+    // The wand and the last selection, while tracking is on.
+    driver.click(&mut state, "Use tracking (osc)");
+    driver.info.tracking.status = Some(TrackingStatus::Tracking);
+    driver.info.tracking.source = Some("OSC on 127.0.0.1:7000".into());
+    driver.info.tracking.selection = Some("parquet (material 0), 1.00 m along the ray".into());
+    state.wand = Some(omnicave::app::state::WandPose {
+        position: glam::Vec3::new(0.1, 1.0, -0.2),
+        orientation: glam::Quat::IDENTITY,
+    });
+    let shown = texts(&driver.frame(&mut state));
+    assert!(
+        shown
+            .iter()
+            .any(|t| t == "wand at (0.10, 1.00, -0.20) m, pointing (0.00, 0.00, -1.00)"),
+        "{shown:?}"
+    );
+    assert!(
+        shown
+            .iter()
+            .any(|t| t == "selected: parquet (material 0), 1.00 m along the ray"),
+        "{shown:?}"
+    );
+    driver.click(&mut state, "Show the wand's ray");
+    assert!(!state.settings.tracking.show_wand_ray);
+    assert!(state.frame_params().wand_ray.is_none(), "the ray is off");
+}
+
+/// Issue 19: the panel plots the last frames' times and tracking latencies.
+#[test]
+fn the_panel_plots_frame_times_and_tracking_latency() {
+    let mut state = AppState::new(config());
+    let mut driver = PanelDriver::new();
+    for i in 0..400 {
+        driver.info.history.record(
+            f64::from(i) / 60.0,
+            16.0 + f64::from(i % 7),
+            (i % 3 != 0).then_some(4.0),
+        );
+    }
+    assert_eq!(
+        driver.info.history.frame_ms.len(),
+        300,
+        "the last 300 frames"
+    );
+    driver.click(&mut state, "Frame time and tracking latency");
+    // Open, the plot is drawn (a widget of its own in the tree) with its legend.
+    let nodes = driver.frame(&mut state);
+    let labels: Vec<_> = nodes.iter().filter_map(|n| n.label()).collect();
+    // The legend's two entries (not the header, whose label holds both words too).
+    assert!(labels.iter().any(|l| *l == "frame"), "{labels:?}");
+    assert!(
+        labels.iter().any(|l| *l == "tracking latency"),
+        "{labels:?}"
+    );
 }
 
 #[test]

@@ -334,15 +334,15 @@ impl App {
         );
         self.clock.record(Instant::now(), now.elapsed(), gpu_ms);
         self.info.stats = self.clock.summary;
+
         self.log_stats();
         self.save_if_requested();
     }
 
     /// Tracking, gamepads and held keys move the state for the time since the last frame.
     fn poll_input(&mut self, now: Instant) {
-        let dt = self
-            .last_frame
-            .map_or(0.0, |t| now.duration_since(t).as_secs_f32().min(0.25));
+        let since_last = self.last_frame.map(|t| now.saturating_duration_since(t));
+        let dt = since_last.map_or(0.0, |d| d.as_secs_f32().min(0.25));
         self.last_frame = Some(now);
         // The newest tracked pose first: the latency from its arrival ends here.
         self.tracking.poll(&mut self.state, now);
@@ -354,6 +354,16 @@ impl App {
             self.state.navigate(self.held.input(), dt);
         }
         self.tracking.info(now, &mut self.info.tracking);
+        // The plot: the time since the last frame began, and the age of the pose this one uses.
+        if let Some(d) = since_last {
+            let tracking =
+                self.info.tracking.status == Some(crate::tracking::TrackingStatus::Tracking);
+            self.info.history.record(
+                now.saturating_duration_since(self.started).as_secs_f64(),
+                d.as_secs_f64() * 1e3,
+                tracking.then_some(self.info.tracking.stats.latency_last_ms),
+            );
+        }
         if let Some(pads) = self.gamepads.as_ref()
             && self.info.tracking.gamepads != pads.names()
         {

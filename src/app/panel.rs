@@ -37,6 +37,8 @@ pub struct PanelInfo {
     pub save_message: Option<String>,
     /// OSC tracking and gamepads.
     pub tracking: TrackingInfo,
+    /// Frame times and tracking latencies of the last frames, for the plot.
+    pub history: super::stats::TimingHistory,
 }
 
 /// A drop-down labelled `label` choosing `value` among `all`, each shown by `name`.
@@ -61,6 +63,7 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     egui::ScrollArea::vertical().show(ui, |ui| {
         ui.heading("omnicave");
         stats_section(ui, state, info);
+        timing_plot(ui, info);
         ui.separator();
         render_section(ui, state, info);
         ui.separator();
@@ -90,6 +93,23 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             ui.label(message);
         }
     });
+}
+
+/// Frame times and tracking latencies of the last frames, one line each (ms over seconds).
+fn timing_plot(ui: &mut Ui, info: &PanelInfo) {
+    egui::CollapsingHeader::new("Frame time and tracking latency")
+        .default_open(false)
+        .show(ui, |ui| {
+            let h = &info.history;
+            egui_plot::Plot::new("timing")
+                .height(120.0)
+                .legend(egui_plot::Legend::default())
+                .y_axis_label("ms")
+                .show(ui, |plot| {
+                    plot.line(egui_plot::Line::new("frame", &h.frame_ms[..]));
+                    plot.line(egui_plot::Line::new("tracking latency", &h.latency_ms[..]));
+                });
+        });
 }
 
 fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {

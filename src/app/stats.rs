@@ -117,3 +117,59 @@ mod tests {
         assert!((s.frame_ms - 110.0).abs() < 1e-6);
     }
 }
+
+/// Frames kept in the panel's timing plot.
+pub const HISTORY_FRAMES: usize = 300;
+
+/// The last [`HISTORY_FRAMES`] frames' times and tracking latencies (x: seconds since start),
+/// for the panel's plot. Fixed capacity: recording a frame allocates nothing.
+#[derive(Debug, Clone)]
+pub struct TimingHistory {
+    pub frame_ms: Vec<egui_plot::PlotPoint>,
+    pub latency_ms: Vec<egui_plot::PlotPoint>,
+}
+
+impl Default for TimingHistory {
+    fn default() -> Self {
+        Self {
+            frame_ms: Vec::with_capacity(HISTORY_FRAMES),
+            latency_ms: Vec::with_capacity(HISTORY_FRAMES),
+        }
+    }
+}
+
+impl TimingHistory {
+    /// Records a frame at `t` seconds: its time, and the tracking latency of the pose it used
+    /// (`None` without tracking).
+    pub fn record(&mut self, t: f64, frame_ms: f64, latency_ms: Option<f64>) {
+        let push = |series: &mut Vec<egui_plot::PlotPoint>, y: f64| {
+            if series.len() == HISTORY_FRAMES {
+                series.remove(0);
+            }
+            series.push(egui_plot::PlotPoint::new(t, y));
+        };
+        if frame_ms.is_finite() {
+            push(&mut self.frame_ms, frame_ms);
+        }
+        if let Some(l) = latency_ms.filter(|l| l.is_finite()) {
+            push(&mut self.latency_ms, l);
+        }
+    }
+}
+
+#[cfg(test)]
+mod history_tests {
+    use super::*;
+
+    #[test]
+    fn the_history_keeps_the_last_frames_without_growing() {
+        let mut h = TimingHistory::default();
+        for i in 0..1000 {
+            h.record(f64::from(i), 16.0, (i % 2 == 0).then_some(5.0));
+        }
+        assert_eq!(h.frame_ms.len(), HISTORY_FRAMES);
+        assert_eq!(h.frame_ms.capacity(), HISTORY_FRAMES);
+        assert_eq!(h.frame_ms[0].x, 700.0);
+        assert_eq!(h.latency_ms.len(), HISTORY_FRAMES);
+    }
+}

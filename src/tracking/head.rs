@@ -80,6 +80,8 @@ pub struct TrackingStats {
     /// as a fraction of that frame's interval: ≤ 1 means every pose was used by the first
     /// frame that started after it was ready.
     pub latency_max_frames: f64,
+    /// The newest sample's latency (arrival to the frame using it), ms.
+    pub latency_last_ms: f64,
     /// Positions clamped into the CAVE since start.
     pub clamped: u64,
     /// Samples refused as implausible since start (not finite, far outside the CAVE, faster
@@ -190,6 +192,7 @@ impl HeadTracker {
 
         let latency = now.saturating_duration_since(sample.arrived);
         let latency_ms = latency.as_secs_f64() * 1e3;
+        self.stats.latency_last_ms = latency_ms;
         self.window.samples += 1;
         self.window.latency_sum_ms += latency_ms;
         self.window.latency_max_ms = self.window.latency_max_ms.max(latency_ms);
@@ -359,6 +362,7 @@ impl HeadTracker {
             },
             latency_max_ms: w.latency_max_ms,
             latency_max_frames: w.latency_max_frames,
+            latency_last_ms: self.stats.latency_last_ms,
             clamped: self.stats.clamped,
             implausible: self.stats.implausible,
         };
