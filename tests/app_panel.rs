@@ -446,11 +446,8 @@ fn the_panel_plots_frame_times_and_tracking_latency() {
     let nodes = driver.frame(&mut state);
     let labels: Vec<_> = nodes.iter().filter_map(|n| n.label()).collect();
     // The legend's two entries (not the header, whose label holds both words too).
-    assert!(labels.iter().any(|l| *l == "frame"), "{labels:?}");
-    assert!(
-        labels.iter().any(|l| *l == "tracking latency"),
-        "{labels:?}"
-    );
+    assert!(labels.contains(&"frame"), "{labels:?}");
+    assert!(labels.contains(&"tracking latency"), "{labels:?}");
 }
 
 #[test]
