@@ -424,6 +424,53 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     assert!(state.frame_params().wand_ray.is_none(), "the ray is off");
 }
 
+/// Issue 19: the eye offset's helper. A viewer whose eyes are at E looks straight at the front
+/// wall's centre; the marker tree sits 8 cm above, 1 cm right of and 5 cm behind the eyes. One
+/// click (with the offset's forward part already right) finds the offset back, so that the
+/// eyes lie on that line of sight (to 0.1 mm).
+#[test]
+fn the_eye_offset_helper_puts_the_eyes_on_the_line_of_sight() {
+    use glam::{Quat, Vec3};
+    let mut state = AppState::new(config());
+    state.settings.tracking.enabled = true;
+    state.settings.tracking.eye_offset = [0.0, 0.0, -0.05];
+    let front = state
+        .cave()
+        .walls
+        .iter()
+        .find(|w| w.name == "front")
+        .expect("front wall")
+        .clone();
+    let centre = 0.5 * (front.lower_right + front.upper_left);
+    // Eyes at E, looking at the centre (yaw and pitch from the direction, no roll).
+    let eyes_true = Vec3::new(0.4, 1.75, 0.3);
+    let d = (centre - eyes_true).normalize();
+    let yaw = (-d.x).atan2(-d.z);
+    let pitch = d.y.asin();
+    let r = Quat::from_rotation_y(yaw) * Quat::from_rotation_x(pitch);
+    assert!((r * Vec3::NEG_Z - d).length() < 1e-5);
+    let o_true = Vec3::new(-0.01, -0.08, -0.05);
+    let body = (eyes_true - r * o_true, r);
+    let mut driver = PanelDriver::new();
+    driver.info.tracking.status = Some(omnicave::tracking::TrackingStatus::Tracking);
+    driver.info.tracking.source = Some("DTrack on 127.0.0.1:5000".into());
+    driver.info.tracking.body = Some(body);
+    driver.click(
+        &mut state,
+        "Viewer looks at the front wall's centre: set the eye offset",
+    );
+    let o = Vec3::from(state.settings.tracking.eye_offset);
+    assert!((o - o_true).length() < 1e-4, "offset {o}, true {o_true}");
+    // The eyes: body + R·o; the line of sight: the body's forward axis R·(−z) through them.
+    let eyes = body.0 + r * o;
+    let off_line = (centre - eyes).cross(r * Vec3::NEG_Z).length();
+    assert!(
+        off_line < 1e-4,
+        "the eyes are {off_line} m off the line of sight"
+    );
+    println!("eye offset {o}: {off_line:.2e} m off the line of sight");
+}
+
 /// Issue 19: the panel plots the last frames' times and tracking latencies.
 #[test]
 fn the_panel_plots_frame_times_and_tracking_latency() {

@@ -30,6 +30,8 @@ pub struct TrackingInfo {
     pub button_actions: u64,
     /// What the wand's ray hit at the last "select".
     pub selection: Option<String>,
+    /// The tracked body's pose before the eye offset (CAVE space), for calibrating the offset.
+    pub body: Option<(glam::Vec3, glam::Quat)>,
     /// Why the receiver could not start.
     pub error: Option<String>,
     pub status: Option<TrackingStatus>,
@@ -101,6 +103,11 @@ impl Tracking {
             return;
         };
         self.tracker.set_filter(state.tracking_filter());
+        // The panel's eye offset (its calibration helper sets it at run time).
+        let offset = glam::Vec3::from(state.settings.tracking.eye_offset);
+        if offset.is_finite() && offset.length() <= 0.5 {
+            self.tracker.settings.eye_offset = offset;
+        }
         let feed = receiver.feed().clone();
         let dt = self.last_poll.map_or(0.0, |t| {
             now.saturating_duration_since(t).as_secs_f32().min(0.25)
@@ -206,6 +213,7 @@ impl Tracking {
             into.source = self.receiver.as_ref().map(TrackingSource::describe);
         }
         into.button_actions = self.button_actions;
+        into.body = self.tracker.body();
         if into.error != self.error {
             into.error.clone_from(&self.error);
         }

@@ -339,6 +339,40 @@ fn tracking_status(info: &TrackingInfo) -> Option<(egui::Color32, String)> {
     Some((colour, text))
 }
 
+/// The eye offset and its calibration: the viewer looks straight at the front wall's centre
+/// (or the first wall's), and the offset is set so that the eyes lie on that line of sight.
+fn eye_offset_helper(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
+    let [x, y, z] = state.settings.tracking.eye_offset;
+    ui.label(format!(
+        "eye offset ({:.3}, {:.3}, {:.3}) m from the tracked body",
+        x, y, z
+    ));
+    let walls = &state.cave().walls;
+    let target = walls
+        .iter()
+        .find(|w| w.name == "front")
+        .or_else(|| walls.first())
+        .map(|w| (w.name.clone(), 0.5 * (w.lower_right + w.upper_left)));
+    let (Some(body), Some((name, centre))) = (info.body, target) else {
+        return;
+    };
+    if ui
+        .button(format!(
+            "Viewer looks at the {name} wall's centre: set the eye offset"
+        ))
+        .on_hover_text("Sets the offset's sideways and vertical parts; its forward part stays")
+        .clicked()
+    {
+        let o = crate::tracking::HeadTracker::eye_offset_looking_at(body, centre, z);
+        if o.is_finite() && o.length() <= 0.5 {
+            state.settings.tracking.eye_offset = o.to_array();
+            tracing::info!("eye offset set to ({:.3}, {:.3}, {:.3}) m", o.x, o.y, o.z);
+        } else {
+            tracing::warn!("eye offset not set: {o} is more than 0.5 m from the tracked body");
+        }
+    }
+}
+
 fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
     let settings = &mut state.settings;
     let source = settings.tracking.source.name();
@@ -435,6 +469,9 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
         .logarithmic(true)
         .text("navigation m/s"),
     );
+    if state.settings.tracking.enabled {
+        eye_offset_helper(ui, state, info);
+    }
 }
 
 fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {

@@ -118,6 +118,8 @@ pub struct HeadTracker {
     implausible_log: LogLimiter,
     /// When the last accepted sample arrived (the filter's time step runs from it).
     last_accepted_arrival: Option<Instant>,
+    /// The newest tracked body's pose in CAVE space before the eye offset (for calibrating it).
+    body: Option<(Vec3, Quat)>,
 }
 
 impl HeadTracker {
@@ -139,6 +141,7 @@ impl HeadTracker {
             gate: PlausibilityGate::default(),
             implausible_log: LogLimiter::default(),
             last_accepted_arrival: None,
+            body: None,
         }
     }
 
@@ -158,6 +161,21 @@ impl HeadTracker {
     /// The last pose (held while tracking is lost).
     pub fn pose(&self) -> Option<HeadPose> {
         self.pose
+    }
+
+    /// The newest tracked body's pose (CAVE space, before the eye offset).
+    pub fn body(&self) -> Option<(Vec3, Quat)> {
+        self.body
+    }
+
+    /// The eye offset that puts the eyes on the line of sight from the tracked body to
+    /// `target` (a point the viewer looks straight at, e.g. the front wall's centre): its
+    /// sideways and vertical parts are where `target` lies off the body's forward axis, its
+    /// forward part stays `forward` (the line of sight fixes only those two).
+    pub fn eye_offset_looking_at(body: (Vec3, Quat), target: Vec3, forward: f32) -> Vec3 {
+        let (position, orientation) = body;
+        let v = orientation.inverse() * (target - position);
+        Vec3::new(v.x, v.y, forward)
     }
 
     pub fn stats(&self) -> TrackingStats {
@@ -222,6 +240,9 @@ impl HeadTracker {
             },
             None => None,
         };
+        if let Some(q) = orientation.filter(|q| q.is_finite() && position.is_finite()) {
+            self.body = Some((position, q));
+        }
         // The tracked body's origin is not between the eyes: move to them along the body's
         // own axes (unrotated while the tracker sends positions only).
         let position = position + orientation.unwrap_or(Quat::IDENTITY) * self.settings.eye_offset;
