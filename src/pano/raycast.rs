@@ -162,7 +162,7 @@ impl RayCaster {
                 if self.single_sided[t as usize] && back {
                     continue;
                 }
-                if let Some(d) = intersect(corners, origin, dir)
+                if let Some(d) = crate::scene::pick::intersect(corners, origin, dir)
                     && d > min_t
                     && d < max_t
                     && best.is_none_or(|b| d < b.distance)
@@ -335,30 +335,6 @@ fn slab_hit(lo: Vec3, hi: Vec3, origin: Vec3, inv: Vec3, far: f32) -> bool {
     // NaN (a ray in a box's face plane) compares false: treat as a hit, the triangle test
     // decides.
     !(t0 > t1 || t1 < 0.0 || t0 > far)
-}
-
-/// Möller–Trumbore: distance along `dir` (unit) to the triangle, both sides.
-pub fn intersect([a, b, c]: [Vec3; 3], origin: Vec3, dir: Vec3) -> Option<f32> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let p = dir.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-12 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = origin - a;
-    let u = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = dir.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(q) * inv;
-    (t > 0.0).then_some(t)
 }
 
 #[cfg(test)]

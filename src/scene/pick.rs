@@ -19,9 +19,9 @@ pub struct Pick {
     pub point: Vec3,
 }
 
-/// Möller–Trumbore: the ray parameter where `origin + t·dir` meets triangle `a b c` (either
-/// side), if it does for `t` in `(0, max]`.
-fn hit(origin: Vec3, dir: Vec3, [a, b, c]: [Vec3; 3], max: f32) -> Option<f32> {
+/// Möller–Trumbore: distance along `dir` (unit) to the triangle `a b c`, either side (the
+/// panorama's CPU ray caster uses it too).
+pub fn intersect([a, b, c]: [Vec3; 3], origin: Vec3, dir: Vec3) -> Option<f32> {
     let (e1, e2) = (b - a, c - a);
     let p = dir.cross(e2);
     let det = e1.dot(p);
@@ -40,7 +40,7 @@ fn hit(origin: Vec3, dir: Vec3, [a, b, c]: [Vec3; 3], max: f32) -> Option<f32> {
         return None;
     }
     let t = e2.dot(q) * inv;
-    (t > 0.0 && t <= max).then_some(t)
+    (t > 0.0).then_some(t)
 }
 
 /// The nearest triangle of `scene` that the ray from `origin` along `dir` (unit length) meets
@@ -64,7 +64,7 @@ pub fn pick(scene: &Scene, origin: Vec3, dir: Vec3, max: f32) -> Option<Pick> {
                 continue;
             };
             let limit = best.map_or(max, |(t, _, _)| t);
-            if let Some(t) = hit(origin, dir, [a, b, c], limit) {
+            if let Some(t) = intersect([a, b, c], origin, dir).filter(|t| *t <= limit) {
                 best = Some((t, tri, draw.material));
             }
         }
