@@ -490,6 +490,37 @@ fn bad_tracking_config_is_named() {
             "tracking.calibration.scale",
         ),
         ("[tracking.filter]\nbeta = nan\n", "tracking.filter.beta"),
+        // Issue 19's settings: each bad value named by its field.
+        ("[tracking]\nsource = \"artrack\"\n", "tracking.source"),
+        (
+            "[tracking]\neye_offset = [0.0, 3.0, 0.0]\n",
+            "tracking.eye_offset",
+        ),
+        ("[tracking.buttons]\n99 = \"fly\"\n", "tracking.buttons.99"),
+        (
+            "[tracking.buttons]\n0 = \"teleport\"\n",
+            "tracking.buttons.0",
+        ),
+        (
+            "[tracking]\nsource = \"vrpn\"\n[tracking.vrpn]\nhead = \"Tracker0\"\n",
+            "tracking.vrpn.head",
+        ),
+        (
+            "[tracking]\nsource = \"vrpn\"\n[tracking.vrpn]\nretry_seconds = 1e9\n",
+            "tracking.vrpn.retry_seconds",
+        ),
+        (
+            "[tracking]\nsource = \"dtrack\"\n[tracking.dtrack]\nlisten = \"5000\"\n",
+            "tracking.dtrack.listen",
+        ),
+        (
+            "[tracking]\nsource = \"natnet\"\n[tracking.natnet]\nserver = \"motive\"\n",
+            "tracking.natnet.server",
+        ),
+        (
+            "[tracking]\nsource = \"natnet\"\n[tracking.natnet]\nretry_seconds = 0\n",
+            "tracking.natnet.retry_seconds",
+        ),
     ] {
         let e = Config::from_toml(&format!("{base}{extra}"), &path)
             .expect_err(extra)

@@ -49,6 +49,14 @@ impl Checker<'_> {
         }
     }
 
+    /// A tracking client's wait between connection attempts: 0.1 to 60 seconds.
+    fn retry(&self, field: &str, seconds: f32) -> Result<Duration, ConfigError> {
+        Duration::try_from_secs_f32(seconds)
+            .ok()
+            .filter(|d| (0.1..=60.0).contains(&d.as_secs_f32()))
+            .ok_or_else(|| self.fail(field, seconds, "must be 0.1 to 60 seconds"))
+    }
+
     fn finite3(&self, field: &str, v: [f32; 3]) -> Result<Vec3, ConfigError> {
         if v.iter().all(|c| c.is_finite()) {
             Ok(Vec3::from(v))
@@ -365,16 +373,7 @@ impl ConfigFile {
                         "must be a local IPv4 address, or \"0.0.0.0\"",
                     )
                 })?;
-                let retry = Duration::try_from_secs_f32(n.retry_seconds)
-                    .ok()
-                    .filter(|d| (0.1..=60.0).contains(&d.as_secs_f32()))
-                    .ok_or_else(|| {
-                        ck.fail(
-                            "tracking.natnet.retry_seconds",
-                            n.retry_seconds,
-                            "must be 0.1 to 60 seconds",
-                        )
-                    })?;
+                let retry = ck.retry("tracking.natnet.retry_seconds", n.retry_seconds)?;
                 Some(SourceSettings::NatNet(NatNetSettings {
                     server,
                     interface,
@@ -460,16 +459,7 @@ impl ConfigFile {
                 "names the head's tracker, e.g. Tracker0@localhost",
             )
         })?;
-        let retry = Duration::try_from_secs_f32(v.retry_seconds)
-            .ok()
-            .filter(|d| (0.1..=60.0).contains(&d.as_secs_f32()))
-            .ok_or_else(|| {
-                ck.fail(
-                    "tracking.vrpn.retry_seconds",
-                    v.retry_seconds,
-                    "must be 0.1 to 60 seconds",
-                )
-            })?;
+        let retry = ck.retry("tracking.vrpn.retry_seconds", v.retry_seconds)?;
         for (field, sensor) in [
             ("head_sensor", v.head_sensor),
             ("wand_sensor", v.wand_sensor),
