@@ -312,6 +312,10 @@ impl App {
             });
         }
         let presented = present_windows(gfx, &self.state, egui_frame, self.eye_frame);
+        // The next frame renders the preview's walls at the size they were just shown.
+        if let Some(preview) = gfx.windows.iter().find(|w| w.role == Role::Preview) {
+            self.state.set_shown_sizes(preview.shown_sizes());
+        }
         self.eye_frame += 1;
         let lost = presented.lost;
         self.surface_recoveries += presented.recovered;
@@ -327,6 +331,11 @@ impl App {
         // The newest frame the GPU has finished: its time and tessellation counts (never waits).
         let readback = gfx.renderer.poll_readbacks();
         let gpu_ms = readback.gpu_ms;
+        // Reuses the panel's buffers: nothing grows per frame.
+        self.info.breakdown.clone_from(&readback.breakdown);
+        if !readback.tess.is_empty() {
+            self.info.triangles_drawn = readback.tess.iter().map(|t| t.emitted as usize).sum();
+        }
         per_wall_counts(
             &gfx.renderer,
             self.state.cave().walls.len(),
@@ -608,7 +617,7 @@ fn render_views(
 ) -> Result<(), AppError> {
     let settings = state.render_settings();
     if gfx.renderer.settings() != settings
-        && let Err(e) = gfx.renderer.set_settings(settings, state.cave())
+        && let Err(e) = gfx.renderer.set_settings(settings, state.render_cave())
     {
         tracing::error!("{e}; keeping the previous settings");
         state.settings.render.msaa = gfx.renderer.settings().msaa;
@@ -624,6 +633,10 @@ fn render_views(
     // Every wall draws the whole scene once per view of it.
     let walls = state.cave().walls.len().max(1);
     info.triangles_per_wall = stats.triangles_submitted / walls;
+    info.dispatches = stats.dispatches;
+    if stats.dispatches == 0 {
+        info.triangles_drawn = stats.triangles_submitted;
+    }
     Ok(())
 }
 

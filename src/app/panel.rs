@@ -39,6 +39,11 @@ pub struct PanelInfo {
     pub tracking: TrackingInfo,
     /// Frame times and tracking latencies of the last frames, for the plot.
     pub history: super::stats::TimingHistory,
+    /// Where the newest timed frame's GPU time went, per stage and view.
+    pub breakdown: crate::render::FrameBreakdown,
+    /// Compute dispatches and drawn triangles (all views) of the last frame.
+    pub dispatches: usize,
+    pub triangles_drawn: usize,
 }
 
 /// A drop-down labelled `label` choosing `value` among `all`, each shown by `name`.
@@ -112,6 +117,53 @@ fn timing_plot(ui: &mut Ui, info: &PanelInfo) {
         });
 }
 
+/// GPU time per stage of the newest timed frame: a row per stage, a column per view.
+fn gpu_stages(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
+    let b = &info.breakdown;
+    ui.label(format!(
+        "{} dispatches, {} triangles drawn per frame",
+        info.dispatches, info.triangles_drawn
+    ));
+    if b.views.is_empty() {
+        return;
+    }
+    egui::CollapsingHeader::new("GPU time per stage (ms)")
+        .default_open(false)
+        .show(ui, |ui| {
+            if !b.inside_passes {
+                ui.label("no timestamps inside passes here: tessellation under 'tess cull', the pass under 'scene'");
+            }
+            let walls = &state.render_cave().walls;
+            egui::Grid::new("gpu_stages").striped(true).show(ui, |ui| {
+                ui.label("stage");
+                ui.label("all");
+                for (i, _) in b.views.iter().enumerate() {
+                    // Views come wall by wall, left eye first (mono: one per wall).
+                    let per_wall = if b.views.len() > walls.len() { 2 } else { 1 };
+                    let name = walls.get(i / per_wall).map_or("?", |w| w.name.as_str());
+                    let eye = match (per_wall, i % 2) {
+                        (1, _) => "",
+                        (_, 0) => " L",
+                        _ => " R",
+                    };
+                    ui.label(format!("{name}{eye}"));
+                }
+                ui.end_row();
+                ui.label("shadows");
+                ui.label(format!("{:.2}", b.shadows_ms));
+                ui.end_row();
+                for stage in crate::render::ViewStage::ALL {
+                    ui.label(stage.name());
+                    ui.label(format!("{:.2}", b.stage_ms(stage)));
+                    for v in &b.views {
+                        ui.label(format!("{:.2}", v[stage as usize]));
+                    }
+                    ui.end_row();
+                }
+            });
+        });
+}
+
 fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
     let s = &info.stats;
     ui.label(format!("GPU: {}", info.adapter));
@@ -122,6 +174,7 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
         (false, _) => "n/a (no timestamps)".to_owned(),
     };
     ui.label(format!("CPU {:.2} ms   GPU {gpu}", s.cpu_ms));
+    gpu_stages(ui, state, info);
     // Tracking's state at the top, where an operator looks first.
     if state.settings.tracking.enabled {
         match (&info.tracking.error, tracking_status(&info.tracking)) {
@@ -490,6 +543,10 @@ fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         }
     } else {
         format_combo(ui, "Preview output", &mut s.app.preview_output);
+        ui.checkbox(
+            &mut s.app.preview_full_resolution,
+            "Full resolution (else the size shown)",
+        );
     }
     ui.checkbox(&mut state.swap_eyes, "Swap eyes");
 }

@@ -160,7 +160,17 @@ pub struct AppState {
     scale_origin: Vec3,
     /// The walls at `cave_size` (rebuilt when it changes).
     cave: Cave,
+    /// Bumped whenever `cave` is rebuilt.
+    cave_generation: u64,
+    /// The preview's walls on screen, pixels (empty outside the preview).
+    shown_sizes: Vec<[u32; 2]>,
+    /// The walls as rendered when that differs from `cave` (the preview's walls at the size
+    /// shown), with the `cave_generation` it was made from.
+    render_cave: Option<(Cave, u64)>,
 }
+
+/// Smallest side a preview wall is rendered at, pixels (a wall squeezed to a sliver).
+const MIN_SHOWN_SIDE: u32 = 16;
 
 /// Smallest CAVE side the panel accepts (a wall cannot shrink to nothing).
 const MIN_CAVE_SIDE_M: f32 = 0.5;
@@ -201,8 +211,72 @@ impl AppState {
             base_size,
             scale_origin,
             cave: config.cave.clone(),
+            cave_generation: 0,
+            shown_sizes: Vec::new(),
+            render_cave: None,
             config,
         }
+    }
+
+    /// The walls as rendered: `cave()`, except in the preview, where each wall is rendered
+    /// at the size it is shown (never above its resolution) unless
+    /// `app.preview_full_resolution` is set.
+    pub fn render_cave(&self) -> &Cave {
+        self.render_cave.as_ref().map_or(&self.cave, |(c, _)| c)
+    }
+
+    /// The preview window's latest layout of the walls (each one's size on screen); brings
+    /// the rendered walls up to date (nothing is allocated unless a size changed).
+    pub fn set_shown_sizes(&mut self, sizes: &[[u32; 2]]) {
+        if self.shown_sizes != sizes {
+            self.shown_sizes.clear();
+            self.shown_sizes.extend_from_slice(sizes);
+        }
+        self.refresh_render_cave();
+    }
+
+    /// The resolution wall `i` is rendered at.
+    fn render_resolution(&self, i: usize) -> [u32; 2] {
+        let full = self.cave.walls.get(i).map_or([1, 1], |w| w.resolution);
+        match self.shown_sizes.get(i) {
+            Some(&[w, h])
+                if !self.settings.app.preview_full_resolution
+                    && u64::from(w) * u64::from(h) < u64::from(full[0]) * u64::from(full[1]) =>
+            {
+                [w.max(MIN_SHOWN_SIDE), h.max(MIN_SHOWN_SIDE)]
+            }
+            _ => full,
+        }
+    }
+
+    fn refresh_render_cave(&mut self) {
+        let current = self.render_cave();
+        let up_to_date = self
+            .render_cave
+            .as_ref()
+            .is_none_or(|(_, g)| *g == self.cave_generation)
+            && current.walls.len() == self.cave.walls.len()
+            && (0..current.walls.len())
+                .all(|i| current.walls[i].resolution == self.render_resolution(i));
+        if up_to_date {
+            return;
+        }
+        let resolutions: Vec<[u32; 2]> = (0..self.cave.walls.len())
+            .map(|i| self.render_resolution(i))
+            .collect();
+        if resolutions
+            .iter()
+            .zip(&self.cave.walls)
+            .all(|(r, w)| *r == w.resolution)
+        {
+            self.render_cave = None;
+            return;
+        }
+        let mut cave = self.cave.clone();
+        for (wall, r) in cave.walls.iter_mut().zip(resolutions) {
+            wall.resolution = r;
+        }
+        self.render_cave = Some((cave, self.cave_generation));
     }
 
     /// The walls as they are now (moved by `cave_size`).
@@ -250,6 +324,8 @@ impl AppState {
         cave.projection_centre = map(cave.projection_centre);
         self.settings.cave.projection_centre = Some(cave.projection_centre.to_array());
         self.cave = cave;
+        self.cave_generation += 1;
+        self.refresh_render_cave();
         self.cave_size = Vec3::select(
             self.base_size.cmpgt(Vec3::splat(1e-6)),
             size,
@@ -381,7 +457,7 @@ impl AppState {
     pub fn frame_params(&self) -> FrameParams<'_> {
         let mut frame = setup::frame_params_from(
             &self.settings,
-            &self.cave,
+            self.render_cave(),
             self.head(),
             self.world_from_cave(),
         );

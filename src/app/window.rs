@@ -171,6 +171,9 @@ pub struct OutputWindow {
     /// Smoothed time between this window's presents, seconds (0: none yet).
     present_interval: f64,
     background: wgpu::Color,
+    /// The preview's walls as last laid out: each one's size on screen, pixels (empty for
+    /// other windows).
+    shown_sizes: Vec<[u32; 2]>,
 }
 
 /// What drawing a window did besides presenting.
@@ -184,6 +187,12 @@ pub struct DrawOutcome {
 }
 
 impl OutputWindow {
+    /// The preview's walls as last laid out: each one's size on screen, pixels (empty for
+    /// other windows, and before the first frame).
+    pub fn shown_sizes(&self) -> &[[u32; 2]] {
+        &self.shown_sizes
+    }
+
     pub fn new(
         gpu: &Gpu,
         role: Role,
@@ -259,6 +268,7 @@ impl OutputWindow {
             bindings: Vec::new(),
             bound: None,
             pano_binding: None,
+            shown_sizes: Vec::new(),
             presented: 0,
             last_present: None,
             present_interval: 0.0,
@@ -484,7 +494,14 @@ impl OutputWindow {
                     area = [x, y, aw, 0.5 * ah];
                 }
                 let sizes: Vec<[f32; 2]> = walls.iter().map(|w| w.size_m().to_array()).collect();
-                for (binding, rect) in self.bindings.iter().zip(unfolded_layout(&sizes, area)) {
+                let rects = unfolded_layout(&sizes, area);
+                self.shown_sizes.clear();
+                self.shown_sizes.extend(
+                    rects
+                        .iter()
+                        .map(|r| [r[2].max(0.0) as u32, r[3].max(0.0) as u32]),
+                );
+                for (binding, rect) in self.bindings.iter().zip(rects) {
                     tiles.push(Tile {
                         binding,
                         params: params(state.settings.app.preview_output),

@@ -9,7 +9,8 @@ use super::error::BenchError;
 use super::methods::{Method, Timer, reference_method};
 use crate::cave::Head;
 use crate::config::Config;
-use crate::render::{Gpu, RenderSettings, Renderer, WallImages};
+use crate::render::frame_timer::STAGES_PER_VIEW;
+use crate::render::{Gpu, RenderSettings, Renderer, ViewStage, WallImages};
 use crate::scene::Scene;
 use crate::setup::frame_params;
 use crate::sky::{CubeMap, SkyMode};
@@ -35,6 +36,23 @@ pub struct Row {
     /// Share of eye-image pixels (%) that differ visibly from the reference render
     /// (`None`: the sky alone).
     pub image_diff_pct: Option<f64>,
+    /// Median over the frames of each stage's GPU time, ms, summed over the views: shadow
+    /// maps, then [`ViewStage::ALL`] (`None` without timestamps).
+    pub stages_ms: Option<[f64; STAGE_COLUMNS]>,
+    /// Compute dispatches per frame.
+    pub dispatches: usize,
+}
+
+/// Stage columns: the shadow maps, then each view stage.
+pub const STAGE_COLUMNS: usize = 1 + STAGES_PER_VIEW;
+
+/// Names of the stage columns.
+pub fn stage_names() -> [&'static str; STAGE_COLUMNS] {
+    let mut out = ["shadows"; STAGE_COLUMNS];
+    for (o, s) in out[1..].iter_mut().zip(ViewStage::ALL) {
+        *o = s.name();
+    }
+    out
 }
 
 impl Row {
@@ -84,6 +102,9 @@ pub(super) fn measure(
     let mut gpu_times = vec![Vec::with_capacity(frames); methods.len()];
     let mut wall_times = vec![Vec::with_capacity(frames); methods.len()];
     let mut drawn = vec![0usize; methods.len()];
+    let mut dispatches = vec![0usize; methods.len()];
+    let mut stage_times: Vec<Vec<[f64; STAGE_COLUMNS]>> =
+        vec![Vec::with_capacity(frames); methods.len()];
     let params = |m: &Method| {
         let mut p = frame_params(config);
         p.head = Head::at(case.head);
@@ -100,6 +121,7 @@ pub(super) fn measure(
     for (i, m) in methods.iter().enumerate() {
         let stats = renderer.render(&params(m))?;
         renderer.wait_idle()?;
+        dispatches[i] = stats.dispatches;
         let tess: usize = renderer
             .read_tess_stats()?
             .iter()
@@ -117,8 +139,13 @@ pub(super) fn measure(
             renderer.render(&params(m))?;
             renderer.wait_idle()?;
             wall_times[i].push(start.elapsed().as_secs_f64() * 1e3);
-            if let Some(ms) = renderer.read_gpu_time_ms()? {
-                gpu_times[i].push(ms);
+            if let Some(b) = renderer.read_gpu_breakdown()? {
+                gpu_times[i].push(b.total_ms);
+                let mut stages = [b.shadows_ms; STAGE_COLUMNS];
+                for (slot, stage) in stages[1..].iter_mut().zip(ViewStage::ALL) {
+                    *slot = b.stage_ms(stage);
+                }
+                stage_times[i].push(stages);
             }
         }
     }
@@ -170,6 +197,13 @@ pub(super) fn measure(
             let mut times = std::mem::take(&mut gpu_times[i]);
             times.sort_by(f64::total_cmp);
             let wall_median_ms = percentile(&wall, 0.5);
+            let stages_ms = (!stage_times[i].is_empty()).then(|| {
+                std::array::from_fn(|k| {
+                    let mut v: Vec<f64> = stage_times[i].iter().map(|s| s[k]).collect();
+                    v.sort_by(f64::total_cmp);
+                    percentile(&v, 0.5)
+                })
+            });
             Row {
                 scene: scene_name.to_owned(),
                 viewpoint: case.viewpoint.clone(),
@@ -182,6 +216,8 @@ pub(super) fn measure(
                 drawn_triangles: drawn[i],
                 accuracy: accuracies[i],
                 image_diff_pct: diffs[i],
+                stages_ms,
+                dispatches: dispatches[i],
             }
         })
         .collect())

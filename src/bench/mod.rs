@@ -21,6 +21,8 @@ pub use error::BenchError;
 pub use measure::{Row, VISIBLE_DIFFERENCE, image_difference_pct, percentile};
 pub use methods::{Method, Timer, family, methods, reference_method};
 pub use options::{BenchOptions, QUICK_SIZE};
-pub use report::{MethodSummary, SceneSummary, TARGET_P99_PX, chart_points, summarise};
+pub use report::{
+    MethodSummary, SceneSummary, TARGET_MAX_PX, TARGET_P99_PX, chart_points, summarise,
+};
 pub use run::{BenchReport, run};
 pub use stability_run::{STABILITY_SIZE, StabilityOptions, run_stability};

@@ -942,6 +942,11 @@ pub struct AppSection {
     pub wall_output: StereoFormat,
     /// Stereo output format of the preview's unfolded walls.
     pub preview_output: StereoFormat,
+    /// Render the preview's walls at their configured resolution. Off (the default): each
+    /// wall is rendered at the size it is shown in the preview (never larger than its
+    /// resolution), which is what a laptop without a GPU can keep up with; the tessellation
+    /// criteria and sky meshes then count the pixels shown.
+    pub preview_full_resolution: bool,
     /// Wait for vertical blank (no tearing; caps the frame rate at the display's).
     pub vsync: bool,
     /// Navigation speed in the scene, metres per second (keyboard and gamepad).
@@ -958,6 +963,7 @@ impl Default for AppSection {
             window_size: [1280, 720],
             wall_output: StereoFormat::FrameSequential,
             preview_output: StereoFormat::Anaglyph,
+            preview_full_resolution: false,
             vsync: true,
             navigation_speed: 1.5,
         }

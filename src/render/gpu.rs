@@ -13,6 +13,8 @@ pub struct Gpu {
     pub wireframe_supported: bool,
     /// GPU timestamps between passes (for the benchmark's frame times) are available.
     pub timestamps_supported: bool,
+    /// GPU timestamps inside passes (between dispatches and draws): the per-stage breakdown.
+    pub timestamps_inside_passes: bool,
 }
 
 /// Storage buffers the compute tessellator binds in one stage.
@@ -59,7 +61,8 @@ impl Gpu {
     ) -> Result<Self, RenderError> {
         let wanted = wgpu::Features::POLYGON_MODE_LINE
             | wgpu::Features::TIMESTAMP_QUERY
-            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES;
         let features = adapter.features() & wanted;
         // The tessellator binds 11 storage buffers in one compute stage; WebGPU's default is 8
         // but desktop adapters (and lavapipe) offer far more.
@@ -99,6 +102,8 @@ impl Gpu {
             timestamps_supported: features.contains(
                 wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS,
             ),
+            timestamps_inside_passes: features
+                .contains(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES),
         })
     }
 

@@ -1,6 +1,7 @@
 //! The multi-wall stereo renderer: owns the GPU resources and draws every wall for every eye.
 
 pub mod error;
+pub mod frame_timer;
 pub mod gpu;
 pub mod panorama;
 pub mod pbr;
@@ -20,6 +21,8 @@ use glam::Mat4;
 use image::RgbaImage;
 
 pub use error::RenderError;
+pub use frame_timer::{FrameBreakdown, ViewStage};
+use frame_timer::{FrameTimer, STAGES_PER_VIEW};
 pub use gpu::Gpu;
 use scene_pass::{GpuVertex, SceneGpu, ScenePass};
 use sky_pass::{SkyFrame, SkyPass};
@@ -96,6 +99,8 @@ fn ticks_to_ms(bytes: &[u8], period_ns: f32) -> Option<f64> {
 pub struct FrameStats {
     pub views: usize,
     pub triangles_submitted: usize,
+    /// Compute dispatches recorded (the tessellator's, direct and indirect).
+    pub dispatches: usize,
 }
 
 /// The renderer: one scene pass, one scene, per-wall per-eye targets.
@@ -123,6 +128,12 @@ pub struct Renderer {
     wireframe_supported: bool,
     /// GPU frame timer (`None` unless enabled).
     timer: Option<FrameTimer>,
+    /// Timestamps the last timed render wrote (its walls' stages, or the panorama's two).
+    timed_stamps: u32,
+    /// Views of the last walls frame (the breakdown's layout).
+    timed_views: usize,
+    /// Compute dispatches the last walls frame recorded.
+    last_dispatches: usize,
     /// Frames rendered so far (the read-back ring tags results with it).
     frame_number: u64,
     /// Timestamps and tessellation counts of each frame, read back without waiting.
@@ -147,15 +158,6 @@ pub struct Renderer {
     wand_vertices: Vec<GpuVertex>,
 }
 
-/// Two timestamps around a frame's GPU work, resolved into a buffer that the read-back ring
-/// (or, for the bench, a blocking read) copies from.
-#[derive(Debug)]
-struct FrameTimer {
-    queries: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    period_ns: f32,
-}
-
 /// The newest frame read back through the ring (see [`readback`]).
 #[derive(Debug, Clone, Default)]
 pub struct FrameReadback {
@@ -163,6 +165,8 @@ pub struct FrameReadback {
     pub frame: u64,
     /// Its GPU time, ms (`None` without timestamps).
     pub gpu_ms: Option<f64>,
+    /// Where that time went, per stage and view (empty without timestamps).
+    pub breakdown: FrameBreakdown,
     /// The walls' tessellation statistics, one per view in `view_setups` order (empty when
     /// that frame was not tessellated).
     pub tess: Vec<TessStats>,
@@ -231,10 +235,13 @@ impl Renderer {
             last_views: Vec::new(),
             wireframe_supported: gpu.wireframe_supported,
             timer: None,
+            timed_stamps: 0,
+            timed_views: 0,
+            last_dispatches: 0,
             frame_number: 0,
             readback: readback::ReadbackRing::new(
                 &gpu.device,
-                readback::TIMESTAMP_BYTES
+                u64::from(frame_timer::timestamp_count(cave.walls.len() * 2)) * 8
                     + tessellator::STATS_BYTES * (cave.walls.len() * 2) as u64,
             ),
             latest: FrameReadback::default(),
@@ -282,20 +289,12 @@ impl Renderer {
         if !gpu.timestamps_supported {
             return false;
         }
-        self.timer = Some(FrameTimer {
-            queries: self.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("Renderer::frame_timer"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            }),
-            resolve: self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("Renderer::frame_timer_resolve"),
-                size: 16,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            period_ns: self.queue.get_timestamp_period(),
-        });
+        self.timer = Some(FrameTimer::new(
+            &self.device,
+            &self.queue,
+            self.targets.len() * 2,
+            gpu.timestamps_inside_passes,
+        ));
         true
     }
 
@@ -305,6 +304,7 @@ impl Renderer {
         // Only collects callbacks of finished work; never blocks.
         let _ = self.device.poll(wgpu::PollType::Poll);
         let period_ns = self.timer.as_ref().map_or(0.0, |t| t.period_ns);
+        let inside = self.timer.as_ref().is_some_and(|t| t.inside_passes);
         let input = self.scene.as_ref().map_or(0, |s| s.triangle_count as u32);
         let capacity = self.tess_capacity;
         let latest = &mut self.latest;
@@ -313,20 +313,18 @@ impl Renderer {
                 return;
             }
             latest.frame = frame;
-            let stamps = bytes
-                .get(..readback::TIMESTAMP_BYTES as usize)
-                .unwrap_or(&[]);
-            latest.gpu_ms = if layout.timestamps {
-                ticks_to_ms(stamps, period_ns)
-            } else {
-                None
-            };
+            let offset = layout.stats_offset() as usize;
+            let stamps = bytes.get(..offset).unwrap_or(&[]);
+            let views = (layout.timestamps as usize).saturating_sub(2) / STAGES_PER_VIEW;
+            latest.gpu_ms = (layout.timestamps > 0
+                && latest.breakdown.read(stamps, views, period_ns, inside))
+            .then_some(latest.breakdown.total_ms);
+            if latest.gpu_ms.is_none() {
+                latest.breakdown.views.clear();
+            }
             latest.tess.clear();
             let stats_bytes = tessellator::STATS_BYTES as usize * layout.tess_views;
-            if let Some(stats) = bytes.get(
-                readback::TIMESTAMP_BYTES as usize
-                    ..readback::TIMESTAMP_BYTES as usize + stats_bytes,
-            ) {
+            if let Some(stats) = bytes.get(offset..offset + stats_bytes) {
                 tessellator::stats_from_bytes(stats, input, capacity, &mut latest.tess);
             }
         });
@@ -369,14 +367,41 @@ impl Renderer {
         let Some(timer) = &self.timer else {
             return Ok(None);
         };
+        let last = u64::from(self.timed_stamps.max(2) - 1);
         let bytes = targets::read_buffer(
             &self.device,
             &self.queue,
             &timer.resolve,
-            16,
+            (last + 1) * 8,
             "Renderer::frame_timer_readback",
         )?;
-        Ok(ticks_to_ms(&bytes, timer.period_ns))
+        let mut ends = bytes.get(..8).unwrap_or(&[]).to_vec();
+        ends.extend_from_slice(bytes.get(last as usize * 8..).unwrap_or(&[]));
+        Ok(ticks_to_ms(&ends, timer.period_ns))
+    }
+
+    /// Where the last walls frame's GPU time went (blocking read; the bench's). `None`
+    /// without timestamps or when they came back out of order.
+    pub fn read_gpu_breakdown(&self) -> Result<Option<FrameBreakdown>, RenderError> {
+        let Some(timer) = &self.timer else {
+            return Ok(None);
+        };
+        let count = frame_timer::timestamp_count(self.timed_views);
+        let bytes = targets::read_buffer(
+            &self.device,
+            &self.queue,
+            &timer.resolve,
+            u64::from(count) * 8,
+            "Renderer::frame_timer_breakdown",
+        )?;
+        let mut b = FrameBreakdown::default();
+        Ok(b.read(
+            &bytes,
+            self.timed_views,
+            timer.period_ns,
+            timer.inside_passes,
+        )
+        .then_some(b))
     }
 
     /// Waits until the GPU has finished all submitted work.
@@ -551,7 +576,8 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("Renderer::frame"),
             });
-        if let Some(timer) = &self.timer {
+        if let Some(timer) = &mut self.timer {
+            timer.ensure_views(&self.device, &self.queue, views.len());
             encoder.write_timestamp(&timer.queries, 0);
         }
         let frame_uniforms = self.prepare_frame(
@@ -559,6 +585,9 @@ impl Renderer {
             frame,
             frame.mode.is_omni().then_some(frame.omni),
         );
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, frame_timer::SHADOWS_END);
+        }
         self.walls.write_uniforms(
             &self.queue,
             &frame_uniforms,
@@ -622,8 +651,26 @@ impl Renderer {
             .set_tessellated_views(if tessellate { views.len() } else { 0 });
         for (index, view) in views.iter().enumerate() {
             let tess = self.walls.tessellated();
-            if let (Some(buffers), Some(tessellator)) = (tess, &self.tessellator) {
-                buffers.encode(tessellator, &mut encoder, index, rounds);
+            let timer = self.timer.as_ref();
+            match (tess, &self.tessellator) {
+                (Some(buffers), Some(tessellator)) => buffers.encode(
+                    tessellator,
+                    &mut encoder,
+                    index,
+                    rounds,
+                    timer.map(|t| t.tess_marks(index)),
+                ),
+                _ => {
+                    if let Some(t) = timer {
+                        for stage in [
+                            ViewStage::TessCull,
+                            ViewStage::TessSplit,
+                            ViewStage::TessSort,
+                        ] {
+                            t.mark(&mut encoder, index, stage);
+                        }
+                    }
+                }
             }
             let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
             let mut pass = targets::begin_scene_pass(
@@ -659,37 +706,49 @@ impl Renderer {
                 self.scene_pass
                     .draw(&mut pass, &self.wand, self.walls.bind_group(), index, false);
             }
+            let in_pass = timer.is_some_and(|t| t.mark_in_pass(&mut pass, index, ViewStage::Scene));
             self.sky_pass.draw(&mut pass, index, view.wall);
+            if in_pass && let Some(t) = timer {
+                t.mark_in_pass(&mut pass, index, ViewStage::Sky);
+            }
+            drop(pass);
+            if let Some(t) = timer {
+                if !in_pass {
+                    t.mark(&mut encoder, index, ViewStage::Scene);
+                    t.mark(&mut encoder, index, ViewStage::Sky);
+                }
+                t.mark(&mut encoder, index, ViewStage::Resolve);
+            }
         }
+        let stamps = frame_timer::timestamp_count(views.len());
         if let Some(timer) = &self.timer {
-            encoder.write_timestamp(&timer.queries, 1);
-            encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
+            encoder.resolve_query_set(&timer.queries, 0..stamps, &timer.resolve, 0);
+            self.timed_stamps = stamps;
+            self.timed_views = views.len();
         }
+        self.last_dispatches = if tessellate {
+            views.len() * tessellator::dispatches_per_view(rounds)
+        } else {
+            0
+        };
         // This frame's timestamps and tessellation counts into the read-back ring.
         self.frame_number += 1;
         let layout = readback::SlotLayout {
-            timestamps: self.timer.is_some(),
+            timestamps: if self.timer.is_some() { stamps } else { 0 },
             tess_views: if tessellate { views.len() } else { 0 },
         };
-        let needed =
-            readback::TIMESTAMP_BYTES + tessellator::STATS_BYTES * layout.tess_views as u64;
+        let needed = layout.stats_offset() + tessellator::STATS_BYTES * layout.tess_views as u64;
         if needed > self.readback.slot_size() {
             // More walls than the ring was made for (not per frame).
             self.readback = readback::ReadbackRing::new(&self.device, needed);
         }
-        let wanted = layout.timestamps || layout.tess_views > 0;
+        let wanted = layout.timestamps > 0 || layout.tess_views > 0;
         if let Some(slot) = wanted
             .then(|| self.readback.begin(self.frame_number, layout))
             .flatten()
         {
             if let Some(timer) = &self.timer {
-                encoder.copy_buffer_to_buffer(
-                    &timer.resolve,
-                    0,
-                    slot,
-                    0,
-                    readback::TIMESTAMP_BYTES,
-                );
+                encoder.copy_buffer_to_buffer(&timer.resolve, 0, slot, 0, layout.stats_offset());
             }
             if let Some(stats) = self
                 .walls
@@ -700,8 +759,8 @@ impl Renderer {
                     stats,
                     0,
                     slot,
-                    readback::TIMESTAMP_BYTES,
-                    needed - readback::TIMESTAMP_BYTES,
+                    layout.stats_offset(),
+                    needed - layout.stats_offset(),
                 );
             }
         }
@@ -711,6 +770,7 @@ impl Renderer {
         let stats = FrameStats {
             views: views.len(),
             triangles_submitted: triangles * views.len(),
+            dispatches: self.last_dispatches,
         };
         self.last_views = views;
         Ok(stats)
@@ -860,7 +920,7 @@ impl Renderer {
                         }
                         continue;
                     };
-                    buffers.encode(tessellator, &mut encoder, index, rounds);
+                    buffers.encode(tessellator, &mut encoder, index, rounds, None);
                     if let Some(mut pass) = self.pano.begin_eye_pass(&mut encoder, index, clear) {
                         self.scene_pass.draw_panorama(
                             &mut pass,
@@ -880,6 +940,7 @@ impl Renderer {
         if let Some(timer) = &self.timer {
             encoder.write_timestamp(&timer.queries, 1);
             encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
+            self.timed_stamps = 2;
         }
         self.queue.submit([encoder.finish()]);
         Ok(())

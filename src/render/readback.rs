@@ -14,15 +14,19 @@ const FAILED: u8 = 3;
 /// Frames in flight at once; more would only mean older numbers.
 pub const SLOTS: usize = 3;
 
-/// Bytes of the frame's two timestamps, at the start of a slot.
-pub const TIMESTAMP_BYTES: u64 = 16;
-
-/// What a slot holds: the timestamps (if timed) at 0, then `tess_views` views' tessellation
-/// statistics at [`TIMESTAMP_BYTES`].
+/// What a slot holds: `timestamps` timestamps (8 bytes each; 0 when not timed) at 0, then
+/// `tess_views` views' tessellation statistics at [`SlotLayout::stats_offset`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SlotLayout {
-    pub timestamps: bool,
+    pub timestamps: u32,
     pub tess_views: usize,
+}
+
+impl SlotLayout {
+    /// Where the tessellation statistics start.
+    pub fn stats_offset(&self) -> u64 {
+        u64::from(self.timestamps) * 8
+    }
 }
 
 #[derive(Debug)]
@@ -46,9 +50,7 @@ pub struct ReadbackRing {
 impl ReadbackRing {
     /// A ring whose slots hold `size` bytes each.
     pub fn new(device: &wgpu::Device, size: u64) -> Self {
-        let size = size
-            .max(TIMESTAMP_BYTES)
-            .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let size = size.max(8).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
         Self {
             slots: (0..SLOTS)
                 .map(|i| Slot {

@@ -8,6 +8,7 @@ use wgpu::util::DeviceExt;
 
 use super::error::RenderError;
 pub use super::error::TessError;
+use super::frame_timer::TessMarks;
 use super::shaders;
 use crate::cave::{ViewSetup, Wall};
 use crate::tess::criteria::wall_is_vertical;
@@ -132,6 +133,12 @@ pub fn stats_from_bytes(bytes: &[u8], input: u32, capacity: u32, out: &mut Vec<T
 }
 
 /// Number of split rounds a setting asks for.
+/// Compute dispatches [`TessBuffers::encode`] records for one view: culling, a prepare and a
+/// split per round, then prepare, flush, prefix and scatter.
+pub fn dispatches_per_view(rounds: u32) -> usize {
+    1 + 2 * rounds as usize + 4
+}
+
 pub fn rounds(settings: &TessSettings) -> u32 {
     if settings.criterion.is_some() {
         settings.max_depth.min(MAX_DEPTH_LIMIT)
@@ -535,14 +542,17 @@ impl TessBuffers {
         }
     }
 
-    /// Records the tessellation of view `view_index` (its uniform slot and view slot).
+    /// Records the tessellation of view `view_index` (its uniform slot and view slot), with
+    /// timestamps ending its culling, split rounds and sort when `marks` is given.
     pub fn encode(
         &self,
         tess: &Tessellator,
         encoder: &mut wgpu::CommandEncoder,
         view_index: usize,
         rounds: u32,
+        marks: Option<TessMarks<'_>>,
     ) {
+        let inside = marks.filter(|m| m.inside_passes);
         encoder.clear_buffer(&self.counters, 0, None);
         encoder.clear_buffer(&self.count_a, 0, None);
         {
@@ -556,6 +566,9 @@ impl TessBuffers {
             pass.set_bind_group(1, &self.lists_ba, &[]);
             pass.set_pipeline(&tess.init);
             pass.dispatch_workgroups(self.source_triangles.div_ceil(WORKGROUP), 1, 1);
+            if let Some(m) = inside {
+                pass.write_timestamp(m.queries, m.cull);
+            }
             pass.set_bind_group(2, &self.args_group, &[]);
             for round in 0..rounds {
                 let lists = if round.is_multiple_of(2) {
@@ -579,10 +592,21 @@ impl TessBuffers {
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_pipeline(&tess.flush);
             pass.dispatch_workgroups_indirect(&self.args, 12);
+            if let Some(m) = inside {
+                pass.write_timestamp(m.queries, m.split);
+            }
             pass.set_pipeline(&tess.prefix);
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_pipeline(&tess.scatter);
             pass.dispatch_workgroups_indirect(&self.args, 12);
+            if let Some(m) = inside {
+                pass.write_timestamp(m.queries, m.sort);
+            }
+        }
+        if let Some(m) = marks.filter(|m| !m.inside_passes) {
+            for index in [m.cull, m.split, m.sort] {
+                encoder.write_timestamp(m.queries, index);
+            }
         }
         if view_index < self.stats_capacity {
             encoder.copy_buffer_to_buffer(
