@@ -36,6 +36,12 @@ struct TessUniforms {
     live_capacity: u32,
     output_capacity: u32,
     draws: u32,
+    // 1: cs_init runs one workgroup per cluster of `needy` (this view's from `needy_offset`,
+    // `needy_count` of them); 0: one thread per source triangle.
+    cluster_mode: u32,
+    needy_offset: u32,
+    needy_count: u32,
+    cluster_pad: u32,
 }
 
 const DEAD: u32 = 0xffffffffu;
@@ -63,6 +69,8 @@ const C_DRAWS: u32 = 5u; // per-draw counts from here
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> output: array<TessEntry>;
 @group(0) @binding(8) var<storage, read_write> sorted: array<TessEntry>;
+// Clusters to refine, all views one after the other: (first source triangle, count ≤ 64).
+@group(0) @binding(9) var<storage, read> needy: array<vec2<u32>>;
 
 @group(1) @binding(0) var<storage, read_write> live_in: array<TessEntry>;
 @group(1) @binding(1) var<storage, read_write> live_out: array<TessEntry>;
@@ -298,9 +306,28 @@ fn outside_all(pts: array<vec4<f32>, 6>, near: f32, margin: f32) -> bool {
     return px || nx || py || ny;
 }
 
+// Largest workgroup count of one dispatch dimension (keep in sync with
+// src/render/tessellator.rs).
+const MAX_GROUPS_X: u32 = 65535u;
+
 @compute @workgroup_size(64)
-fn cs_init(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = id.x;
+fn cs_init(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    var t = id.x;
+    if tess.cluster_mode != 0u {
+        let c = group.y * MAX_GROUPS_X + group.x;
+        if c >= tess.needy_count {
+            return;
+        }
+        let cluster = needy[tess.needy_offset + c];
+        if lane >= cluster.y {
+            return;
+        }
+        t = cluster.x + lane;
+    }
     if t >= tess.source_triangles {
         return;
     }

@@ -182,6 +182,10 @@ fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
                 "live_capacity" => live_capacity,
                 "output_capacity" => output_capacity,
                 "draws" => draws,
+                "cluster_mode" => cluster_mode,
+                "needy_offset" => needy_offset,
+                "needy_count" => needy_count,
+                "cluster_pad" => cluster_pad,
             ),
         ),
         (

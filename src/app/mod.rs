@@ -334,7 +334,12 @@ impl App {
         // Reuses the panel's buffers: nothing grows per frame.
         self.info.breakdown.clone_from(&readback.breakdown);
         if !readback.tess.is_empty() {
-            self.info.triangles_drawn = readback.tess.iter().map(|t| t.emitted as usize).sum();
+            self.info.triangles_drawn = readback
+                .tess
+                .iter()
+                .map(|t| t.emitted as usize)
+                .sum::<usize>()
+                + self.info.fine_triangles;
         }
         per_wall_counts(
             &gfx.renderer,
@@ -634,6 +639,7 @@ fn render_views(
     let walls = state.cave().walls.len().max(1);
     info.triangles_per_wall = stats.triangles_submitted / walls;
     info.dispatches = stats.dispatches;
+    info.fine_triangles = stats.fine_triangles;
     if stats.dispatches == 0 {
         info.triangles_drawn = stats.triangles_submitted;
     }

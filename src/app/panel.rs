@@ -44,6 +44,8 @@ pub struct PanelInfo {
     /// Compute dispatches and drawn triangles (all views) of the last frame.
     pub dispatches: usize,
     pub triangles_drawn: usize,
+    /// Of those, drawn directly (clusters that need no refinement) in a tessellated frame.
+    pub fine_triangles: usize,
 }
 
 /// A drop-down labelled `label` choosing `value` among `all`, each shown by `name`.
@@ -121,8 +123,9 @@ fn timing_plot(ui: &mut Ui, info: &PanelInfo) {
 fn gpu_stages(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
     let b = &info.breakdown;
     ui.label(format!(
-        "{} dispatches, {} triangles drawn per frame",
-        info.dispatches, info.triangles_drawn
+        "{} dispatches, {} triangles drawn per frame ({} of them directly, needing no \
+         refinement)",
+        info.dispatches, info.triangles_drawn, info.fine_triangles
     ));
     if b.views.is_empty() {
         return;
@@ -309,6 +312,7 @@ fn tessellation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             );
             ui.checkbox(&mut t.backface_cull, "Back-face cull");
             ui.checkbox(&mut t.frustum_cull, "Frustum cull");
+            ui.checkbox(&mut t.skip_fine, "Draw what needs no refining directly");
         });
         // The kind and parameter above apply while tessellation is on.
         state.set_tess_on(on);

@@ -70,7 +70,8 @@ pub fn accuracy(
         let out = tessellate(scene, &flags, &drawn, &settings, CAPACITY);
         result.input += u64::from(out.stats.input);
         result.culled += u64::from(out.stats.culled_backface + out.stats.culled_frustum);
-        result.emitted += u64::from(out.stats.emitted);
+        // Drawn: what the tessellator emits and the clusters drawn directly.
+        result.emitted += u64::from(out.stats.emitted) + out.fine.len() as u64;
         for ideal in ideal_views
             .iter()
             .filter(|i| i.wall == view.wall && (view.eye.is_none() || i.eye == view.eye))

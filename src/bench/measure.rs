@@ -128,7 +128,7 @@ pub(super) fn measure(
             .map(|s| s.emitted as usize)
             .sum();
         drawn[i] = if m.tess.criterion.is_some() {
-            tess
+            tess + stats.fine_triangles
         } else {
             stats.triangles_submitted
         };

@@ -10,7 +10,7 @@ use anyhow::{Context, bail};
 use glam::{Mat4, Vec3};
 use image::{Rgba, RgbaImage};
 
-use omnicave::scene::build::{MeshData, cuboid, frustum_shell, grid, uv_sphere};
+use omnicave::scene::build::{MeshData, arch, cuboid, frustum_shell, grid, lathe, uv_sphere};
 use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, MaterialMaps, MeshOptions, NodeDesc};
 use omnicave::sky::bundled;
 use omnicave::sky::cubemap::{equirect_direction, equirect_taps, linear_to_srgb, srgb_to_linear};
@@ -30,9 +30,10 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     let Args { out, check } = <Args as clap::Parser>::parse();
     type Generator = fn() -> anyhow::Result<Vec<u8>>;
-    let generators: [(&str, Generator); 3] = [
+    let generators: [(&str, Generator); 4] = [
         ("living-room.glb", living_room),
         ("city.glb", city),
+        ("atrium.glb", atrium),
         ("sky.png", || png(&sky())),
     ];
     // A bar with an ETA on a terminal (the city and the sky take seconds each).
@@ -673,6 +674,228 @@ fn city() -> anyhow::Result<Vec<u8>> {
         }
     }
     roots.push(w.add_node(NodeDesc::new("trees").with_children(trees)));
+    Ok(w.to_glb(&roots))
+}
+
+/// Flagstones: a grid of slightly varied stone slabs with dark joints (128 px per 2 m slab).
+fn flagstone_texture() -> RgbaImage {
+    let mut rng = Rng(1907);
+    let tones: Vec<f32> = (0..16).map(|_| rng.range(0.85, 1.0)).collect();
+    RgbaImage::from_fn(256, 256, |x, y| {
+        let (i, j) = (x / 128, y / 128);
+        let (u, v) = (x % 128, y % 128);
+        if u < 2 || v < 2 {
+            return shade([70, 66, 60], 1.0);
+        }
+        let tone = tones[((i + 2 * j) % 16) as usize];
+        let grain = 0.94 + 0.06 * (((x * 7 + y * 13) % 17) as f32 / 17.0);
+        shade([190, 180, 160], tone * grain)
+    })
+}
+
+/// An atrium for the bench's scaling with scene size: 20 m × 36 m, 14 m high, two storeys of
+/// fluted columns carrying arcades, a balustraded gallery, and large floor, wall and ceiling
+/// polygons; over 200 000 triangles, most of them small and far from the CAVE (which stands
+/// at the centre of the floor, facing −z), the floor and walls few and large.
+fn atrium() -> anyhow::Result<Vec<u8>> {
+    let mut w = GlbWriter::new();
+    let flags = w.add_png_texture("flagstones", &png(&flagstone_texture())?);
+    let m_floor = w.add_material(&MaterialDesc {
+        texture: Some(flags),
+        ..MaterialDesc::plain("floor", [1.0; 3], 0.7)
+    });
+    let m_wall = w.add_material(&MaterialDesc::plain("plaster", [0.86, 0.82, 0.74], 0.9));
+    let m_marble = w.add_material(&MaterialDesc::plain("marble", [0.93, 0.92, 0.9], 0.35));
+    let m_stone = w.add_material(&MaterialDesc::plain("stone", [0.78, 0.72, 0.62], 0.8));
+    let (half_x, half_z, height) = (10.0, 18.0, 14.0);
+    // The shell: one quad per face, seen from inside.
+    let shell = [
+        grid(
+            Vec3::new(-half_x, 0.0, half_z),
+            Vec3::X * 2.0 * half_x,
+            Vec3::NEG_Z * 2.0 * half_z,
+            1,
+            1,
+            0.5,
+        ),
+        grid(
+            Vec3::new(-half_x, height, -half_z),
+            Vec3::X * 2.0 * half_x,
+            Vec3::Z * 2.0 * half_z,
+            1,
+            1,
+            0.5,
+        ),
+    ];
+    let walls = [
+        grid(
+            Vec3::new(-half_x, 0.0, -half_z),
+            Vec3::X * 2.0 * half_x,
+            Vec3::Y * height,
+            1,
+            1,
+            0.5,
+        ),
+        grid(
+            Vec3::new(half_x, 0.0, half_z),
+            Vec3::NEG_X * 2.0 * half_x,
+            Vec3::Y * height,
+            1,
+            1,
+            0.5,
+        ),
+        grid(
+            Vec3::new(-half_x, 0.0, half_z),
+            Vec3::NEG_Z * 2.0 * half_z,
+            Vec3::Y * height,
+            1,
+            1,
+            0.5,
+        ),
+        grid(
+            Vec3::new(half_x, 0.0, -half_z),
+            Vec3::Z * 2.0 * half_z,
+            Vec3::Y * height,
+            1,
+            1,
+            0.5,
+        ),
+    ];
+    let mut wall_mesh = MeshData::default();
+    for g in &walls {
+        wall_mesh.append(g);
+    }
+    wall_mesh.append(&shell[1]);
+    let floor_mesh = w.add_mesh("floor", &[(&shell[0], m_floor)]);
+    let walls_mesh = w.add_mesh("walls and ceiling", &[(&wall_mesh, m_wall)]);
+    let mut roots = vec![
+        w.add_node(NodeDesc::new("floor").with_mesh(floor_mesh)),
+        w.add_node(NodeDesc::new("walls").with_mesh(walls_mesh)),
+    ];
+
+    // A fluted column, 6 m: base, shaft with 16 flutes (64 segments, 16 rings), capital.
+    let storey = 7.0;
+    let mut column = MeshData::default();
+    let base: Vec<(f32, f32)> = (0..=6)
+        .map(|k| {
+            let t = k as f32 / 6.0;
+            (
+                0.62 - 0.14 * t + 0.05 * (t * std::f32::consts::PI).sin(),
+                0.4 * t,
+            )
+        })
+        .collect();
+    column.append(&lathe(&base, 64));
+    let flutes = 16.0;
+    let mut shaft = lathe(
+        &(0..=16)
+            .map(|k| (0.46 - 0.06 * k as f32 / 16.0, 0.4 + 5.0 * k as f32 / 16.0))
+            .collect::<Vec<_>>(),
+        64,
+    );
+    for v in &mut shaft.vertices {
+        // Flutes: the radius dips 2.5 cm between the arrises.
+        let a = v.position[0].atan2(v.position[2]);
+        let dip = 0.025 * (0.5 - 0.5 * (a * flutes).cos());
+        let r = (v.position[0] * v.position[0] + v.position[2] * v.position[2]).sqrt();
+        let k = (r - dip) / r.max(1e-6);
+        v.position[0] *= k;
+        v.position[2] *= k;
+    }
+    column.append(&shaft);
+    let capital: Vec<(f32, f32)> = (0..=8)
+        .map(|k| {
+            let t = k as f32 / 8.0;
+            (0.4 + 0.32 * t * t, 5.4 + 0.6 * t)
+        })
+        .collect();
+    column.append(&lathe(&capital, 64));
+    column.append(
+        &cuboid(Vec3::new(1.5, 0.2, 1.5), 1.0)
+            .transformed(Mat4::from_translation(Vec3::new(0.0, 6.1, 0.0))),
+    );
+    let column_mesh = w.add_mesh("column", &[(&column, m_marble)]);
+
+    // An arch spanning 4 m between column centres, springing from the capitals, with the
+    // wall above it up to the next floor.
+    let bay = 4.0;
+    let mut arcade =
+        arch(1.45, 2.0, 0.8, 48).transformed(Mat4::from_translation(Vec3::new(0.0, 6.2, 0.0)));
+    arcade.append(&cuboid(Vec3::new(bay, storey - 8.2, 0.8), 1.0).transformed(
+        Mat4::from_translation(Vec3::new(0.0, 8.2 + 0.5 * (storey - 8.2), 0.0)),
+    ));
+    let arch_mesh = w.add_mesh("arch", &[(&arcade, m_stone)]);
+
+    // A baluster, 0.9 m: a turned profile of 12 rings, 12 around.
+    let baluster_profile: Vec<(f32, f32)> = (0..=12)
+        .map(|k| {
+            let t = k as f32 / 12.0;
+            let bulge = (t * std::f32::consts::PI).sin();
+            (0.05 + 0.05 * bulge * bulge, 0.9 * t)
+        })
+        .collect();
+    let baluster_mesh = w.add_mesh("baluster", &[(&lathe(&baluster_profile, 12), m_stone)]);
+
+    let mut columns = Vec::new();
+    let mut arches = Vec::new();
+    let mut balusters = Vec::new();
+    let rows = 9;
+    let x_row = 6.0;
+    for level in 0..2 {
+        let y = level as f32 * storey;
+        for side in [-1.0f32, 1.0] {
+            let x = side * x_row;
+            for k in 0..rows {
+                let z = (k as f32 - (rows - 1) as f32 / 2.0) * bay;
+                columns.push(
+                    w.add_node(
+                        NodeDesc::new("column")
+                            .with_mesh(column_mesh)
+                            .at(Vec3::new(x, y, z)),
+                    ),
+                );
+                if k + 1 < rows {
+                    arches.push(
+                        w.add_node(
+                            NodeDesc::new("arch")
+                                .with_mesh(arch_mesh)
+                                .rotated_y_degrees(90.0)
+                                .at(Vec3::new(x, y, z + 0.5 * bay)),
+                        ),
+                    );
+                }
+            }
+            if level == 1 {
+                // The gallery's balustrade along the arcade, 25 cm apart.
+                let n = ((rows - 1) as f32 * bay / 0.25) as i32;
+                for b in 0..n {
+                    let z = -0.5 * (rows - 1) as f32 * bay + (b as f32 + 0.5) * 0.25;
+                    balusters.push(
+                        w.add_node(
+                            NodeDesc::new("baluster")
+                                .with_mesh(baluster_mesh)
+                                .at(Vec3::new(x - side * 0.6, y, z)),
+                        ),
+                    );
+                }
+            }
+        }
+    }
+    // The gallery floors: slabs from the arcades to the side walls.
+    let slab_w = half_x - x_row + 0.8;
+    let mut slabs = MeshData::default();
+    for side in [-1.0f32, 1.0] {
+        slabs.append(
+            &cuboid(Vec3::new(slab_w, 0.3, 2.0 * half_z), 0.5).transformed(Mat4::from_translation(
+                Vec3::new(side * (half_x - 0.5 * slab_w), storey - 0.15, 0.0),
+            )),
+        );
+    }
+    let slab_mesh = w.add_mesh("gallery floors", &[(&slabs, m_stone)]);
+    roots.push(w.add_node(NodeDesc::new("gallery floors").with_mesh(slab_mesh)));
+    roots.push(w.add_node(NodeDesc::new("columns").with_children(columns)));
+    roots.push(w.add_node(NodeDesc::new("arcades").with_children(arches)));
+    roots.push(w.add_node(NodeDesc::new("balustrades").with_children(balusters)));
     Ok(w.to_glb(&roots))
 }
 

@@ -50,6 +50,7 @@ impl ConfigFile {
             max_depth: t.max_depth.min(MAX_DEPTH_LIMIT),
             backface_cull: t.backface_cull,
             frustum_cull: t.frustum_cull,
+            skip_fine: t.skip_fine,
         }
     }
 

@@ -145,6 +145,10 @@ pub struct TessellationSection {
     pub backface_cull: bool,
     /// Cull triangles whose warped footprint misses the wall before splitting.
     pub frustum_cull: bool,
+    /// Draw clusters of triangles whose warp error is provably below the criterion through
+    /// the ordinary path, and tessellate only the rest (the same picture, at the cost of what
+    /// needs refining). Off: every triangle goes through the tessellator.
+    pub skip_fine: bool,
 }
 
 impl Default for TessellationSection {
@@ -155,6 +159,7 @@ impl Default for TessellationSection {
             max_depth: tess.max_depth,
             backface_cull: tess.backface_cull,
             frustum_cull: tess.frustum_cull,
+            skip_fine: tess.skip_fine,
         }
     }
 }

@@ -18,7 +18,7 @@ pub struct Gpu {
 }
 
 /// Storage buffers the compute tessellator binds in one stage.
-pub const TESSELLATOR_STORAGE_BUFFERS: u32 = 11;
+pub const TESSELLATOR_STORAGE_BUFFERS: u32 = 12;
 
 impl Gpu {
     /// Opens the default adapter without a window (honours `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`).
@@ -64,7 +64,7 @@ impl Gpu {
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES;
         let features = adapter.features() & wanted;
-        // The tessellator binds 11 storage buffers in one compute stage; WebGPU's default is 8
+        // The tessellator binds 12 storage buffers in one compute stage; WebGPU's default is 8
         // but desktop adapters (and lavapipe) offer far more.
         let mut limits = wgpu::Limits::default().using_resolution(adapter.limits());
         limits.max_storage_buffers_per_shader_stage = adapter

@@ -37,6 +37,7 @@ use crate::pano::{PanoRoute, PanoSettings};
 use crate::scene::Scene;
 use crate::scene::{Lighting, Shading};
 use crate::sky::{CubeMap, SkyMode, SkySettings};
+use crate::tess::clusters::{ClusterSplit, ClusterTest};
 use crate::tess::{TessSettings, TessStats};
 
 /// Settings that change pipelines or targets (rarely; never per frame).
@@ -101,6 +102,9 @@ pub struct FrameStats {
     pub triangles_submitted: usize,
     /// Compute dispatches recorded (the tessellator's, direct and indirect).
     pub dispatches: usize,
+    /// Triangles drawn directly, untessellated, in a tessellated frame (all views): those of
+    /// clusters proven to need no refinement.
+    pub fine_triangles: usize,
 }
 
 /// The renderer: one scene pass, one scene, per-wall per-eye targets.
@@ -134,6 +138,10 @@ pub struct Renderer {
     timed_views: usize,
     /// Compute dispatches the last walls frame recorded.
     last_dispatches: usize,
+    /// Per view of the walls: the clusters drawn directly and those refined (reused).
+    cluster_splits: Vec<ClusterSplit>,
+    /// Per view: where its refined clusters lie in the tessellator's list (reused).
+    needy_ranges: Vec<(u32, u32)>,
     /// Frames rendered so far (the read-back ring tags results with it).
     frame_number: u64,
     /// Timestamps and tessellation counts of each frame, read back without waiting.
@@ -238,6 +246,8 @@ impl Renderer {
             timed_stamps: 0,
             timed_views: 0,
             last_dispatches: 0,
+            cluster_splits: Vec::new(),
+            needy_ranges: Vec::new(),
             frame_number: 0,
             readback: readback::ReadbackRing::new(
                 &gpu.device,
@@ -598,15 +608,45 @@ impl Renderer {
             let buffers =
                 self.walls
                     .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
+            // Which clusters each view refines; the rest are drawn directly.
+            let omni = frame.mode.is_omni().then_some(frame.omni);
+            let cluster_mode = frame.tess.skip_fine;
+            self.cluster_splits
+                .resize_with(views.len(), Default::default);
+            for (v, split) in views.iter().zip(&mut self.cluster_splits) {
+                if cluster_mode {
+                    let wall = &frame.cave.walls[v.wall];
+                    let tv = crate::tess::tess_view(v, wall, frame.world_from_cave, omni);
+                    let test = ClusterTest::for_settings(&tv, &frame.tess);
+                    split.classify(&scene.clusters, test.as_ref());
+                } else {
+                    split.fine.clear();
+                    split.needy.clear();
+                }
+            }
+            buffers.write_needy(
+                &self.queue,
+                self.cluster_splits[..views.len()]
+                    .iter()
+                    .map(|s| s.needy.as_slice()),
+                &mut self.needy_ranges,
+            );
+            let ranges = &self.needy_ranges;
             buffers.write_uniforms(
                 &self.queue,
-                views.iter().map(|v| {
-                    TessUniforms::new(
-                        v,
-                        &frame.cave.walls[v.wall],
-                        &frame.tess,
-                        frame.mode.is_omni(),
-                    )
+                views.iter().enumerate().map(|(i, v)| {
+                    let (offset, count) = ranges.get(i).copied().unwrap_or((0, 0));
+                    TessUniforms {
+                        cluster_mode: u32::from(cluster_mode),
+                        needy_offset: offset,
+                        needy_count: count,
+                        ..TessUniforms::new(
+                            v,
+                            &frame.cave.walls[v.wall],
+                            &frame.tess,
+                            frame.mode.is_omni(),
+                        )
+                    }
                 }),
             );
         }
@@ -652,12 +692,18 @@ impl Renderer {
         for (index, view) in views.iter().enumerate() {
             let tess = self.walls.tessellated();
             let timer = self.timer.as_ref();
-            match (tess, &self.tessellator) {
+            let split = self
+                .cluster_splits
+                .get(index)
+                .filter(|_| frame.tess.skip_fine);
+            let needy = split.map(|_| self.needy_ranges.get(index).map_or(0, |r| r.1));
+            let drew = match (tess, &self.tessellator) {
                 (Some(buffers), Some(tessellator)) => buffers.encode(
                     tessellator,
                     &mut encoder,
                     index,
                     rounds,
+                    needy,
                     timer.map(|t| t.tess_marks(index)),
                 ),
                 _ => {
@@ -670,8 +716,10 @@ impl Renderer {
                             t.mark(&mut encoder, index, stage);
                         }
                     }
+                    false
                 }
-            }
+            };
+            let fine = split.map_or(&[][..], |s| s.fine.as_slice());
             let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
             let mut pass = targets::begin_scene_pass(
                 &mut encoder,
@@ -683,11 +731,12 @@ impl Renderer {
             );
             match (&self.scene, tess) {
                 (Some(scene), Some(buffers)) => {
-                    self.scene_pass.draw_tessellated(
+                    self.scene_pass.draw_split(
                         &mut pass,
                         scene,
                         self.walls.bind_group(),
-                        buffers,
+                        drew.then_some(buffers),
+                        fine,
                         index,
                         wireframe,
                     );
@@ -726,8 +775,19 @@ impl Renderer {
             self.timed_stamps = stamps;
             self.timed_views = views.len();
         }
-        self.last_dispatches = if tessellate {
-            views.len() * tessellator::dispatches_per_view(rounds)
+        let tessellated_views = if !tessellate {
+            0
+        } else if frame.tess.skip_fine {
+            self.needy_ranges.iter().filter(|r| r.1 > 0).count()
+        } else {
+            views.len()
+        };
+        self.last_dispatches = tessellated_views * tessellator::dispatches_per_view(rounds);
+        let fine_triangles: usize = if tessellate && frame.tess.skip_fine {
+            self.cluster_splits[..views.len()]
+                .iter()
+                .map(|s| s.fine_triangles() as usize)
+                .sum()
         } else {
             0
         };
@@ -771,6 +831,7 @@ impl Renderer {
             views: views.len(),
             triangles_submitted: triangles * views.len(),
             dispatches: self.last_dispatches,
+            fine_triangles,
         };
         self.last_views = views;
         Ok(stats)
@@ -920,7 +981,7 @@ impl Renderer {
                         }
                         continue;
                     };
-                    buffers.encode(tessellator, &mut encoder, index, rounds, None);
+                    buffers.encode(tessellator, &mut encoder, index, rounds, None, None);
                     if let Some(mut pass) = self.pano.begin_eye_pass(&mut encoder, index, clear) {
                         self.scene_pass.draw_panorama(
                             &mut pass,

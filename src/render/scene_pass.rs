@@ -61,11 +61,13 @@ struct PipelineKey {
     blend: bool,
 }
 
-/// Where a draw's vertices come from and how they are projected.
+/// Where a draw's vertices come from and how they are projected (the walls' tessellated
+/// draws are recorded by `ScenePass::draw_split`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Variant {
+    /// The scene's own indexed vertices.
     Plain,
-    Tessellated,
+    /// The tessellator's output, projected and pre-clipped by the panorama's map.
     Panorama,
 }
 
@@ -112,6 +114,9 @@ pub struct SceneGpu {
     pub(crate) bounds: Option<(glam::Vec3, glam::Vec3)>,
     /// Per source triangle: its draw index (or `NO_DRAW`), bit 31 set when double-sided.
     pub(crate) tri_info: Vec<u32>,
+    /// Clusters of the draws' triangles with their bounds (empty for a split scene, which is
+    /// not tessellated): each frame, those provably fine in a view are drawn directly.
+    pub(crate) clusters: Vec<crate::tess::clusters::Cluster>,
     material_bind_groups: Vec<wgpu::BindGroup>,
     /// Kept alive for the bind groups.
     _material_buffer: wgpu::Buffer,
@@ -464,19 +469,81 @@ impl ScenePass {
         );
     }
 
-    /// Records the draws of the tessellator's output for view slot `view_index`: one indirect
-    /// draw per scene draw (material), with arguments the tessellator wrote on the GPU.
-    pub fn draw_tessellated(
+    /// Records view slot `view_index` of a tessellated frame: per draw, in the scene's order
+    /// (opaque, then blended back to front), its clusters proven fine through the ordinary
+    /// path with the per-vertex warp (`fine`: (draw, first index, index count), sorted by
+    /// draw), then its refined part from the tessellator's indirect draw (`tess`; `None` when
+    /// the view refines nothing).
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw_split(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         scene: &SceneGpu,
         views: &wgpu::BindGroup,
-        tess: &super::tessellator::TessBuffers,
+        tess: Option<&super::tessellator::TessBuffers>,
+        fine: &[(u32, u32, u32)],
         view_index: usize,
         wireframe: bool,
     ) {
-        let variant = Variant::Tessellated;
-        self.draw_indirect(pass, scene, views, tess, view_index, wireframe, variant);
+        let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
+        pass.set_bind_group(0, views, &[view_offset]);
+        pass.set_bind_group(3, self.shadows.bind_group(), &[]);
+        if let Some(t) = tess {
+            // Ignored by the ordinary pipelines, whose layout has no group 2.
+            pass.set_bind_group(2, &t.draw_group, &[]);
+        }
+        let chunk = std::cell::Cell::new(None);
+        let layers: &[bool] = if wireframe { &[false, true] } else { &[false] };
+        for &wire in layers {
+            let mut bound: Option<PipelineKey> = None;
+            for &d in &scene.order {
+                let draw = &scene.draws[d];
+                let start = fine.partition_point(|f| (f.0 as usize) < d);
+                let ranges = &fine[start..];
+                let count = ranges.iter().take_while(|f| f.0 as usize == d).count();
+                let ranges = &ranges[..count];
+                if ranges.is_empty() && tess.is_none() {
+                    continue;
+                }
+                let material_offset = (draw.material as u64 * UNIFORM_STRIDE) as u32;
+                pass.set_bind_group(
+                    1,
+                    &scene.material_bind_groups[draw.material],
+                    &[material_offset],
+                );
+                for tessellated in [false, true] {
+                    if (tessellated && tess.is_none()) || (!tessellated && ranges.is_empty()) {
+                        continue;
+                    }
+                    let key = PipelineKey {
+                        double_sided: draw.double_sided,
+                        wireframe: wire,
+                        tessellated,
+                        panorama: false,
+                        blend: draw.blend && !wire,
+                    };
+                    if bound != Some(key) {
+                        let Some(pipeline) = self.pipelines.get(&key) else {
+                            continue;
+                        };
+                        pass.set_pipeline(pipeline);
+                        bound = Some(key);
+                    }
+                    match tess {
+                        Some(t) if tessellated => pass.draw_indirect(
+                            &t.args,
+                            super::tessellator::TessBuffers::draw_args_offset(d),
+                        ),
+                        _ => {
+                            scene.bind_chunk(pass, draw.chunk, &chunk);
+                            for &(_, first, count) in ranges {
+                                pass.draw_indexed(first..first + count, 0, 0..1);
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// Records the panorama's geometric route for view slot `view_index`: the tessellator's
@@ -811,6 +878,17 @@ impl ScenePass {
                 *info = d as u32 | flag;
             }
         }
+        let clusters = if whole {
+            crate::tess::clusters::build_clusters(
+                scene,
+                draws
+                    .iter()
+                    .enumerate()
+                    .map(|(d, g)| (d as u32, g.first_index, g.index_count)),
+            )
+        } else {
+            Vec::new()
+        };
         let mut order: Vec<usize> = (0..draws.len()).filter(|&d| !draws[d].blend).collect();
         let opaque_count = order.len();
         order.extend((0..draws.len()).filter(|&d| draws[d].blend));
@@ -825,6 +903,7 @@ impl ScenePass {
             lights: scene.lights.clone(),
             bounds: scene.bounds(),
             tri_info,
+            clusters,
             material_bind_groups,
             _material_buffer: material_buffer,
             _textures: all_textures,

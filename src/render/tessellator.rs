@@ -57,6 +57,12 @@ pub struct TessUniforms {
     pub live_capacity: u32,
     pub output_capacity: u32,
     pub draws: u32,
+    /// 1: cs_init runs a workgroup per cluster of this view's needy list; 0: a thread per
+    /// source triangle. Set by the renderer per frame.
+    pub cluster_mode: u32,
+    pub needy_offset: u32,
+    pub needy_count: u32,
+    pub cluster_pad: u32,
 }
 
 impl TessUniforms {
@@ -159,6 +165,9 @@ const ARGS_DRAWS: usize = 6;
 /// Bytes of per-view statistics copied out of the counters (C_OUT..=C_OVERFLOW).
 pub const STATS_BYTES: u64 = 16;
 const WORKGROUP: u32 = 64;
+/// Largest workgroup count of one dispatch dimension (keep in sync with
+/// shaders/tessellate.wgsl).
+const MAX_GROUPS_X: u32 = 65_535;
 
 /// Default output budget: triangles per view (32 bytes each, live lists alike).
 pub const DEFAULT_CAPACITY: u32 = 1 << 20;
@@ -212,6 +221,9 @@ pub struct TessBuffers {
     pub stats: wgpu::Buffer,
     stats_capacity: usize,
     staging: Vec<u8>,
+    /// Every view's clusters to refine (see `tess::clusters`), and their staging copy.
+    needy: wgpu::Buffer,
+    needy_staging: Vec<[u32; 2]>,
 }
 
 fn storage_entry(
@@ -275,6 +287,7 @@ impl Tessellator {
                 storage_entry(6, false, c),
                 storage_entry(7, false, c),
                 storage_entry(8, false, c),
+                storage_entry(9, true, c),
             ],
         });
         let lists_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -353,6 +366,7 @@ impl Tessellator {
         index_buffer: &wgpu::Buffer,
         tri_info: &[u32],
         draws: usize,
+        clusters: usize,
         capacity: u32,
         views: usize,
     ) -> Result<TessBuffers, TessError> {
@@ -413,6 +427,13 @@ impl Tessellator {
             super::uniforms::UNIFORM_STRIDE * views.max(1) as u64,
             wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
+        // Every view's needy clusters, one after the other: at most all clusters per view.
+        let needy_capacity = clusters * views.max(1);
+        let needy = buffer(
+            "TessBuffers::needy",
+            8 * needy_capacity as u64,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        );
         let stats = buffer(
             "TessBuffers::stats",
             STATS_BYTES * views.max(1) as u64,
@@ -447,6 +468,7 @@ impl Tessellator {
                 whole(&counters, 6),
                 whole(&output, 7),
                 whole(&sorted, 8),
+                whole(&needy, 9),
             ],
         });
         let lists =
@@ -503,6 +525,8 @@ impl Tessellator {
             stats,
             stats_capacity: views.max(1),
             staging: Vec::with_capacity(views.max(1) * super::uniforms::UNIFORM_STRIDE as usize),
+            needy,
+            needy_staging: Vec::with_capacity(needy_capacity),
         })
     }
 }
@@ -543,15 +567,31 @@ impl TessBuffers {
     }
 
     /// Records the tessellation of view `view_index` (its uniform slot and view slot), with
-    /// timestamps ending its culling, split rounds and sort when `marks` is given.
+    /// timestamps ending its culling, split rounds and sort when `marks` is given. `needy`:
+    /// the number of clusters this view refines (its uniforms say where they are), or `None`
+    /// for every source triangle. A view with no cluster to refine records nothing but its
+    /// (empty) statistics, and returns false: there is no output to draw.
     pub fn encode(
         &self,
         tess: &Tessellator,
         encoder: &mut wgpu::CommandEncoder,
         view_index: usize,
         rounds: u32,
+        needy: Option<u32>,
         marks: Option<TessMarks<'_>>,
-    ) {
+    ) -> bool {
+        if needy == Some(0) {
+            if view_index < self.stats_capacity {
+                let at = view_index as u64 * STATS_BYTES;
+                encoder.clear_buffer(&self.stats, at, Some(STATS_BYTES));
+            }
+            if let Some(m) = marks {
+                for index in [m.cull, m.split, m.sort] {
+                    encoder.write_timestamp(m.queries, index);
+                }
+            }
+            return false;
+        }
         let inside = marks.filter(|m| m.inside_passes);
         encoder.clear_buffer(&self.counters, 0, None);
         encoder.clear_buffer(&self.count_a, 0, None);
@@ -565,7 +605,12 @@ impl TessBuffers {
             // cs_init appends to list A (the "out" side of the B→A group).
             pass.set_bind_group(1, &self.lists_ba, &[]);
             pass.set_pipeline(&tess.init);
-            pass.dispatch_workgroups(self.source_triangles.div_ceil(WORKGROUP), 1, 1);
+            match needy {
+                Some(n) => {
+                    pass.dispatch_workgroups(n.min(MAX_GROUPS_X), n.div_ceil(MAX_GROUPS_X), 1)
+                }
+                None => pass.dispatch_workgroups(self.source_triangles.div_ceil(WORKGROUP), 1, 1),
+            }
             if let Some(m) = inside {
                 pass.write_timestamp(m.queries, m.cull);
             }
@@ -616,6 +661,30 @@ impl TessBuffers {
                 view_index as u64 * STATS_BYTES,
                 STATS_BYTES,
             );
+        }
+        true
+    }
+
+    /// Uploads every view's clusters to refine, one after the other (one write per frame;
+    /// the staging copy never grows past all clusters of all views), and returns each view's
+    /// (offset, count) for its uniforms.
+    pub fn write_needy<'a>(
+        &mut self,
+        queue: &wgpu::Queue,
+        views: impl Iterator<Item = &'a [[u32; 2]]>,
+        out: &mut Vec<(u32, u32)>,
+    ) {
+        self.needy_staging.clear();
+        out.clear();
+        let capacity = (self.needy.size() / 8) as usize;
+        for list in views {
+            let offset = self.needy_staging.len();
+            let n = list.len().min(capacity.saturating_sub(offset));
+            self.needy_staging.extend_from_slice(&list[..n]);
+            out.push((offset as u32, n as u32));
+        }
+        if !self.needy_staging.is_empty() {
+            queue.write_buffer(&self.needy, 0, bytemuck::cast_slice(&self.needy_staging));
         }
     }
 

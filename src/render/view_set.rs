@@ -158,6 +158,7 @@ impl ViewSet {
                 &scene.whole()?.index_buffer,
                 &scene.tri_info,
                 scene.draw_count(),
+                scene.clusters.len(),
                 capacity,
                 self.view_capacity,
             )?,

@@ -211,6 +211,105 @@ pub fn frustum_shell(
     mesh
 }
 
+/// A surface of revolution around +y through `profile` ((radius, height) from bottom to top),
+/// `segments` around; normals from the profile's slope, outward. No caps.
+pub fn lathe(profile: &[(f32, f32)], segments: u32) -> MeshData {
+    let segments = segments.max(3);
+    let mut mesh = MeshData::default();
+    if profile.len() < 2 {
+        return mesh;
+    }
+    let rows = profile.len() as u32;
+    for i in 0..=segments {
+        let a = i as f32 / segments as f32 * std::f32::consts::TAU;
+        let (s, c) = a.sin_cos();
+        for (k, &(r, y)) in profile.iter().enumerate() {
+            // The profile's tangent at this row (one-sided at the ends).
+            let (r0, y0) = profile[k.saturating_sub(1)];
+            let (r1, y1) = profile[(k + 1).min(profile.len() - 1)];
+            let (dr, dy) = (r1 - r0, y1 - y0);
+            let n = Vec3::new(dy * s, -dr, dy * c).normalize_or(Vec3::new(s, 0.0, c));
+            mesh.vertices.push(Vertex {
+                position: [r * s, y, r * c],
+                normal: n.to_array(),
+                uv: [i as f32 / segments as f32, y],
+                ..Default::default()
+            });
+        }
+    }
+    for i in 0..segments {
+        for k in 0..rows - 1 {
+            let a = i * rows + k;
+            let b = a + rows;
+            mesh.indices
+                .extend_from_slice(&[a, b, b + 1, a, b + 1, a + 1]);
+        }
+    }
+    mesh
+}
+
+/// A semicircular arch band in the xy plane, centred at the origin (springing at y = 0), from
+/// radius `inner` to `outer`, `depth` thick along z: intrados, extrados and both faces,
+/// `segments` along the half circle.
+pub fn arch(inner: f32, outer: f32, depth: f32, segments: u32) -> MeshData {
+    let segments = segments.max(2);
+    let mut mesh = MeshData::default();
+    let dz = 0.5 * depth;
+    let point = |r: f32, i: u32, z: f32| {
+        let a = i as f32 / segments as f32 * std::f32::consts::PI;
+        Vec3::new(r * a.cos(), r * a.sin(), z)
+    };
+    for i in 0..segments {
+        let (p, q) = (i, i + 1);
+        let mid = (i as f32 + 0.5) / segments as f32 * std::f32::consts::PI;
+        let radial = Vec3::new(mid.cos(), mid.sin(), 0.0);
+        let uv = [Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y];
+        // Extrados (outward) and intrados (towards the centre).
+        mesh.push_quad(
+            [
+                point(outer, p, dz),
+                point(outer, p, -dz),
+                point(outer, q, -dz),
+                point(outer, q, dz),
+            ],
+            radial,
+            uv,
+        );
+        mesh.push_quad(
+            [
+                point(inner, q, dz),
+                point(inner, q, -dz),
+                point(inner, p, -dz),
+                point(inner, p, dz),
+            ],
+            -radial,
+            uv,
+        );
+        // Front (+z) and back (−z) faces.
+        mesh.push_quad(
+            [
+                point(inner, p, dz),
+                point(outer, p, dz),
+                point(outer, q, dz),
+                point(inner, q, dz),
+            ],
+            Vec3::Z,
+            uv,
+        );
+        mesh.push_quad(
+            [
+                point(inner, q, -dz),
+                point(outer, q, -dz),
+                point(outer, p, -dz),
+                point(inner, p, -dz),
+            ],
+            Vec3::NEG_Z,
+            uv,
+        );
+    }
+    mesh
+}
+
 /// A UV sphere centred at the origin.
 pub fn uv_sphere(radius: f32, rings: u32, segments: u32) -> MeshData {
     let rings = rings.max(2);
@@ -274,6 +373,11 @@ mod tests {
         assert_outward(&uv_sphere(1.0, 8, 12));
         assert_outward(&frustum_shell(1.0, 0.5, 1.0, 12, true));
         assert_outward(&grid(Vec3::ZERO, Vec3::X, Vec3::NEG_Z, 3, 2, 1.0));
+        assert_outward(&lathe(
+            &[(1.0, 0.0), (0.8, 0.5), (0.9, 1.0), (0.3, 2.0)],
+            16,
+        ));
+        assert_outward(&arch(1.0, 1.5, 0.5, 12));
         assert_outward(
             &cuboid(Vec3::ONE, 1.0).transformed(Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0))),
         );

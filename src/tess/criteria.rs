@@ -96,6 +96,9 @@ pub struct TessSettings {
     pub max_depth: u32,
     pub backface_cull: bool,
     pub frustum_cull: bool,
+    /// Clusters whose warp error is provably below the criterion (see `tess::clusters`) are
+    /// drawn through the ordinary path; only the rest are tessellated.
+    pub skip_fine: bool,
 }
 
 impl Default for TessSettings {
@@ -105,6 +108,7 @@ impl Default for TessSettings {
             max_depth: 10,
             backface_cull: true,
             frustum_cull: true,
+            skip_fine: true,
         }
     }
 }

@@ -88,7 +88,7 @@ fn source_sub_edges<'a>(
     tv: &'a TessView<'_>,
     out: &'a TessOutput,
 ) -> impl Iterator<Item = SubEdge> + 'a {
-    out.triangles.iter().flat_map(move |tri| {
+    out.drawn().flat_map(move |tri| {
         let corners = source_positions(scene, tri.source);
         let drawn = tri.corners.map(|c| project(tv, point_position(corners, c)));
         (0..3).filter_map(move |k| {
@@ -348,7 +348,7 @@ pub fn drawn_point(
     let p = source_positions(scene, source);
     let one = super::BARY_ONE as f32;
     let q = Vec2::new(w1 * one, w2 * one);
-    for tri in out.triangles.iter().filter(|t| t.source == source) {
+    for tri in out.drawn().filter(|t| t.source == source) {
         let c = tri.corners.map(|b| Vec2::new(b.b1 as f32, b.b2 as f32));
         let area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
         if area == 0.0 {

@@ -10,6 +10,7 @@
 //! edge are interpolated between the edge's two vertices in a canonical order, so triangles of
 //! different primitives that share positions compute bit-identical points.
 
+pub mod clusters;
 pub mod criteria;
 pub mod error;
 
@@ -226,8 +227,51 @@ pub fn all_outside_by(points: &[Vec4], near: f32, margin: f32) -> bool {
 /// Result of tessellating all of a scene's triangles for one view.
 #[derive(Debug, Clone, Default)]
 pub struct TessOutput {
+    /// What the tessellator emits.
     pub triangles: Vec<TessTriangle>,
+    /// Source triangles of clusters proven fine (`TessSettings::skip_fine`): drawn whole
+    /// through the ordinary path, never seen by the tessellator; those its culling tests find
+    /// invisible are left out (the rasteriser drops them).
+    pub fine: Vec<u32>,
     pub stats: TessStats,
+}
+
+impl TessOutput {
+    /// Every triangle drawn: the tessellator's, then the fine ones whole.
+    pub fn drawn(&self) -> impl Iterator<Item = TessTriangle> + '_ {
+        self.triangles
+            .iter()
+            .copied()
+            .chain(self.fine.iter().map(|&t| TessTriangle {
+                source: t,
+                corners: [Bary::V0, Bary::V1, Bary::V2],
+            }))
+    }
+}
+
+/// Per source triangle: whether its cluster is proven fine in view `tv` (all false unless
+/// `settings.skip_fine` and a criterion are set). Clusters as the renderer makes them: per
+/// draw with a material, [`clusters::CLUSTER_TRIANGLES`] at a time.
+pub fn fine_triangles(scene: &Scene, tv: &TessView<'_>, settings: &TessSettings) -> Vec<bool> {
+    let mut fine = vec![false; scene.triangle_count()];
+    let Some(test) = clusters::ClusterTest::for_settings(tv, settings) else {
+        return fine;
+    };
+    let draws = scene
+        .draws
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| scene.materials.get(d.material).is_some())
+        .map(|(i, d)| (i as u32, d.first_index, d.index_count));
+    for c in clusters::build_clusters(scene, draws) {
+        if test.is_fine(&c) {
+            let range = c.first_triangle as usize..(c.first_triangle + c.triangle_count) as usize;
+            if let Some(f) = fine.get_mut(range) {
+                f.fill(true);
+            }
+        }
+    }
+    fine
 }
 
 /// The CPU twin of the compute tessellator: culls, then splits round by round.
@@ -254,30 +298,40 @@ pub fn tessellate(
     // triangles (a triangle left unrefined beside a refined neighbour can show a T-junction:
     // conformity holds only within the budget).
     let mut budget = 0usize;
+    let fine = fine_triangles(scene, tv, settings);
     for t in 0..tri_count {
         // Triangles without a (valid) draw are never drawn (mirrors cs_init).
         let Some(&Some(double_sided_t)) = double_sided.get(t) else {
             continue;
         };
         let p = positions(t);
-        if settings.backface_cull && !double_sided_t {
-            let cave = p.map(|q| tv.cave_from_world.transform_point3(q));
-            if is_backfacing(tv, cave) {
-                out.stats.culled_backface += 1;
-                continue;
-            }
-        }
-        if settings.frustum_cull {
+        let backfacing = settings.backface_cull
+            && !double_sided_t
+            && is_backfacing(tv, p.map(|q| tv.cave_from_world.transform_point3(q)));
+        let outside = !backfacing && settings.frustum_cull && {
             let mut pts = [Vec4::ZERO; 6];
             for k in 0..3 {
                 pts[k] = project(tv, p[k]).clip;
                 pts[k + 3] =
                     project(tv, point_position(p, root[k].midpoint(root[(k + 1) % 3]))).clip;
             }
-            if all_outside_by(&pts, tv.near, CULL_MARGIN) {
-                out.stats.culled_frustum += 1;
-                continue;
+            all_outside_by(&pts, tv.near, CULL_MARGIN)
+        };
+        if fine.get(t).copied().unwrap_or(false) {
+            // Drawn directly: the rasteriser, not the tessellator, drops what the culling
+            // tests find invisible (kept out of the tessellator's counts, as on the GPU).
+            if !(backfacing || outside) {
+                out.fine.push(t as u32);
             }
+            continue;
+        }
+        if backfacing {
+            out.stats.culled_backface += 1;
+            continue;
+        }
+        if outside {
+            out.stats.culled_frustum += 1;
+            continue;
         }
         // Every kept triangle will be drawn at least once: it takes budget now.
         if budget >= capacity {

@@ -1,0 +1,572 @@
+//! Clusters of source triangles with bounds computed once at load, and the conservative test
+//! that a cluster needs no refinement in a view: such clusters are drawn through the ordinary
+//! indexed path with the per-vertex warp, and only the rest enter the tessellator.
+//!
+//! # The bound
+//!
+//! A point V of the scene is drawn where the ray from its eye E(V) through V meets the wall:
+//! Π(V) = E + s_E · W / u, with W = V − E, s the signed distance from the wall plane (positive
+//! on the viewer's side) and u = s_E − s_V > 0. (The similar-triangle and intersection-point
+//! warps both put the warped vertex, seen from the view's centre, exactly there.) Along an
+//! edge X(t) = A + t·d, |d| = L, the curve f(t) = Π(X(t)) is what an exact renderer draws and
+//! the chord is what the rasteriser draws; the split criteria measure, at depth 0:
+//!
+//! - `error`: |f(½) − (f(0) + f(1))/2| ≤ max|f''| / 8;
+//! - `edge`: |f(1) − f(0)| ≤ max|f'|;
+//! - `sphere`: L · s_C / w · k, w the warped midpoint's clip w ≥ s_C · u / s_E.
+//!
+//! With g(W) = W/(−n·W): |g| = τ = |W|/u, ‖Dg‖ ≤ (1 + τ)/u, ‖D²g‖ ≤ 2(1 + τ)/u². With the eye
+//! function's derivatives |∇E| ≤ G1 and ‖∇²E‖ ≤ G2 (below), f = E + s_E·g(W) gives
+//!
+//! - |f'| ≤ L·(1 + τ)·(G1 + s_E·(1 + G1)/u),
+//! - |f''| ≤ L²·[G2·(1 + τ) + 2·G1·(1 + G1)·(1 + τ)/u + s_E·(1 + τ)·(2·(1 + G1)²/u² + G2/u)],
+//!
+//! each taken at its worst over the cluster's ball (centre c, radius R) and the ball the eyes
+//! lie on (the head h, radius r = IPD/2; a fixed eye has r = 0 and G1 = G2 = 0). Times k, the
+//! wall's pixels per metre (the larger of its two axes), these are pixels.
+//!
+//! The omnistereo eye is E = h + m(el)·R(az), with R the horizontal unit vector across the
+//! direction to V, az its azimuth and el its elevation from the head, and m = r·φ(el) the pole
+//! merge's fade (smoothstep from 1 to 0 between its two angles). With ρ the horizontal and D the
+//! full distance from the head: |∇az| = 1/ρ, ‖∇²az‖ = 1/ρ², |∇el| = 1/D,
+//! ‖∇²el‖ ≤ 1/D² + 1/(ρD) (taken as twice that), |φ'| ≤ 1.5/Δ, |φ''| ≤ 6/Δ² (Δ the fade's
+//! width in radians). So G1 = r·(φ'/D + 1/ρ) and
+//! G2 = r·(φ''/D² + φ'·‖∇²el‖) + 2·r·φ'/(Dρ) + 2·r/ρ², where the fade's terms vanish when the
+//! whole ball lies below its start and E = h (G1 = G2 = 0) when it lies above its end.
+//!
+//! A cluster is refined unless its ball lies wholly in front of every eye (u > 0, the warped
+//! points beyond twice the near plane) and every bound, with a margin for the GPU's rounding,
+//! stays under the criterion. `tests` check the bound against the CPU twin of the criteria
+//! (`split_edge`) on random triangles, heads and walls.
+
+use glam::{Mat4, Vec3};
+
+use super::{Criterion, TessView};
+use crate::cave::omni::PoleMerge;
+use crate::scene::Scene;
+
+/// Triangles per cluster: one workgroup of the tessellator's culling pass.
+pub const CLUSTER_TRIANGLES: u32 = 64;
+
+/// A run of up to [`CLUSTER_TRIANGLES`] consecutive source triangles of one draw, with its
+/// bounds in scene space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cluster {
+    /// The draw (the renderer's, see `SceneGpu`) whose indices hold it.
+    pub draw: u32,
+    /// First source triangle (its indices start at 3 × this).
+    pub first_triangle: u32,
+    pub triangle_count: u32,
+    /// Bounding ball of its corners, scene space.
+    pub centre: Vec3,
+    pub radius: f32,
+    /// Longest edge of any of its triangles, scene space.
+    pub max_edge: f32,
+}
+
+/// Clusters of every draw given as (draw, first index, index count) into `scene.indices`.
+/// Degenerate or out-of-range indices only make the bounds larger (a missing vertex counts
+/// at the origin), never smaller than the triangles drawn.
+pub fn build_clusters(
+    scene: &Scene,
+    draws: impl IntoIterator<Item = (u32, u32, u32)>,
+) -> Vec<Cluster> {
+    let position = |i: u32| {
+        scene
+            .vertices
+            .get(i as usize)
+            .map_or(Vec3::ZERO, |v| Vec3::from(v.position))
+    };
+    let corner = |t: u32, k: u32| {
+        position(
+            scene
+                .indices
+                .get((3 * t + k) as usize)
+                .copied()
+                .unwrap_or(0),
+        )
+    };
+    let mut out = Vec::new();
+    for (draw, first_index, index_count) in draws {
+        let first = first_index / 3;
+        let count = index_count / 3;
+        let mut t = first;
+        while t < first + count {
+            let n = CLUSTER_TRIANGLES.min(first + count - t);
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            let mut max_edge = 0.0f32;
+            for tri in t..t + n {
+                let p = [corner(tri, 0), corner(tri, 1), corner(tri, 2)];
+                for k in 0..3 {
+                    lo = lo.min(p[k]);
+                    hi = hi.max(p[k]);
+                    max_edge = max_edge.max(p[k].distance(p[(k + 1) % 3]));
+                }
+            }
+            let centre = 0.5 * (lo + hi);
+            let mut radius = 0.0f32;
+            for tri in t..t + n {
+                for k in 0..3 {
+                    radius = radius.max(corner(tri, k).distance(centre));
+                }
+            }
+            out.push(Cluster {
+                draw,
+                first_triangle: t,
+                triangle_count: n,
+                centre,
+                // One part in a million more: the distances above are rounded too.
+                radius: radius * (1.0 + 1e-6),
+                max_edge: max_edge * (1.0 + 1e-6),
+            });
+            t += n;
+        }
+    }
+    out
+}
+
+/// Slack for the GPU's rounding: a bound must stay this far under the criterion (pixels,
+/// relative and absolute). Criteria are measured in f32 on pixel coordinates up to a few
+/// thousand, so a few thousandths of a pixel; a hundredth plus 2 % is ample.
+const MARGIN_RELATIVE: f32 = 1.02;
+const MARGIN_PX: f32 = 0.01;
+
+/// What the test needs of one view, computed once per view and frame.
+#[derive(Debug, Clone, Copy)]
+pub struct ClusterTest {
+    criterion: Criterion,
+    cave_from_world: Mat4,
+    /// Scale of `cave_from_world` (its largest axis): scene lengths to CAVE metres.
+    scale: f32,
+    /// Wall plane: s(X) = n·X + d, n towards the viewer.
+    normal: Vec3,
+    offset: f32,
+    /// The view's centre of projection and its distance from the wall.
+    s_centre: f32,
+    /// The ball the eyes lie on: the head and IPD/2 (omnistereo), else the eye and 0.
+    head: Vec3,
+    eye_radius: f32,
+    pole: Option<PoleMerge>,
+    /// Pixels per metre on the wall: the larger axis, and x alone.
+    px_per_m: f32,
+    px_per_m_x: f32,
+    near: f32,
+}
+
+impl ClusterTest {
+    /// The test for `tv` with `criterion` at depth 0; `None` when no cluster can be proven
+    /// fine (uniform subdivision, or a view whose eye is not in front of its wall).
+    pub fn new(tv: &TessView<'_>, criterion: Criterion) -> Option<Self> {
+        if matches!(criterion, Criterion::Uniform(n) if n > 0) {
+            return None;
+        }
+        let wall = tv.wall;
+        let normal = wall.normal();
+        let offset = -normal.dot(wall.lower_left);
+        let (head, eye_radius, pole) = match (tv.omni, tv.view.omni, tv.view.eye) {
+            (Some(settings), Some(o), Some(_)) => (o.head, 0.5 * o.ipd, settings.pole_merge),
+            _ => (tv.view.eye_position, 0.0, None),
+        };
+        let s_centre = normal.dot(tv.view.eye_position) + offset;
+        if !(s_centre > 0.0 && normal.dot(head) + offset - eye_radius > 0.0) {
+            return None;
+        }
+        let m = tv.cave_from_world;
+        let scale = m
+            .x_axis
+            .truncate()
+            .length()
+            .max(m.y_axis.truncate().length())
+            .max(m.z_axis.truncate().length());
+        let size = wall.size_m();
+        let [w, h] = wall.resolution.map(|v| v as f32);
+        let (kx, ky) = (w / size.x, h / size.y);
+        let finite = [scale, kx, ky, s_centre, tv.near]
+            .iter()
+            .all(|v| v.is_finite() && *v > 0.0);
+        finite.then_some(Self {
+            criterion,
+            cave_from_world: m,
+            scale,
+            normal,
+            offset,
+            s_centre,
+            head,
+            eye_radius,
+            pole,
+            px_per_m: kx.max(ky),
+            px_per_m_x: kx,
+            near: tv.near,
+        })
+    }
+
+    /// The test a frame with `settings` uses in view `tv`: `None` unless clusters are to be
+    /// skipped (`skip_fine`), there is a criterion and refinement is possible (depth > 0).
+    pub fn for_settings(tv: &TessView<'_>, settings: &super::TessSettings) -> Option<Self> {
+        match (settings.skip_fine, settings.criterion) {
+            (true, Some(c)) if settings.max_depth > 0 => Self::new(tv, c),
+            _ => None,
+        }
+    }
+
+    /// Whether no edge of any triangle in `cluster` is split at depth 0 in this view, proven
+    /// by the bound in the module documentation (false: it goes to the tessellator).
+    pub fn is_fine(&self, cluster: &Cluster) -> bool {
+        if matches!(self.criterion, Criterion::Uniform(_)) {
+            // Uniform:0 (others never get here): nothing is split.
+            return true;
+        }
+        let c = self.cave_from_world.transform_point3(cluster.centre);
+        let radius = cluster.radius * self.scale;
+        let length = cluster.max_edge * self.scale;
+        let r = self.eye_radius;
+        let s = |x: Vec3| self.normal.dot(x) + self.offset;
+        let s_head = s(self.head);
+        let s_eye_max = s_head + r;
+        let u_min = (s_head - r) - (s(c) + radius);
+        if u_min <= 0.0 {
+            return false;
+        }
+        // The warped points' clip w (their depth from the view's centre): beyond twice the
+        // near plane, so no criterion takes its "behind the viewpoint" branch.
+        let w_min = self.s_centre * u_min / s_eye_max;
+        if w_min.is_nan() || w_min <= 2.0 * self.near {
+            return false;
+        }
+        let to_centre = c - self.head;
+        let distance = to_centre.length();
+        let tau = (distance + radius + r) / u_min;
+        let (g1, g2) = if r > 0.0 {
+            match eye_derivatives(to_centre, radius, r, self.pole) {
+                Some(g) => g,
+                None => return false,
+            }
+        } else {
+            (0.0, 0.0)
+        };
+        let k = self.px_per_m;
+        let bound = match self.criterion {
+            Criterion::Uniform(_) => 0.0,
+            Criterion::Error(_) => {
+                let second = g2 * (1.0 + tau)
+                    + 2.0 * g1 * (1.0 + g1) * (1.0 + tau) / u_min
+                    + s_eye_max
+                        * (1.0 + tau)
+                        * (2.0 * (1.0 + g1) * (1.0 + g1) / (u_min * u_min) + g2 / u_min);
+                k * length * length * second / 8.0
+            }
+            Criterion::Edge(_) => k * length * (1.0 + tau) * (g1 + s_eye_max * (1.0 + g1) / u_min),
+            Criterion::Sphere(_) => length * self.s_centre * self.px_per_m_x / w_min,
+        };
+        let limit = match self.criterion {
+            Criterion::Error(px) | Criterion::Edge(px) | Criterion::Sphere(px) => px,
+            Criterion::Uniform(_) => return true,
+        };
+        bound.is_finite() && bound * MARGIN_RELATIVE + MARGIN_PX < limit
+    }
+}
+
+/// Bounds (G1, G2) on the first and second derivatives of the omnistereo eye over the ball at
+/// `to_centre` from the head with `radius`, for eyes `r` from the head; `None` where the ball
+/// reaches the vertical through the head (the eye's direction turns without bound there)
+/// unless the eyes have merged over all of it.
+fn eye_derivatives(
+    to_centre: Vec3,
+    radius: f32,
+    r: f32,
+    pole: Option<PoleMerge>,
+) -> Option<(f32, f32)> {
+    let distance = to_centre.length();
+    let horizontal = (to_centre.x * to_centre.x + to_centre.z * to_centre.z).sqrt();
+    let d_min = distance - radius;
+    if d_min <= 0.0 {
+        return None;
+    }
+    // Elevations the ball spans.
+    let elevation = to_centre.y.abs().atan2(horizontal);
+    let spread = (radius / distance).clamp(0.0, 1.0).asin();
+    let (el_lo, el_hi) = ((elevation - spread).max(0.0), elevation + spread);
+    let (d1, d2) = match pole {
+        None => (0.0, 0.0),
+        Some(p) => {
+            let (a, b) = (p.start_degrees.to_radians(), p.end_degrees.to_radians());
+            if el_lo > b.max(a) {
+                // The eyes have merged into the head everywhere in the ball: E = h.
+                return Some((0.0, 0.0));
+            }
+            if el_hi < a {
+                (0.0, 0.0)
+            } else if b <= a {
+                // A step: the eye jumps inside the ball.
+                return None;
+            } else {
+                let width = b - a;
+                (1.5 / width, 6.0 / (width * width))
+            }
+        }
+    };
+    let rho_min = horizontal - radius;
+    if rho_min <= 0.0 {
+        return None;
+    }
+    let hess_el = 2.0 * (1.0 / (d_min * d_min) + 1.0 / (rho_min * d_min));
+    let g1 = r * (d1 / d_min + 1.0 / rho_min);
+    let g2 = r * (d2 / (d_min * d_min) + d1 * hess_el)
+        + 2.0 * r * d1 / (d_min * rho_min)
+        + 2.0 * r / (rho_min * rho_min);
+    Some((g1, g2))
+}
+
+/// One view's split of the clusters: index ranges drawn through the ordinary path (per draw,
+/// consecutive fine clusters merged) and the clusters the tessellator refines, as (first
+/// triangle, triangle count). Reused frame to frame: nothing grows past the scene's clusters.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ClusterSplit {
+    /// (draw, first index, index count).
+    pub fine: Vec<(u32, u32, u32)>,
+    pub needy: Vec<[u32; 2]>,
+}
+
+impl ClusterSplit {
+    /// Classifies `clusters` with `test` (`None`: every cluster is refined).
+    pub fn classify(&mut self, clusters: &[Cluster], test: Option<&ClusterTest>) {
+        self.fine.clear();
+        self.needy.clear();
+        for c in clusters {
+            if test.is_some_and(|t| t.is_fine(c)) {
+                match self.fine.last_mut() {
+                    Some((draw, first, count))
+                        if *draw == c.draw && *first + *count == 3 * c.first_triangle =>
+                    {
+                        *count += 3 * c.triangle_count;
+                    }
+                    _ => self
+                        .fine
+                        .push((c.draw, 3 * c.first_triangle, 3 * c.triangle_count)),
+                }
+            } else {
+                self.needy.push([c.first_triangle, c.triangle_count]);
+            }
+        }
+    }
+
+    /// Triangles drawn through the ordinary path.
+    pub fn fine_triangles(&self) -> u32 {
+        self.fine.iter().map(|f| f.2 / 3).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cave::omni::OmniSettings;
+    use crate::cave::{Head, RenderMode, Wall, thesis_cave, view_setups};
+    use crate::scene::{Draw, Vertex};
+    use crate::tess::criteria::split_edge;
+    use crate::tess::{Bary, tess_view};
+    use glam::Quat;
+
+    struct Rng(u64);
+    impl Rng {
+        fn unit(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn range(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * self.unit()
+        }
+        fn direction(&mut self) -> Vec3 {
+            loop {
+                let v = Vec3::new(
+                    self.range(-1.0, 1.0),
+                    self.range(-1.0, 1.0),
+                    self.range(-1.0, 1.0),
+                );
+                if (0.01..1.0).contains(&v.length_squared()) {
+                    return v.normalize();
+                }
+            }
+        }
+    }
+
+    /// A scene of one cluster: `n` random triangles of size up to `size` around `centre`.
+    fn random_cluster(rng: &mut Rng, centre: Vec3, spread: f32, size: f32, n: usize) -> Scene {
+        let mut scene = Scene::default();
+        for _ in 0..n {
+            let at = centre + spread * rng.unit() * rng.direction();
+            for _ in 0..3 {
+                let p = at + size * rng.unit() * rng.direction();
+                scene.indices.push(scene.vertices.len() as u32);
+                scene
+                    .vertices
+                    .push(Vertex::new(p.to_array(), [0.0, 1.0, 0.0], [0.0, 0.0]));
+            }
+        }
+        scene.draws.push(Draw {
+            first_index: 0,
+            index_count: scene.indices.len() as u32,
+            material: 0,
+        });
+        scene
+    }
+
+    #[test]
+    fn fine_clusters_split_no_edge_in_the_cpu_twin() {
+        // The bound against the criteria themselves: over random clusters (near and far, small
+        // and large triangles), heads, scene placements, walls (three walls and a floor, at a
+        // quick and a full resolution), render modes and criteria, no edge of a cluster proven
+        // fine is split at depth 0 by the CPU twin, and the proof is not vacuous (a good share
+        // of clusters is proven fine, and some that are not do split).
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let mut cave = thesis_cave();
+        cave.walls.push(Wall {
+            name: "floor".into(),
+            lower_left: Vec3::new(-1.65, 0.0, 1.65),
+            lower_right: Vec3::new(1.65, 0.0, 1.65),
+            upper_left: Vec3::new(-1.65, 0.0, -1.65),
+            resolution: [1280, 1280],
+        });
+        let (mut fine, mut tested, mut edges) = (0usize, 0usize, 0usize);
+        for trial in 0..400 {
+            let resolution = if trial % 2 == 0 {
+                [192, 108]
+            } else {
+                [1280, 720]
+            };
+            for wall in cave.walls.iter_mut().take(3) {
+                wall.resolution = resolution;
+            }
+            let head = Head::at(Vec3::new(
+                rng.range(-1.3, 1.3),
+                rng.range(0.8, 2.2),
+                rng.range(-1.3, 1.3),
+            ));
+            let mode = [
+                RenderMode::OmniOffAxis,
+                RenderMode::OmniOnAxis,
+                RenderMode::Stereo,
+            ][trial % 3];
+            let world_from_cave = Mat4::from_scale_rotation_translation(
+                Vec3::splat(rng.range(0.5, 2.0)),
+                Quat::from_rotation_y(rng.range(-3.0, 3.0)),
+                Vec3::new(
+                    rng.range(-5.0, 5.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-5.0, 5.0),
+                ),
+            );
+            let distance = 10f32.powf(rng.range(-0.3, 1.8));
+            let centre_cave = head.position + distance * rng.direction();
+            let size = distance * 10f32.powf(rng.range(-3.0, -0.3));
+            let scene = random_cluster(
+                &mut rng,
+                world_from_cave.transform_point3(centre_cave),
+                size,
+                size,
+                8,
+            );
+            let clusters = build_clusters(&scene, [(0, 0, scene.indices.len() as u32)]);
+            let criterion = match trial % 4 {
+                0 => Criterion::Error(rng.range(0.25, 4.0)),
+                1 => Criterion::Edge(rng.range(8.0, 64.0)),
+                2 => Criterion::Sphere(rng.range(8.0, 64.0)),
+                _ => Criterion::Error(0.5),
+            };
+            let omni = mode.is_omni().then(OmniSettings::default);
+            for view in view_setups(&cave, &head, mode, 0.064) {
+                let wall = &cave.walls[view.wall];
+                let tv = tess_view(&view, wall, world_from_cave, omni);
+                let Some(test) = ClusterTest::new(&tv, criterion) else {
+                    continue;
+                };
+                for cluster in &clusters {
+                    tested += 1;
+                    if !test.is_fine(cluster) {
+                        continue;
+                    }
+                    fine += 1;
+                    for t in cluster.first_triangle..cluster.first_triangle + cluster.triangle_count
+                    {
+                        let p = [0, 1, 2].map(|k| {
+                            Vec3::from(
+                                scene.vertices[scene.indices[3 * t as usize + k] as usize].position,
+                            )
+                        });
+                        let corners = [Bary::V0, Bary::V1, Bary::V2];
+                        for k in 0..3 {
+                            edges += 1;
+                            assert!(
+                                !split_edge(
+                                    &tv,
+                                    &criterion,
+                                    0,
+                                    p,
+                                    corners[k],
+                                    corners[(k + 1) % 3]
+                                ),
+                                "trial {trial}: {criterion} splits an edge of a cluster proven \
+                                 fine ({mode:?}, wall {}, head {:?}, cluster {cluster:?})",
+                                wall.name,
+                                head.position
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!("{fine} of {tested} cluster views proven fine, {edges} edges checked");
+        assert!(
+            fine * 5 > tested,
+            "{fine} of {tested}: the bound proves too little"
+        );
+        assert!(
+            fine < tested,
+            "every cluster proven fine: nothing was tested"
+        );
+    }
+
+    #[test]
+    fn clusters_cover_every_draw_once_and_fine_ranges_merge() {
+        let mut rng = Rng(7);
+        let scene = random_cluster(&mut rng, Vec3::ZERO, 1.0, 0.1, 150);
+        let n = scene.indices.len() as u32;
+        // Two draws: 100 triangles, then 50.
+        let clusters = build_clusters(&scene, [(0, 0, 300), (1, 300, n - 300)]);
+        let counts: Vec<(u32, u32, u32)> = clusters
+            .iter()
+            .map(|c| (c.draw, c.first_triangle, c.triangle_count))
+            .collect();
+        assert_eq!(counts, vec![(0, 0, 64), (0, 64, 36), (1, 100, 50)]);
+        for c in &clusters {
+            for t in c.first_triangle..c.first_triangle + c.triangle_count {
+                for k in 0..3 {
+                    let p = Vec3::from(
+                        scene.vertices[scene.indices[(3 * t + k) as usize] as usize].position,
+                    );
+                    assert!(p.distance(c.centre) <= c.radius, "{c:?}");
+                }
+            }
+        }
+        let mut split = ClusterSplit::default();
+        split.classify(&clusters, None);
+        assert_eq!(split.needy.len(), 3);
+        assert!(split.fine.is_empty());
+        // Everything fine (uniform:0 splits nothing): consecutive clusters of a draw merge.
+        let cave = thesis_cave();
+        let views = view_setups(
+            &cave,
+            &Head::at(Vec3::new(0.0, 1.6, 0.0)),
+            RenderMode::Stereo,
+            0.064,
+        );
+        let tv = tess_view(&views[0], &cave.walls[0], Mat4::IDENTITY, None);
+        let test = ClusterTest::new(&tv, Criterion::Uniform(0)).expect("test");
+        split.classify(&clusters, Some(&test));
+        assert_eq!(split.fine, vec![(0, 0, 300), (1, 300, 150)]);
+        assert!(split.needy.is_empty());
+        assert_eq!(split.fine_triangles(), 150);
+        assert!(ClusterTest::new(&tv, Criterion::Uniform(1)).is_none());
+    }
+}
