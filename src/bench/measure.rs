@@ -41,6 +41,8 @@ pub struct Row {
     pub stages_ms: Option<[f64; STAGE_COLUMNS]>,
     /// Compute dispatches per frame.
     pub dispatches: usize,
+    /// Source triangles that entered the tessellator per frame (all views).
+    pub refined_input: usize,
 }
 
 /// Stage columns: the shadow maps, then each view stage.
@@ -103,6 +105,7 @@ pub(super) fn measure(
     let mut wall_times = vec![Vec::with_capacity(frames); methods.len()];
     let mut drawn = vec![0usize; methods.len()];
     let mut dispatches = vec![0usize; methods.len()];
+    let mut refined_input = vec![0usize; methods.len()];
     let mut stage_times: Vec<Vec<[f64; STAGE_COLUMNS]>> =
         vec![Vec::with_capacity(frames); methods.len()];
     let params = |m: &Method| {
@@ -122,6 +125,7 @@ pub(super) fn measure(
         let stats = renderer.render(&params(m))?;
         renderer.wait_idle()?;
         dispatches[i] = stats.dispatches;
+        refined_input[i] = stats.refined_input;
         let tess: usize = renderer
             .read_tess_stats()?
             .iter()
@@ -218,6 +222,7 @@ pub(super) fn measure(
                 image_diff_pct: diffs[i],
                 stages_ms,
                 dispatches: dispatches[i],
+                refined_input: refined_input[i],
             }
         })
         .collect())

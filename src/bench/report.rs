@@ -130,6 +130,7 @@ pub(super) fn write_outputs(
         "sky_ms",
         "resolve_ms",
         "dispatches",
+        "refined_input_triangles",
     ];
     let f4 = |v: f64| format!("{v:.4}");
     let table = rows.iter().map(|r| {
@@ -191,6 +192,7 @@ pub(super) fn write_outputs(
             None => cells.extend(std::iter::repeat_n(String::new(), STAGE_COLUMNS)),
         }
         cells.push(r.dispatches.to_string());
+        cells.push(r.refined_input.to_string());
         cells
     });
     let csv_path = options.out.join("results.csv");
@@ -331,6 +333,8 @@ pub struct MethodSummary {
     pub stages_ms: Option<[f64; STAGE_COLUMNS]>,
     /// Compute dispatches per frame (the largest over cases).
     pub dispatches: usize,
+    /// Source triangles entering the tessellator per frame, all views (largest over cases).
+    pub refined_input: usize,
 }
 
 /// The methods of one scene.
@@ -413,6 +417,7 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                             .unwrap_or(0),
                         stages_ms: stage_medians(&mine),
                         dispatches: mine.iter().map(|r| r.dispatches).max().unwrap_or(0),
+                        refined_input: mine.iter().map(|r| r.refined_input).max().unwrap_or(0),
                     }
                 })
                 .collect();
@@ -590,7 +595,8 @@ fn write_stage_table(md: &mut String, s: &SceneSummary) {
         md,
         "\nWhere the time goes ({}; GPU timestamps between stages, ms per frame summed over \
          the views, median over the cases; `resolve` is the end of each view's render pass, \
-         MSAA resolve and stores):\n\n| method | total | {} | dispatches | drawn triangles |\n|---|---:|{}---:|---:|",
+         MSAA resolve and stores; `refined` counts the source triangles that entered the \
+         tessellator, all views):\n\n| method | total | {} | dispatches | refined | drawn triangles |\n|---|---:|{}---:|---:|---:|",
         s.scene,
         names.join(" | "),
         "---:|".repeat(names.len())
@@ -600,11 +606,12 @@ fn write_stage_table(md: &mut String, s: &SceneSummary) {
         let cells: Vec<String> = st.iter().map(|v| format!("{v:.2}")).collect();
         let _ = writeln!(
             md,
-            "| {} | {:.2} | {} | {} | {} |",
+            "| {} | {:.2} | {} | {} | {} | {} |",
             m.method.name,
             st.iter().sum::<f64>(),
             cells.join(" | "),
             m.dispatches,
+            m.refined_input,
             m.drawn_triangles
         );
     }

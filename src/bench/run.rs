@@ -6,15 +6,17 @@ use std::path::PathBuf;
 use super::cases::{bundled_path, cases};
 use super::error::BenchError;
 use super::measure::{Row, measure};
-use super::methods::methods;
+use super::methods::{Method, methods};
 use super::options::{BenchOptions, QUICK_SIZE};
 use super::panorama;
 use super::report::{write_file, write_outputs};
 use crate::config::Config;
 use crate::render::Gpu;
+use crate::render::tessellator::DEFAULT_CAPACITY;
 use crate::scene::Scene;
 use crate::setup::load_scene;
 use crate::sky::load_sky;
+use crate::tess::Criterion;
 
 /// Everything a run produced.
 #[derive(Debug, Clone)]
@@ -24,6 +26,31 @@ pub struct BenchReport {
     pub pano_rows: Vec<panorama::PanoRow>,
     pub adapter: String,
     pub files: Vec<PathBuf>,
+}
+
+/// The methods a scene of `triangles` triangles is measured with: uniform subdivision is left
+/// out where its output (4^n triangles per source triangle) would not fit the tessellator's
+/// budget of [`DEFAULT_CAPACITY`] per view: it would be drawn less refined than its name says.
+pub fn methods_within_budget(methods: &[Method], triangles: usize) -> Vec<Method> {
+    methods
+        .iter()
+        .filter(|m| match m.tess.criterion {
+            Some(Criterion::Uniform(n)) => {
+                let out = (triangles as u64).saturating_mul(1u64 << (2 * n.min(16)));
+                let fits = out <= u64::from(DEFAULT_CAPACITY);
+                if !fits {
+                    tracing::info!(
+                        "{}: {out} triangles per view exceed the tessellator's budget of \
+                         {DEFAULT_CAPACITY}; not measured",
+                        m.name
+                    );
+                }
+                fits
+            }
+            _ => true,
+        })
+        .cloned()
+        .collect()
 }
 
 /// Runs the benchmark and writes `results.csv`, `report.md` and the chart into the output
@@ -89,6 +116,8 @@ pub fn run(
     let mut done = 0;
     let wall_scenes: &[(String, Option<Scene>)] = if options.panorama_only { &[] } else { &scenes };
     for (scene_name, scene) in wall_scenes {
+        let triangles = scene.as_ref().map_or(0, Scene::triangle_count);
+        let methods = methods_within_budget(&methods, triangles);
         for case in cases(&config, options.quick, scene.is_some()) {
             let what = format!(
                 "{scene_name}, {}, head {}: {} methods × {frames} frames",

@@ -37,7 +37,7 @@ use crate::pano::{PanoRoute, PanoSettings};
 use crate::scene::Scene;
 use crate::scene::{Lighting, Shading};
 use crate::sky::{CubeMap, SkyMode, SkySettings};
-use crate::tess::clusters::{ClusterSplit, ClusterTest};
+use crate::tess::clusters::{ClusterSplit, ClusterTest, Verdict};
 use crate::tess::{TessSettings, TessStats};
 
 /// Settings that change pipelines or targets (rarely; never per frame).
@@ -105,6 +105,9 @@ pub struct FrameStats {
     /// Triangles drawn directly, untessellated, in a tessellated frame (all views): those of
     /// clusters proven to need no refinement.
     pub fine_triangles: usize,
+    /// Source triangles that entered the tessellator (all views): those of the clusters
+    /// that may need refining, or every triangle per view without `skip_fine`.
+    pub refined_input: usize,
 }
 
 /// The renderer: one scene pass, one scene, per-wall per-eye targets.
@@ -603,30 +606,36 @@ impl Renderer {
             &frame_uniforms,
             views.iter().map(ViewUniforms::from),
         );
+        // Each view's clusters: the provably invisible dropped, the rest drawn whole or, when
+        // tessellating, refined if they may need it (see tess::clusters). A split scene has
+        // no clusters (and is not tessellated): drawn whole, every draw in every view.
+        let direct = self.scene.as_ref().is_some_and(|s| !s.clusters.is_empty())
+            && (!tessellate || frame.tess.skip_fine);
+        if let (true, Some(scene)) = (direct, &self.scene) {
+            let omni = frame.mode.is_omni().then_some(frame.omni);
+            let unproven = if tessellate {
+                Verdict::Needy
+            } else {
+                Verdict::Fine
+            };
+            self.cluster_splits
+                .resize_with(views.len(), Default::default);
+            for (v, split) in views.iter().zip(&mut self.cluster_splits) {
+                let wall = &frame.cave.walls[v.wall];
+                let tv = crate::tess::tess_view(v, wall, frame.world_from_cave, omni);
+                let test = ClusterTest::for_settings(&tv, &frame.tess, tessellate);
+                split.classify(&scene.clusters, test.as_ref(), unproven);
+            }
+        }
         if let (true, Some(scene), Some(tessellator)) = (tessellate, &self.scene, &self.tessellator)
         {
             let buffers =
                 self.walls
                     .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
-            // Which clusters each view refines; the rest are drawn directly.
-            let omni = frame.mode.is_omni().then_some(frame.omni);
-            let cluster_mode = frame.tess.skip_fine;
-            self.cluster_splits
-                .resize_with(views.len(), Default::default);
-            for (v, split) in views.iter().zip(&mut self.cluster_splits) {
-                if cluster_mode {
-                    let wall = &frame.cave.walls[v.wall];
-                    let tv = crate::tess::tess_view(v, wall, frame.world_from_cave, omni);
-                    let test = ClusterTest::for_settings(&tv, &frame.tess);
-                    split.classify(&scene.clusters, test.as_ref());
-                } else {
-                    split.fine.clear();
-                    split.needy.clear();
-                }
-            }
+            let cluster_mode = direct;
             buffers.write_needy(
                 &self.queue,
-                self.cluster_splits[..views.len()]
+                self.cluster_splits[..if direct { views.len() } else { 0 }]
                     .iter()
                     .map(|s| s.needy.as_slice()),
                 &mut self.needy_ranges,
@@ -692,10 +701,7 @@ impl Renderer {
         for (index, view) in views.iter().enumerate() {
             let tess = self.walls.tessellated();
             let timer = self.timer.as_ref();
-            let split = self
-                .cluster_splits
-                .get(index)
-                .filter(|_| frame.tess.skip_fine);
+            let split = self.cluster_splits.get(index).filter(|_| direct);
             let needy = split.map(|_| self.needy_ranges.get(index).map_or(0, |r| r.1));
             let drew = match (tess, &self.tessellator) {
                 (Some(buffers), Some(tessellator)) => buffers.encode(
@@ -741,6 +747,15 @@ impl Renderer {
                         wireframe,
                     );
                 }
+                (Some(scene), None) if direct => self.scene_pass.draw_split(
+                    &mut pass,
+                    scene,
+                    self.walls.bind_group(),
+                    None,
+                    fine,
+                    index,
+                    wireframe,
+                ),
                 (Some(scene), None) => self.scene_pass.draw(
                     &mut pass,
                     scene,
@@ -777,13 +792,25 @@ impl Renderer {
         }
         let tessellated_views = if !tessellate {
             0
-        } else if frame.tess.skip_fine {
+        } else if direct {
             self.needy_ranges.iter().filter(|r| r.1 > 0).count()
         } else {
             views.len()
         };
         self.last_dispatches = tessellated_views * tessellator::dispatches_per_view(rounds);
-        let fine_triangles: usize = if tessellate && frame.tess.skip_fine {
+        let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
+        let refined_input: usize = if !tessellate {
+            0
+        } else if direct {
+            self.cluster_splits[..views.len()]
+                .iter()
+                .flat_map(|s| &s.needy)
+                .map(|n| n[1] as usize)
+                .sum()
+        } else {
+            triangles * views.len()
+        };
+        let fine_triangles: usize = if tessellate && direct {
             self.cluster_splits[..views.len()]
                 .iter()
                 .map(|s| s.fine_triangles() as usize)
@@ -826,12 +853,12 @@ impl Renderer {
         }
         self.queue.submit([encoder.finish()]);
         self.readback.finish();
-        let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
         let stats = FrameStats {
             views: views.len(),
             triangles_submitted: triangles * views.len(),
             dispatches: self.last_dispatches,
             fine_triangles,
+            refined_input,
         };
         self.last_views = views;
         Ok(stats)

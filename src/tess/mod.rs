@@ -249,13 +249,17 @@ impl TessOutput {
     }
 }
 
-/// Per source triangle: whether its cluster is proven fine in view `tv` (all false unless
-/// `settings.skip_fine` and a criterion are set). Clusters as the renderer makes them: per
-/// draw with a material, [`clusters::CLUSTER_TRIANGLES`] at a time.
-pub fn fine_triangles(scene: &Scene, tv: &TessView<'_>, settings: &TessSettings) -> Vec<bool> {
-    let mut fine = vec![false; scene.triangle_count()];
-    let Some(test) = clusters::ClusterTest::for_settings(tv, settings) else {
-        return fine;
+/// Per source triangle: what becomes of its cluster in view `tv` (all `Needy`, the old way,
+/// unless `settings.skip_fine` and a criterion are set). Clusters as the renderer makes them:
+/// per draw with a material, [`clusters::CLUSTER_TRIANGLES`] at a time.
+pub fn cluster_verdicts(
+    scene: &Scene,
+    tv: &TessView<'_>,
+    settings: &TessSettings,
+) -> Vec<clusters::Verdict> {
+    let mut verdicts = vec![clusters::Verdict::Needy; scene.triangle_count()];
+    let Some(test) = clusters::ClusterTest::for_settings(tv, settings, true) else {
+        return verdicts;
     };
     let draws = scene
         .draws
@@ -264,14 +268,12 @@ pub fn fine_triangles(scene: &Scene, tv: &TessView<'_>, settings: &TessSettings)
         .filter(|(_, d)| scene.materials.get(d.material).is_some())
         .map(|(i, d)| (i as u32, d.first_index, d.index_count));
     for c in clusters::build_clusters(scene, draws) {
-        if test.is_fine(&c) {
-            let range = c.first_triangle as usize..(c.first_triangle + c.triangle_count) as usize;
-            if let Some(f) = fine.get_mut(range) {
-                f.fill(true);
-            }
+        let range = c.first_triangle as usize..(c.first_triangle + c.triangle_count) as usize;
+        if let Some(v) = verdicts.get_mut(range) {
+            v.fill(test.verdict(&c));
         }
     }
-    fine
+    verdicts
 }
 
 /// The CPU twin of the compute tessellator: culls, then splits round by round.
@@ -298,12 +300,17 @@ pub fn tessellate(
     // triangles (a triangle left unrefined beside a refined neighbour can show a T-junction:
     // conformity holds only within the budget).
     let mut budget = 0usize;
-    let fine = fine_triangles(scene, tv, settings);
+    let verdicts = cluster_verdicts(scene, tv, settings);
     for t in 0..tri_count {
         // Triangles without a (valid) draw are never drawn (mirrors cs_init).
         let Some(&Some(double_sided_t)) = double_sided.get(t) else {
             continue;
         };
+        let verdict = verdicts.get(t).copied().unwrap_or(clusters::Verdict::Needy);
+        if verdict == clusters::Verdict::Hidden {
+            // Provably invisible in this view: neither drawn nor tessellated.
+            continue;
+        }
         let p = positions(t);
         let backfacing = settings.backface_cull
             && !double_sided_t
@@ -317,7 +324,7 @@ pub fn tessellate(
             }
             all_outside_by(&pts, tv.near, CULL_MARGIN)
         };
-        if fine.get(t).copied().unwrap_or(false) {
+        if verdict == clusters::Verdict::Fine {
             // Drawn directly: the rasteriser, not the tessellator, drops what the culling
             // tests find invisible (kept out of the tessellator's counts, as on the GPU).
             if !(backfacing || outside) {
