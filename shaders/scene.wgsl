@@ -151,29 +151,16 @@ fn tess_corner(e: TessEntry, k: u32) -> Corner {
     c.position = interp3(plan, p);
     // Attributes of only the vertices the plan uses (a corner: one, an edge point: two), as
     // interp3/interp4 would combine them: the same arithmetic, a third of the loads.
-    c.attributes.normal = plan_vec3(plan, i, 3u);
+    // (The normal as the first three of four floats: the same arithmetic per component.)
+    c.attributes.normal = plan_vec4(plan, i, 3u).xyz;
     c.attributes.uvs = plan_vec4(plan, i, 6u);
     c.attributes.color = plan_vec4(plan, i, 10u);
     c.attributes.tangent = plan_vec4(plan, i, 14u);
     return c;
 }
 
-// The vec3 attribute at float `offset` of source vertices `i`, interpolated by `plan`
-// (mirrors interp3).
-fn plan_vec3(plan: InterpPlan, i: array<u32, 3>, offset: u32) -> vec3<f32> {
-    if plan.mode == 0u {
-        return tess_vec3(i[plan.i], offset);
-    }
-    if plan.mode == 1u {
-        let a = tess_vec3(i[plan.i], offset);
-        return a + plan.t * (tess_vec3(i[plan.j], offset) - a);
-    }
-    return plan.w.x * tess_vec3(i[0], offset) + plan.w.y * tess_vec3(i[1], offset)
-        + plan.w.z * tess_vec3(i[2], offset);
-}
-
-// The vec4 attribute at float `offset` of source vertices `i`, interpolated by `plan`
-// (mirrors interp4).
+// The four floats at `offset` of source vertices `i`, interpolated by `plan` (mirrors
+// interp3 and interp4).
 fn plan_vec4(plan: InterpPlan, i: array<u32, 3>, offset: u32) -> vec4<f32> {
     if plan.mode == 0u {
         return tess_vec4(i[plan.i], offset);

@@ -61,6 +61,19 @@ struct PipelineKey {
     blend: bool,
 }
 
+impl PipelineKey {
+    /// The variant `draw` needs in the shaded layer or the wireframe overlay (`wire`).
+    fn of(draw: &GpuDraw, wire: bool, tessellated: bool, panorama: bool) -> Self {
+        Self {
+            double_sided: draw.double_sided,
+            wireframe: wire,
+            tessellated,
+            panorama,
+            blend: draw.blend && !wire,
+        }
+    }
+}
+
 /// Where a draw's vertices come from and how they are projected (the walls' tessellated
 /// draws are recorded by `ScenePass::draw_split`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -469,6 +482,23 @@ impl ScenePass {
         );
     }
 
+    /// Sets the pipeline of `key` unless it is `bound` already; false if there is none.
+    fn bind_pipeline(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        bound: &mut Option<PipelineKey>,
+        key: PipelineKey,
+    ) -> bool {
+        if *bound != Some(key) {
+            let Some(pipeline) = self.pipelines.get(&key) else {
+                return false;
+            };
+            pass.set_pipeline(pipeline);
+            *bound = Some(key);
+        }
+        true
+    }
+
     /// Records view slot `view_index` of a tessellated frame: per draw, in the scene's order
     /// (opaque, then blended back to front), its clusters proven fine through the ordinary
     /// path with the per-vertex warp (`fine`: (draw, first index, index count), sorted by
@@ -515,19 +545,9 @@ impl ScenePass {
                     if (tessellated && tess.is_none()) || (!tessellated && ranges.is_empty()) {
                         continue;
                     }
-                    let key = PipelineKey {
-                        double_sided: draw.double_sided,
-                        wireframe: wire,
-                        tessellated,
-                        panorama: false,
-                        blend: draw.blend && !wire,
-                    };
-                    if bound != Some(key) {
-                        let Some(pipeline) = self.pipelines.get(&key) else {
-                            continue;
-                        };
-                        pass.set_pipeline(pipeline);
-                        bound = Some(key);
+                    let key = PipelineKey::of(draw, wire, tessellated, false);
+                    if !self.bind_pipeline(pass, &mut bound, key) {
+                        continue;
                     }
                     match tess {
                         Some(t) if tessellated => pass.draw_indirect(
@@ -610,19 +630,10 @@ impl ScenePass {
             let mut bound: Option<PipelineKey> = None;
             for &d in &scene.order {
                 let draw = &scene.draws[d];
-                let key = PipelineKey {
-                    double_sided: draw.double_sided,
-                    wireframe: wire,
-                    tessellated: variant != Variant::Plain,
-                    panorama: variant == Variant::Panorama,
-                    blend: draw.blend && !wire,
-                };
-                if bound != Some(key) {
-                    let Some(pipeline) = self.pipelines.get(&key) else {
-                        continue;
-                    };
-                    pass.set_pipeline(pipeline);
-                    bound = Some(key);
+                let panorama = variant == Variant::Panorama;
+                let key = PipelineKey::of(draw, wire, panorama, panorama);
+                if !self.bind_pipeline(pass, &mut bound, key) {
+                    continue;
                 }
                 let material_offset = (draw.material as u64 * UNIFORM_STRIDE) as u32;
                 pass.set_bind_group(
