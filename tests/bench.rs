@@ -58,6 +58,7 @@ fn quick_bench_writes_complete_and_sane_results() {
         assert_eq!(got, &expected, "{case:?}");
     }
 
+    let mut any_dispatch = false;
     for r in &rows {
         let what = format!("{} / {} / {}", r[scene], case_of(r), r[method]);
         let median = num(r, "median_ms");
@@ -71,10 +72,17 @@ fn quick_bench_writes_complete_and_sane_results() {
         );
         // Where the time went: with GPU timestamps, every stage is timed and the stages'
         // medians add up to about the median frame (a sum of medians is not the median of
-        // sums: within a factor of 1.5 either way over three frames); the tessellator's
-        // dispatches are counted for tessellated methods only.
-        let tessellated = r[col("tessellation")] != "none";
-        assert_eq!(num(r, "dispatches") > 0.0, tessellated, "{what}");
+        // sums: within a factor of 1.5 either way over three frames); the tessellator
+        // dispatches only for tessellated methods on a scene, and exactly when some
+        // triangles entered it (a frame whose clusters all need no refinement has none).
+        let tessellated = r[col("tessellation")] != "none" && r[scene] != "sky only";
+        let (dispatches, refined) = (num(r, "dispatches"), num(r, "refined_input_triangles"));
+        if tessellated {
+            assert_eq!(dispatches > 0.0, refined > 0.0, "{what}");
+            any_dispatch |= dispatches > 0.0;
+        } else {
+            assert!(dispatches == 0.0 && refined == 0.0, "{what}");
+        }
         if r[col("timer")] == "gpu-timestamps" {
             let stages: f64 = [
                 "shadows_ms",
@@ -115,6 +123,11 @@ fn quick_bench_writes_complete_and_sane_results() {
         );
         assert!(num(r, "cpu_drawn_triangles") > 0.0, "{what}");
     }
+
+    assert!(
+        any_dispatch,
+        "no tessellated frame dispatched the tessellator"
+    );
 
     // One value of the row of (scene, case, method).
     let value = |s: &str, h: &str, m: &str, column: &str| {
