@@ -70,7 +70,15 @@ struct Rig {
     mapping: OscMapping,
     target: SocketAddr,
     socket: UdpSocket,
+    /// When `deliver` last sent.
+    last_delivery: Option<Instant>,
 }
+
+/// Least time between two delivered poses. The speed gate (at its widest: 1000 m/s and
+/// 100 000°/s, the settings' limits) refuses a jump made faster than a head moves, and these
+/// tests jump between hand-worked poses: 30° takes 0.3 ms, a 1.5 m jump 1.5 ms. Packets sent
+/// back to back can arrive 50 µs apart, so each delivery waits this long after the last.
+const DELIVERY_GAP: Duration = Duration::from_millis(5);
 
 impl Rig {
     fn new(config: Config) -> Rig {
@@ -87,6 +95,7 @@ impl Rig {
             mapping: config.tracking.receiver.mapping.clone(),
             target,
             socket,
+            last_delivery: None,
         }
     }
 
@@ -135,6 +144,13 @@ impl Rig {
     /// Sends and frames until the receiver has accepted one more packet and a frame used it.
     fn deliver(&mut self, packet: &OscPacket) {
         let before = self.info().counters.received;
+        if let Some(wait) = self
+            .last_delivery
+            .and_then(|t| DELIVERY_GAP.checked_sub(t.elapsed()))
+        {
+            std::thread::sleep(wait);
+        }
+        self.last_delivery = Some(Instant::now());
         self.send(packet);
         self.frames_until("packet handled", |r| r.info().counters.received > before);
         self.tracking.poll(&mut self.state, Instant::now());
