@@ -245,6 +245,11 @@ struct BenchArgs {
     /// Output folder.
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
+    /// Measure only this method (repeatable): a name as the report writes it, or any mode
+    /// with any criterion, e.g. 'omni-offaxis + tess error:3'. Plain stereo, the reference,
+    /// always runs; the panorama methods do not.
+    #[arg(long = "method", conflicts_with_all = ["stability", "panorama_only"])]
+    methods: Vec<String>,
     /// Run the stability sweep instead (head positions over the whole CAVE, every warp
     /// configuration, holes and popping of every render method): writes stability.md,
     /// stability.csv and stability-rendered.csv. With --quick, every ninth head position is
@@ -732,6 +737,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     frames: args.frames.map(|f| f as usize),
                     size: args.size,
                     panorama_only: args.panorama_only,
+                    methods: args.methods,
                 },
                 &mut |done, total, what| bar.show(done, total, what),
             )

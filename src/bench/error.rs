@@ -31,6 +31,8 @@ pub enum BenchError {
          placed (see [scene] fit)?"
     )]
     DegenerateRender { scene: String, colour: [u8; 3] },
+    #[error("--method: no method is named '{name}'; the methods are {known}")]
+    UnknownMethod { name: String, known: String },
     #[error("cannot draw the chart {path}: {message}")]
     Chart { path: PathBuf, message: String },
 }

@@ -26,6 +26,9 @@ pub struct Row {
     pub timer: Timer,
     /// Sorted frame times (ms) of the chosen timer.
     pub times_ms: Vec<f64>,
+    /// The same times in the order measured: one per round, each round rendering every
+    /// method once (see [`Row::ratio_to`]).
+    pub rounds_ms: Vec<f64>,
     /// Median wall-clock time (ms), for reference when the GPU timer is used.
     pub wall_median_ms: f64,
     pub input_triangles: usize,
@@ -60,6 +63,25 @@ pub fn stage_names() -> [&'static str; STAGE_COLUMNS] {
 impl Row {
     pub fn median(&self) -> f64 {
         percentile(&self.times_ms, 0.5)
+    }
+
+    /// This method's time relative to `other`'s in the same case: the median over rounds of
+    /// the ratio of the two frames each round rendered, seconds apart. A shared machine (a
+    /// software rasteriser on a virtual machine) drifts by tens of percent within a minute;
+    /// pairing frames cancels what the two frames of a round share, which a ratio of medians
+    /// over the whole run does not. A ratio of medians when the rounds do not pair up.
+    pub fn ratio_to(&self, other: &Row) -> f64 {
+        if self.rounds_ms.len() != other.rounds_ms.len() || self.rounds_ms.is_empty() {
+            return self.median() / other.median();
+        }
+        let mut ratios: Vec<f64> = self
+            .rounds_ms
+            .iter()
+            .zip(&other.rounds_ms)
+            .map(|(a, b)| a / b)
+            .collect();
+        ratios.sort_by(f64::total_cmp);
+        percentile(&ratios, 0.5)
     }
 }
 
@@ -196,6 +218,11 @@ pub(super) fn measure(
         .iter()
         .enumerate()
         .map(|(i, m)| {
+            let rounds_ms = if timer == Timer::Gpu {
+                gpu_times[i].clone()
+            } else {
+                wall_times[i].clone()
+            };
             let mut wall = std::mem::take(&mut wall_times[i]);
             wall.sort_by(f64::total_cmp);
             let mut times = std::mem::take(&mut gpu_times[i]);
@@ -215,6 +242,7 @@ pub(super) fn measure(
                 method: m.clone(),
                 timer,
                 times_ms: if timer == Timer::Gpu { times } else { wall },
+                rounds_ms,
                 wall_median_ms,
                 input_triangles: input,
                 drawn_triangles: drawn[i],
@@ -307,6 +335,40 @@ mod tests {
             )
             .is_ok()
         );
+    }
+
+    #[test]
+    fn ratios_pair_the_frames_of_each_round() {
+        let row = |rounds: &[f64]| {
+            let mut times = rounds.to_vec();
+            times.sort_by(f64::total_cmp);
+            Row {
+                scene: "s".into(),
+                viewpoint: "v".into(),
+                head: "h".into(),
+                method: super::super::methods::methods(true)[0].clone(),
+                timer: Timer::Gpu,
+                times_ms: times,
+                rounds_ms: rounds.to_vec(),
+                wall_median_ms: 0.0,
+                input_triangles: 0,
+                drawn_triangles: 0,
+                accuracy: None,
+                image_diff_pct: None,
+                stages_ms: None,
+                dispatches: 0,
+                refined_input: 0,
+            }
+        };
+        // The machine slows down in round 2 for both; round 3 has a hiccup for one.
+        let stereo = row(&[100.0, 200.0, 140.0]);
+        let method = row(&[120.0, 240.0, 300.0]);
+        assert!((method.ratio_to(&stereo) - 1.2).abs() < 1e-12);
+        // The ratio of medians reads the drift and the hiccup as cost: 240 / 140.
+        assert!((method.median() / stereo.median() - 240.0 / 140.0).abs() < 1e-12);
+        // Rounds that do not pair up fall back to the ratio of medians.
+        let short = row(&[120.0, 240.0]);
+        assert!((short.ratio_to(&stereo) - 180.0 / 140.0).abs() < 1e-12);
     }
 
     #[test]

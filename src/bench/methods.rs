@@ -2,9 +2,11 @@
 
 use std::fmt::Write as _;
 
+use super::BenchError;
 use crate::cave::RenderMode;
 use crate::scene::Shading;
 use crate::sky::SkyMode;
+use crate::tess::criteria::parse_criterion;
 use crate::tess::{Criterion, TessSettings};
 
 /// One way of rendering a frame.
@@ -97,6 +99,50 @@ pub fn methods(quick: bool) -> Vec<Method> {
     out
 }
 
+/// The methods named in `names`, after the reference (plain stereo), which every ratio needs;
+/// all of them when `names` is empty. A name is one the report writes, or any render mode
+/// with any criterion, `MODE + tess CRITERION` (e.g. `omni-offaxis + tess error:3`).
+pub fn select_methods(all: Vec<Method>, names: &[String]) -> Result<Vec<Method>, BenchError> {
+    if names.is_empty() {
+        return Ok(all);
+    }
+    let mut picked = vec![all[0].clone()];
+    for name in names {
+        let method = match all.iter().find(|m| &m.name == name) {
+            Some(m) => m.clone(),
+            None => parse_method(name).ok_or_else(|| BenchError::UnknownMethod {
+                name: name.clone(),
+                known: all
+                    .iter()
+                    .map(|m| format!("'{}'", m.name))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?,
+        };
+        if !picked.contains(&method) {
+            picked.push(method);
+        }
+    }
+    Ok(picked)
+}
+
+/// `MODE + tess CRITERION` as a method (no sky, physically based shading, shadows on).
+fn parse_method(name: &str) -> Option<Method> {
+    let (mode, criterion) = name.split_once(" + tess ")?;
+    let criterion = parse_criterion(criterion).ok()??;
+    Some(Method {
+        name: name.to_owned(),
+        mode: RenderMode::from_name(mode)?,
+        tess: TessSettings {
+            criterion: Some(criterion),
+            ..TessSettings::default()
+        },
+        sky: None,
+        shading: Shading::Pbr,
+        shadows: true,
+    })
+}
+
 /// The methods' family for the chart: render mode and criterion kind (a series whose points
 /// are the criterion's parameters).
 pub fn family(m: &Method) -> String {
@@ -161,5 +207,26 @@ mod tests {
         for sky in [SkyMode::Offaxis, SkyMode::OmniQuad, SkyMode::OmniExact] {
             assert!(m.iter().any(|x| x.sky == Some(sky)));
         }
+    }
+
+    #[test]
+    fn a_selection_keeps_the_reference_and_refuses_unknown_names() {
+        let all = methods(true);
+        let picked = select_methods(all.clone(), &["omni-offaxis + tess edge:64".into()])
+            .expect("known name");
+        let names: Vec<&str> = picked.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, ["stereo", "omni-offaxis + tess edge:64"]);
+        assert_eq!(
+            select_methods(all.clone(), &[]).expect("all").len(),
+            all.len()
+        );
+        // Any mode with any criterion, parsed.
+        let own = select_methods(all.clone(), &["omni-onaxis + tess error:3".into()])
+            .expect("a mode and a criterion");
+        assert_eq!(own[1].mode, RenderMode::OmniOnAxis);
+        assert_eq!(own[1].tess.criterion, Some(Criterion::Error(3.0)));
+        let e = select_methods(all, &["edge:64".into()]).expect_err("unknown name");
+        let text = e.to_string();
+        assert!(text.contains("'edge:64'") && text.contains("'omni-offaxis + tess edge:64'"));
     }
 }

@@ -13,10 +13,13 @@ pub struct BenchOptions {
     pub out: PathBuf,
     /// Fewer frames and head positions (finishes in well under 2 minutes on lavapipe).
     pub quick: bool,
-    /// Timed frames per method and case (default 12, quick 3).
+    /// Timed frames (rounds) per method and case (default 12, quick 5).
     pub frames: Option<usize>,
     /// Replaces every wall's pixel size (quick default: 192×108).
     pub size: Option<[u32; 2]>,
+    /// Only these methods (exact names; plain stereo, the reference, always runs), and no
+    /// panorama methods; empty: every method.
+    pub methods: Vec<String>,
     /// Only the panorama methods (`panorama.csv` and a report of them alone).
     pub panorama_only: bool,
 }

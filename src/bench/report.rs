@@ -134,8 +134,7 @@ pub(super) fn write_outputs(
     ];
     let f4 = |v: f64| format!("{v:.4}");
     let table = rows.iter().map(|r| {
-        let ratio =
-            |other: Option<&Row>| other.map_or(String::new(), |o| f4(r.median() / o.median()));
+        let ratio = |other: Option<&Row>| other.map_or(String::new(), |o| f4(r.ratio_to(o)));
         let mut cells = vec![
             r.scene.clone(),
             r.viewpoint.clone(),
@@ -246,7 +245,7 @@ pub(super) fn write_outputs(
             r.median(),
             percentile(&r.times_ms, 0.25),
             percentile(&r.times_ms, 0.75),
-            reference(r).map_or("–".into(), |o| format!("{:.3}", r.median() / o.median())),
+            reference(r).map_or("–".into(), |o| format!("{:.3}", r.ratio_to(o))),
             r.drawn_triangles,
         );
     }
@@ -388,7 +387,7 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                                     && o.method.sky.is_none()
                                     && o.method.tess.criterion.is_none()
                             })?;
-                            Some(r.median() / reference.median())
+                            Some(r.ratio_to(reference))
                         })
                         .collect();
                     let ratio = (!ratios.is_empty()).then(|| {

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use super::cases::{bundled_path, cases};
 use super::error::BenchError;
 use super::measure::{Row, measure};
-use super::methods::{Method, methods};
+use super::methods::{Method, methods, select_methods};
 use super::options::{BenchOptions, QUICK_SIZE};
 use super::panorama;
 use super::report::{write_file, write_outputs};
@@ -95,7 +95,7 @@ pub fn run(
 
     let frames = options
         .frames
-        .unwrap_or(if options.quick { 3 } else { 12 })
+        .unwrap_or(if options.quick { 5 } else { 12 })
         .max(1);
 
     let gpu = Gpu::headless()?;
@@ -106,7 +106,7 @@ pub fn run(
             info.name, info.backend, info.driver, info.driver_info
         )
     };
-    let methods = methods(options.quick);
+    let methods = select_methods(methods(options.quick), &options.methods)?;
     let mut rows = Vec::new();
     let total: usize = scenes
         .iter()
@@ -151,14 +151,18 @@ pub fn run(
         .iter()
         .filter_map(|(name, s)| s.clone().map(|s| (name.clone(), s)))
         .collect();
-    let (pano_rows, pano_files) = panorama::run_panorama(
-        &gpu,
-        &config,
-        &with_geometry,
-        &options.out,
-        options.quick,
-        frames,
-    )?;
+    let (pano_rows, pano_files) = if !options.methods.is_empty() {
+        (Vec::new(), Vec::new())
+    } else {
+        panorama::run_panorama(
+            &gpu,
+            &config,
+            &with_geometry,
+            &options.out,
+            options.quick,
+            frames,
+        )?
+    };
     progress(total, total, "done");
     let md_path = options.out.join("report.md");
     let (mut files, mut md) = if options.panorama_only {
