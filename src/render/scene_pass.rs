@@ -503,7 +503,8 @@ impl ScenePass {
     /// (opaque, then blended back to front), its clusters proven fine through the ordinary
     /// path with the per-vertex warp (`fine`: (draw, first index, index count), sorted by
     /// draw), then its refined part from the tessellator's indirect draw (`tess`; `None` when
-    /// the view refines nothing).
+    /// the view refines nothing; `refined_draws`: the draws it can have output for, ascending,
+    /// `None` for all).
     #[allow(clippy::too_many_arguments)]
     pub fn draw_split(
         &self,
@@ -511,6 +512,7 @@ impl ScenePass {
         scene: &SceneGpu,
         views: &wgpu::BindGroup,
         tess: Option<&super::tessellator::TessBuffers>,
+        refined_draws: Option<&[u32]>,
         fine: &[(u32, u32, u32)],
         view_index: usize,
         wireframe: bool,
@@ -532,6 +534,9 @@ impl ScenePass {
                 let ranges = &fine[start..];
                 let count = ranges.iter().take_while(|f| f.0 as usize == d).count();
                 let ranges = &ranges[..count];
+                // No refined cluster of this draw in this view: its indirect draw is empty.
+                let tess = tess
+                    .filter(|_| refined_draws.is_none_or(|r| r.binary_search(&(d as u32)).is_ok()));
                 if ranges.is_empty() && tess.is_none() {
                     continue;
                 }

@@ -441,6 +441,9 @@ pub struct ClusterSplit {
     /// (draw, first index, index count).
     pub fine: Vec<(u32, u32, u32)>,
     pub needy: Vec<[u32; 2]>,
+    /// The draws with a cluster in `needy`, ascending, each once (the clusters come in draw
+    /// order): the only draws whose tessellated output can be non-empty.
+    pub needy_draws: Vec<u32>,
 }
 
 impl ClusterSplit {
@@ -454,6 +457,7 @@ impl ClusterSplit {
     ) {
         self.fine.clear();
         self.needy.clear();
+        self.needy_draws.clear();
         for c in clusters {
             let verdict = test.map_or(unproven, |t| t.verdict(c));
             if verdict == Verdict::Hidden {
@@ -472,6 +476,9 @@ impl ClusterSplit {
                 }
             } else {
                 self.needy.push([c.first_triangle, c.triangle_count]);
+                if self.needy_draws.last() != Some(&c.draw) {
+                    self.needy_draws.push(c.draw);
+                }
             }
         }
     }
@@ -749,6 +756,7 @@ mod tests {
         split.classify(&clusters, None, Verdict::Needy);
         assert_eq!(split.needy.len(), expected.len());
         assert!(split.fine.is_empty());
+        assert_eq!(split.needy_draws, [0, 1]);
         // Everything fine (uniform:0 splits nothing): consecutive clusters of a draw merge.
         let cave = thesis_cave();
         let views = view_setups(
@@ -760,7 +768,7 @@ mod tests {
         let tv = tess_view(&views[0], &cave.walls[0], Mat4::IDENTITY, None);
         split.classify(&clusters, None, Verdict::Fine);
         assert_eq!(split.fine, vec![(0, 0, 300), (1, 300, 150)]);
-        assert!(split.needy.is_empty());
+        assert!(split.needy.is_empty() && split.needy_draws.is_empty());
         assert_eq!(split.fine_triangles(), 150);
         // Uniform subdivision refines every visible cluster; uniform:0 none.
         let test = ClusterTest::new(&tv, Some(Criterion::Uniform(1))).expect("test");
