@@ -605,24 +605,18 @@ fn the_preview_renders_each_wall_at_the_size_it_is_shown() {
     assert!(share < 0.06, "{share}");
 
     // Larger than the wall's resolution, or full resolution asked: the configured size.
-    state.set_shown_sizes(&[[400, 352]; 3]);
-    assert!(
+    let at_full_size = |state: &AppState| {
         state
             .render_cave()
             .walls
             .iter()
             .all(|w| w.resolution == full)
-    );
-    state.set_shown_sizes(&[[100, 88]; 3]);
+    };
+    state.set_shown_sizes(&[[400, 352]; 3]);
+    assert!(at_full_size(&state));
     state.settings.app.preview_full_resolution = true;
     state.set_shown_sizes(&[[100, 88]; 3]);
-    assert!(
-        state
-            .render_cave()
-            .walls
-            .iter()
-            .all(|w| w.resolution == full)
-    );
+    assert!(at_full_size(&state));
     state.settings.app.preview_full_resolution = false;
     state.set_shown_sizes(&[[100, 88]; 3]);
     // The walls moved from the panel: the rendered walls follow, at the size shown.

@@ -103,10 +103,10 @@ pub fn methods(quick: bool) -> Vec<Method> {
 /// all of them when `names` is empty. A name is one the report writes, or any render mode
 /// with any criterion, `MODE + tess CRITERION` (e.g. `omni-offaxis + tess error:3`).
 pub fn select_methods(all: Vec<Method>, names: &[String]) -> Result<Vec<Method>, BenchError> {
-    if names.is_empty() {
+    let Some(reference) = all.first().filter(|_| !names.is_empty()) else {
         return Ok(all);
-    }
-    let mut picked = vec![all[0].clone()];
+    };
+    let mut picked = vec![reference.clone()];
     for name in names {
         let method = match all.iter().find(|m| &m.name == name) {
             Some(m) => m.clone(),
