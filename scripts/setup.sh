@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs what omnicave needs on a fresh Debian/Ubuntu machine: a Vulkan driver (lavapipe, so
 # it renders even without a GPU), the X libraries and Xvfb for the application and its window
-# tests, libudev for gamepads, Node.js for the Khronos glTF validator used by the tests, and
-# cmake and g++ to build the VRPN server the tracking tests talk to.
+# tests, libudev for gamepads, Node.js for the Khronos glTF validator used by the tests,
+# cmake and g++ to build the VRPN server the tracking tests talk to, and Open MPI with
+# libclang for cluster mode.
 # Idempotent: packages already present are not reinstalled.
 #
 # On Debian 12 (bookworm) lavapipe comes from bookworm-backports (Mesa 25): bookworm's own Mesa
@@ -38,8 +39,11 @@ fi
 # xwd (x11-apps), ImageMagick's convert, and the X client libraries winit loads at run time.
 # Gamepads (gilrs) need libudev's headers and pkg-config to build.
 # The VRPN tests build the real VRPN server from ../shared/peers: cmake and a C++ compiler.
+# Cluster mode (`--features cluster`) runs under Open MPI's `mpirun`; the `mpi` crate's
+# bindings are generated at build time by bindgen, which needs libclang.
 wanted=(mesa-vulkan-drivers libvulkan1 xvfb x11-apps imagemagick libx11-6 libx11-xcb1
-  libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0 libudev-dev pkg-config cmake g++ make)
+  libxcursor1 libxrandr2 libxi6 libxkbcommon-x11-0 libudev-dev pkg-config cmake g++ make
+  openmpi-bin libopenmpi-dev libclang-dev)
 # Node may come from elsewhere than Debian's package (e.g. a preinstalled toolchain).
 if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
   wanted+=(nodejs npm)

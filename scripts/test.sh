@@ -15,13 +15,14 @@ export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
 
 echo "== cargo fmt --check"
 cargo fmt --check
+# Everything is built and tested with cluster mode (MPI) in: one build serves both.
 echo "== cargo clippy"
-cargo clippy --all-targets --locked -- -D warnings
+cargo clippy --all-targets --locked --features cluster -- -D warnings
 echo "== Khronos glTF validator on assets/"
 (cd tools/gltf-validator && npm install --no-audit --no-fund --silent && node validate.mjs ../../assets/*.glb)
 echo "== cargo test"
 log=$(mktemp)
-cargo test --locked 2>&1 | tee "$log"
+cargo test --locked --features cluster 2>&1 | tee "$log"
 echo "build size: $(du -sh target | cut -f1)"
 # One total over every test binary, as the last line.
 awk '/^test result:/ { p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' "$log"

@@ -11,6 +11,7 @@
 pub mod app;
 pub mod bench;
 pub mod cave;
+pub mod cluster;
 pub mod config;
 pub mod gamepad;
 pub mod headless;

@@ -206,6 +206,49 @@ struct RunArgs {
     /// port, which is logged).
     #[arg(long, value_name = "ADDRESS:PORT", value_parser = parse_listen)]
     osc_listen: Option<std::net::SocketAddr>,
+    /// Cluster mode: run as one rank of an `mpirun` job (rank 0 the master with the panel and
+    /// the input; each wall on the rank its `[[wall]] node` names). Needs a build with
+    /// `--features cluster`.
+    #[arg(long)]
+    cluster: bool,
+    /// Write this process's walls' eye images, the frame's state and its settings to
+    /// DIR/frame-NNNNNN/ every --record-every frames (to check a cluster against single-process
+    /// mode; each recorded frame is read back from the GPU, which slows it).
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
+    /// With --record: record every Nth frame (frame numbers from the master in a cluster).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    record_every: u64,
+}
+
+/// `bench --cluster`: this rank's part of the cluster bench (rank 0 writes the report).
+fn cluster_bench(args: BenchArgs) -> anyhow::Result<()> {
+    #[cfg(feature = "cluster")]
+    {
+        let transport = omnicave::cluster::mpi_transport::MpiTransport::init()?;
+        let files = omnicave::bench::cluster::run_cluster(
+            &omnicave::bench::cluster::ClusterBenchOptions {
+                config: args.config,
+                scene: args.scene.first().cloned(),
+                frames: args
+                    .frames
+                    .map_or(if args.quick { 20 } else { 200 }, |f| f as usize),
+                size: args.size,
+                out: args.out,
+            },
+            Box::new(transport),
+        )
+        .context("cluster bench failed")?;
+        for f in files {
+            tracing::info!("wrote {}", f.display());
+        }
+        Ok(())
+    }
+    #[cfg(not(feature = "cluster"))]
+    {
+        let _ = args;
+        Err(omnicave::cluster::ClusterError::NotBuilt.into())
+    }
 }
 
 fn parse_seconds(s: &str) -> Result<f64, String> {
@@ -260,6 +303,11 @@ struct BenchArgs {
     /// panorama.csv, report.md and the 360° images.
     #[arg(long, conflicts_with = "stability")]
     panorama_only: bool,
+    /// Cluster mode, under `mpirun`: every rank renders its walls (`[[wall]] node`) in
+    /// lockstep, then the messages alone; rank 0 writes cluster.md and cluster.csv (what the
+    /// cluster costs per frame). Needs a build with `--features cluster`.
+    #[arg(long, conflicts_with_all = ["stability", "panorama_only", "methods"])]
+    cluster: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -686,6 +734,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             stats_every: None,
             quit_after: None,
             osc_listen: None,
+            cluster: false,
+            record: None,
+            record_every: 1,
         })
     });
     match command {
@@ -704,10 +755,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 stats_every: args.stats_every,
                 quit_after: args.quit_after,
                 osc_listen: args.osc_listen,
+                cluster: args.cluster,
+                record: args.record,
+                record_every: args.record_every,
             })
             .context("omnicave stopped")?;
             Ok(())
         }
+        Command::Bench(args) if args.cluster => cluster_bench(args),
         Command::Bench(args) if args.stability => {
             let mut bar = Progress::new("stability sweep");
             let files = omnicave::bench::run_stability(

@@ -78,81 +78,7 @@ fn write_config(dir: &Path, name: &str) -> PathBuf {
     path
 }
 
-/// One virtual X server at a time (two starting at once could pick the same display).
-static X_SERVER: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-/// An Xvfb server on a free display, killed on drop.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Xvfb {
-    fn start() -> Xvfb {
-        for n in 90..140 {
-            if Path::new(&format!("/tmp/.X{n}-lock")).exists()
-                || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-            {
-                continue;
-            }
-            #[allow(clippy::zombie_processes)] // killed and waited for on drop
-            let child = Command::new("Xvfb")
-                .arg(format!(":{n}"))
-                .args(["-screen", "0", &format!("{}x{}x24", SCREEN[0], SCREEN[1])])
-                .args(["-nolisten", "tcp"])
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .expect("Xvfb must be installed (scripts/setup.sh installs it)");
-            let socket = format!("/tmp/.X11-unix/X{n}");
-            let start = Instant::now();
-            while start.elapsed() < Duration::from_secs(10) {
-                if Path::new(&socket).exists() {
-                    return Xvfb {
-                        child,
-                        display: format!(":{n}"),
-                    };
-                }
-                std::thread::sleep(Duration::from_millis(50));
-            }
-            panic!("Xvfb :{n} did not start");
-        }
-        panic!("no free X display");
-    }
-
-    fn screenshot(&self, path: &Path) -> RgbImage {
-        let status = Command::new("sh")
-            .arg("-c")
-            .arg(format!(
-                "xwd -root -silent -display {} | /usr/bin/convert xwd:- png:{}",
-                self.display,
-                path.display()
-            ))
-            .status()
-            .expect("xwd and ImageMagick (x11-apps, imagemagick) must be installed");
-        assert!(status.success(), "screenshot failed");
-        image::open(path).expect("screenshot png").to_rgb8()
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        // SIGTERM lets Xvfb remove its lock file and socket (SIGKILL would leave them, and
-        // repeated runs on one machine would use up the display numbers); SIGKILL if it hangs.
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.child.id().to_string()])
-            .status();
-        let start = Instant::now();
-        while start.elapsed() < Duration::from_secs(3) {
-            if let Ok(Some(_)) = self.child.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::xvfb::Xvfb;
 
 /// The application with its log collected.
 struct AppProcess {
@@ -448,8 +374,10 @@ fn cave_mode_shows_each_wall_in_its_window_and_the_panel_and_quits_on_request() 
     let mut renderer =
         setup::render_frame(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
 
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(
         &x.display,
         &["--config", config_path.to_str().expect("utf8")],
@@ -533,8 +461,10 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
         .collect();
     let reference = omnicave::output::unfold(&anaglyphs.iter().collect::<Vec<_>>());
 
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(
         &x.display,
         &["--config", config_path.to_str().expect("utf8"), "--preview"],
@@ -633,8 +563,10 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     config.settings.head.position = tracked_head.to_array();
     let at_tracked = unfolded_anaglyph(&config, &scene);
 
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(
         &x.display,
         &[
@@ -784,8 +716,10 @@ fn the_operator_window_shows_the_panorama_beside_the_panel() {
         .expect("headless panorama");
     let [reference, _] = renderer.read_panorama().expect("read back");
 
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(&x.display, &["--config", path.to_str().expect("utf8")]);
     app.wait_frames(3);
     let shot = x.screenshot(&out.join("panorama-screen.png"));
@@ -864,8 +798,10 @@ fn windows_stretched_or_destroyed_from_outside_are_handled() {
     use x11rb::protocol::xproto::{ConfigureWindowAux, ConnectionExt};
     let out = out_dir();
     let config_path = write_config(&out, "destroy-test.toml");
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(
         &x.display,
         &["--config", config_path.to_str().expect("utf8")],
@@ -945,8 +881,10 @@ fn windows_stretched_or_destroyed_from_outside_are_handled() {
 fn the_preview_window_destroyed_from_outside_ends_the_program_cleanly() {
     use x11rb::connection::Connection;
     use x11rb::protocol::xproto::ConnectionExt;
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let desktop = repo().join("config/desktop.toml");
     let mut app = AppProcess::start(&x.display, &["--config", desktop.to_str().expect("utf8")]);
     app.wait_frames(2);
@@ -966,8 +904,10 @@ fn the_preview_window_destroyed_from_outside_ends_the_program_cleanly() {
 /// signal before the program's first instruction cannot be caught by it.)
 #[test]
 fn sigterm_while_starting_exits_cleanly() {
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let desktop = repo().join("config/desktop.toml");
     for delay_ms in [0, 50, 300] {
         let mut app = AppProcess::start(&x.display, &["--config", desktop.to_str().expect("utf8")]);
@@ -1048,8 +988,10 @@ fn two_outputs_per_wall_open_six_windows_each_showing_its_eye() {
     let mut renderer =
         setup::render_frame(common::gpu(), &config, &scene, sky.as_ref()).expect("render");
 
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(
         &x.display,
         &["--config", config_path.to_str().expect("utf8")],
@@ -1154,8 +1096,10 @@ fn frame_sequential_windows_share_one_eye_phase_even_after_a_stall() {
         .replace("output = \"anaglyph\"", "output = \"frame-sequential\"");
     let config_path = out.join("phase-test.toml");
     std::fs::write(&config_path, text).expect("write");
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let runtime_log = "info,omnicave::eye_phase=debug";
     let mut app = AppProcess::start_with_log(
         &x.display,
@@ -1347,8 +1291,10 @@ enabled = false
             }
         })
     };
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start(
         &x.display,
         &["--config", config_path.to_str().expect("utf8")],
@@ -1427,8 +1373,10 @@ fn f12_writes_every_walls_eye_images_and_the_settings() {
     let cwd = out.join("shot-cwd");
     let _ = std::fs::remove_dir_all(&cwd);
     std::fs::create_dir_all(&cwd).expect("cwd");
-    let _one_at_a_time = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start();
+    let _one_at_a_time = common::xvfb::X_SERVER
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
     let mut app = AppProcess::start_in(
         &x.display,
         &["--config", config_path.to_str().expect("utf8")],

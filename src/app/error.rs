@@ -1,5 +1,6 @@
 //! Everything that can stop the application from starting or running.
 
+use crate::cluster::ClusterError;
 use crate::config::ConfigError;
 use crate::render::RenderError;
 use crate::scene::SceneError;
@@ -13,6 +14,8 @@ pub enum AppError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Render(#[from] RenderError),
+    #[error(transparent)]
+    Cluster(#[from] ClusterError),
     #[error("cannot open the window system: {0}")]
     EventLoop(String),
     #[error("cannot create window '{name}': {message}")]

@@ -46,6 +46,16 @@ pub struct PanelInfo {
     pub triangles_drawn: usize,
     /// Of those, drawn directly (clusters that need no refinement) in a tessellated frame.
     pub fine_triangles: usize,
+    /// Cluster mode (master): the frame's broadcast and barrier, and every node.
+    pub cluster: Option<ClusterInfo>,
+}
+
+/// The master's view of the cluster, for the panel.
+#[derive(Debug, Clone, Default)]
+pub struct ClusterInfo {
+    pub figures: crate::cluster::MasterFigures,
+    /// Every process (index = rank; 0 the master).
+    pub nodes: Vec<crate::cluster::NodeStatus>,
 }
 
 /// A drop-down labelled `label` choosing `value` among `all`, each shown by `name`.
@@ -71,6 +81,9 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         ui.heading("omnicave");
         stats_section(ui, state, info);
         timing_plot(ui, info);
+        if let Some(cluster) = &info.cluster {
+            cluster_section(ui, cluster);
+        }
         ui.separator();
         render_section(ui, state, info);
         ui.separator();
@@ -100,6 +113,37 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             ui.label(message);
         }
     });
+}
+
+/// Cluster mode: this frame's broadcast and barrier on the master, and each node's figures
+/// (or why it was lost).
+fn cluster_section(ui: &mut Ui, cluster: &ClusterInfo) {
+    egui::CollapsingHeader::new("Cluster")
+        .default_open(true)
+        .show(ui, |ui| {
+            let f = &cluster.figures;
+            ui.label(format!(
+                "frame {}: broadcast {:.3} ms, barrier wait {:.3} ms (master)",
+                f.frame, f.broadcast_ms, f.barrier_ms
+            ));
+            for node in cluster.nodes.iter().skip(1) {
+                let text = match &node.lost {
+                    Some(why) => format!("{}: LOST ({why})", node.describe()),
+                    None => format!(
+                        "{}: state wait {:.2} ms, barrier wait {:.3} ms, render {:.2} ms",
+                        node.describe(),
+                        node.figures.state_wait_ms,
+                        node.figures.barrier_ms,
+                        node.figures.render_ms
+                    ),
+                };
+                if node.lost.is_some() {
+                    ui.colored_label(egui::Color32::from_rgb(230, 80, 60), text);
+                } else {
+                    ui.label(text);
+                }
+            }
+        });
 }
 
 /// Frame times and tracking latencies of the last frames, one line each (ms over seconds).

@@ -33,6 +33,8 @@ pub enum BenchError {
     DegenerateRender { scene: String, colour: [u8; 3] },
     #[error("--method: no method is named '{name}'; the methods are {known}")]
     UnknownMethod { name: String, known: String },
+    #[error(transparent)]
+    Cluster(crate::cluster::ClusterError),
     #[error("cannot draw the chart {path}: {message}")]
     Chart { path: PathBuf, message: String },
 }

@@ -7,6 +7,7 @@
 pub mod accuracy;
 pub mod cases;
 pub mod chart;
+pub mod cluster;
 pub mod error;
 pub mod measure;
 pub mod methods;

@@ -33,7 +33,7 @@ use crate::tracking::{
 pub const MAX_WALL_PIXELS: u32 = 8192;
 
 /// The whole configuration file, as written.
-#[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct ConfigFile {
     pub cave: CaveSection,
@@ -50,13 +50,16 @@ pub struct ConfigFile {
     pub gamepad: GamepadSection,
     pub panorama: PanoramaSection,
     pub budgets: BudgetsSection,
+    /// Cluster mode: the walls driven by several processes or PCs in lockstep (`omnicave run
+    /// --cluster` under `mpirun`, in a build with the `cluster` feature).
+    pub cluster: ClusterSection,
     /// The projection walls (screens), at least one: `[[wall]]` tables.
     #[serde(rename = "wall")]
     pub walls: Vec<WallSection>,
 }
 
 /// The CAVE's eyes and clipping.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct CaveSection {
     /// Interpupillary distance in metres (0 to 0.5).
@@ -103,7 +106,7 @@ impl Default for CaveSection {
 }
 
 /// Omnistereo settings.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct OmnistereoSection {
     /// `similar-triangles` (stable) or `intersection-point` (only to show where it breaks).
@@ -131,7 +134,7 @@ impl Default for OmnistereoSection {
 }
 
 /// Adaptive tessellation before the omnistereo warp.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct TessellationSection {
     /// `none`, `uniform:N`, `edge:PX`, `sphere:PX` or `error:PX`.
@@ -184,7 +187,7 @@ mod criterion_text {
 }
 
 /// The sky behind the scene.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct SkyboxSection {
     /// An equirectangular image (PNG/JPEG/HDR) or a folder of six faces; relative to the
@@ -217,7 +220,7 @@ impl Default for SkyboxSection {
 }
 
 /// Head tracking (`omnicave run`): OSC, VRPN or ART DTrack.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrackingSection {
     /// Track the head from the start (the panel can switch it).
@@ -305,7 +308,7 @@ impl Default for TrackingSection {
 
 /// A VRPN server's devices, named as VRPN users write them: `Device@host` or
 /// `Device@host:port` (port 3883 unless given).
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct VrpnSection {
     /// The tracker whose sensor is the head.
@@ -341,7 +344,7 @@ impl Default for VrpnSection {
 }
 
 /// ART DTrack's ASCII output (DTrack sends its frames to this machine's port).
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct DTrackSection {
     /// UDP address:port to listen on (DTrack's "data output" port).
@@ -365,7 +368,7 @@ impl Default for DTrackSection {
 }
 
 /// OptiTrack Motive's NatNet stream (Motive: metres, y up).
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct NatNetSection {
     /// Motive's command address, IPv4 (port 1510 unless Motive says otherwise).
@@ -394,7 +397,7 @@ impl Default for NatNetSection {
 }
 
 /// Tracker frame → CAVE space: `cave = offset + rotation · (scale · axes(tracker))`.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct CalibrationSection {
     /// The CAVE's x, y, z as signed tracker axes: ["x", "z", "-y"] for a right-handed z-up
@@ -422,7 +425,7 @@ impl Default for CalibrationSection {
 }
 
 /// One Euro filter against tracker jitter.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct FilterSection {
     pub enabled: bool,
@@ -451,7 +454,7 @@ impl Default for FilterSection {
 
 /// What a head can do: a tracker sample beyond it is refused before the filter (counted as
 /// "implausible" in the panel and the stats line), so one corrupt packet cannot pin the head.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlausibilitySection {
     /// How far outside the CAVE a sample may be, metres (those nearer are clamped in).
@@ -476,9 +479,54 @@ impl Default for PlausibilitySection {
     }
 }
 
+/// Cluster mode (README "Cluster"): every process (MPI rank) loads the same config and scene;
+/// rank 0, the master, takes the input and broadcasts each frame's state; every rank renders
+/// the walls whose `node` is its rank; all present together after a barrier.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct ClusterSection {
+    /// How long any process waits for another in a frame (a node's "rendered", the master's
+    /// frame state or "present") before it counts that process lost, milliseconds. Longer
+    /// than the slowest frame; the first frame, which compiles shaders, gets
+    /// `startup_timeout_s`.
+    #[schemars(range(min = 10, max = 600000))]
+    pub timeout_ms: u32,
+    /// How long the master waits at start-up for every node to load the config and scene and
+    /// report, seconds.
+    #[schemars(range(min = 1, max = 3600))]
+    pub startup_timeout_s: u32,
+    /// When a render node is lost: "continue" (the others go on without its walls) or "stop"
+    /// (every process stops cleanly).
+    pub on_node_loss: NodeLoss,
+}
+
+impl Default for ClusterSection {
+    fn default() -> Self {
+        Self {
+            timeout_ms: 2000,
+            startup_timeout_s: 120,
+            on_node_loss: NodeLoss::Continue,
+        }
+    }
+}
+
+/// What the cluster does when a render node dies or stalls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NodeLoss {
+    /// The others go on; the lost node's walls go dark.
+    Continue,
+    /// Every process stops cleanly.
+    Stop,
+}
+
+crate::named_enum!(NodeLoss {
+    Self::Continue => "continue",
+    Self::Stop => "stop",
+});
+
 /// What inputs may cost (README "Budgets"). A scene or sky past one is refused with the
 /// budget named; images larger than `max_texture_side` are downscaled, with a warning.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct BudgetsSection {
     /// Largest scene or sky file (and each file a glTF names), MiB.
@@ -530,7 +578,7 @@ impl Default for BudgetsSection {
 pub const DEFAULT_MAX_WALLS: u32 = 64;
 
 /// The gamepad (gilrs, hot-plug).
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct GamepadSection {
     pub enabled: bool,
@@ -565,7 +613,7 @@ impl Default for GamepadSection {
 }
 
 /// Where the head starts (and how it is turned, for tracked stereo).
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct HeadSection {
     /// CAVE metres.
@@ -590,7 +638,7 @@ impl Default for HeadSection {
 }
 
 /// How the walls are rendered.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct RenderSection {
     pub mode: RenderMode,
@@ -617,7 +665,7 @@ impl Default for RenderSection {
 }
 
 /// The scene and where the CAVE stands in it.
-#[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct SceneSection {
     /// glTF file; relative paths are relative to the config file's folder.
@@ -644,7 +692,7 @@ pub struct SceneSection {
 }
 
 /// Where the CAVE stands in the scene: scene point = translation + yaw · scale · CAVE point.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlacementSection {
     pub translation: [f32; 3],
@@ -666,7 +714,7 @@ impl Default for PlacementSection {
 
 /// Shadow maps from the lights (the config's and the scene file's; eight layers in all: a
 /// directional or spot light takes one, a point light six).
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct ShadowsSection {
     pub enabled: bool,
@@ -699,7 +747,7 @@ impl Default for ShadowsSection {
 }
 
 /// The lights, in scene space.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct LightingSection {
     /// Ambient light colour (linear).
@@ -718,7 +766,7 @@ impl Default for LightingSection {
     }
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct DirectionalLightSection {
     /// Direction the light travels, in scene (world) space.
@@ -742,7 +790,7 @@ impl Default for DirectionalLightSection {
     }
 }
 
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PointLightSection {
     /// Position in scene (world) space.
@@ -773,7 +821,7 @@ impl Default for PointLightSection {
 /// `cave.wall_units`, with `cave.wall_up_axis` up): three corners; `centre` +
 /// `yaw_pitch_roll_degrees` + `size` (nDisplay, CalVR); or `origin` (the lower-left corner) +
 /// `horizontal_axis` + `vertical_axis` + `size` (Vrui).
-#[derive(Debug, Clone, Default, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct WallSection {
     /// 1–64 characters of a-z, A-Z, 0-9, '-' or '_' (it names output files).
@@ -827,6 +875,11 @@ pub struct WallSection {
     /// wall with a projector per eye).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output: Option<WallOutput>,
+    /// Cluster mode: the process (MPI rank) that renders and shows this wall; default 0, the
+    /// master. Ignored outside cluster mode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(inner(range(min = 0, max = 1023)))]
+    pub node: Option<u32>,
 }
 
 impl WallSection {
@@ -856,7 +909,7 @@ impl WallSection {
 
 /// The panorama view (wide field of view up to 360°): the operator's overview of everything
 /// around the CAVE user, or a desktop view on its own.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PanoramaSection {
     /// Show the panorama in the application (below the walls in the preview; beside the
@@ -929,7 +982,7 @@ crate::named_enum!(AppMode {
 });
 
 /// The interactive application (`omnicave run`): windows, panel, output formats.
-#[derive(Debug, Clone, Deserialize, Serialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct AppSection {
     /// "cave" (a window per wall) or "preview" (one window, walls unfolded).

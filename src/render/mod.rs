@@ -132,6 +132,8 @@ pub struct Renderer {
     targets: Vec<WallTargets>,
     wall_names: Vec<String>,
     last_views: Vec<ViewSetup>,
+    /// The walls this renderer draws (cluster mode: the walls of this process); `None`: all.
+    wall_filter: Option<Vec<bool>>,
     wireframe_supported: bool,
     /// GPU frame timer (`None` unless enabled).
     timer: Option<FrameTimer>,
@@ -244,6 +246,7 @@ impl Renderer {
             targets: Vec::new(),
             wall_names: Vec::new(),
             last_views: Vec::new(),
+            wall_filter: None,
             wireframe_supported: gpu.wireframe_supported,
             timer: None,
             timed_stamps: 0,
@@ -583,7 +586,10 @@ impl Renderer {
         self.sync_walls(frame.cave);
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
-        let views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
+        let mut views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
+        if let Some(walls) = &self.wall_filter {
+            views.retain(|v| walls.get(v.wall).copied().unwrap_or(false));
+        }
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -1104,6 +1110,12 @@ impl Renderer {
             }
             _ => Ok(Vec::new()),
         }
+    }
+
+    /// Draws only the walls whose entry is true (cluster mode: a process draws its own
+    /// walls; the others' targets stay as they were). `None`: every wall.
+    pub fn set_wall_filter(&mut self, walls: Option<Vec<bool>>) {
+        self.wall_filter = walls;
     }
 
     /// The views of the last rendered frame.

@@ -3,6 +3,7 @@
 
 pub mod fuzz;
 pub mod vrpn_peer;
+pub mod xvfb;
 
 use std::collections::HashMap;
 use std::sync::OnceLock;
