@@ -708,3 +708,69 @@ fn a_node_with_another_config_or_a_missing_node_is_refused_by_name() {
         "{log}"
     );
 }
+
+/// `bench --cluster` under mpirun: three ranks render their walls in lockstep, then exchange
+/// the messages alone; rank 0 writes what the cluster costs per frame.
+#[test]
+fn the_cluster_bench_reports_what_lockstep_costs_per_frame() {
+    let out = out_dir("bench");
+    let config_path = write_config(&out, "cluster.toml", "");
+    let report = out.join("report");
+    let output = Command::new(mpirun())
+        .args(["--allow-run-as-root", "--oversubscribe", "-np", "3"])
+        .arg(env!("CARGO_BIN_EXE_omnicave"))
+        .args([
+            "bench",
+            "--cluster",
+            "--quick",
+            "--size",
+            "64x36",
+            "--config",
+        ])
+        .arg(&config_path)
+        .arg("--out")
+        .arg(&report)
+        .env("NO_COLOR", "1")
+        .output()
+        .expect("mpirun");
+    let log = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{log}");
+    let md = std::fs::read_to_string(report.join("cluster.md")).expect("cluster.md");
+    assert!(
+        md.contains("3 processes") && md.contains("wall left"),
+        "{md}"
+    );
+    let mut rows = csv::Reader::from_path(report.join("cluster.csv")).expect("cluster.csv");
+    let headers = rows.headers().unwrap().clone();
+    let column = |name: &str| headers.iter().position(|h| h == name).unwrap();
+    let (phase, frame_ms, slowest, cost) = (
+        column("phase"),
+        column("frame_ms"),
+        column("slowest_render_ms"),
+        column("cluster_cost_ms"),
+    );
+    let mut counts = BTreeMap::new();
+    for row in rows.records() {
+        let row = row.unwrap();
+        let value = |i: usize| row[i].parse::<f64>().unwrap();
+        *counts.entry(row[phase].to_owned()).or_insert(0) += 1;
+        // A frame takes at least its slowest render, and the cost is what is left.
+        assert!(
+            value(frame_ms) > 0.0 && value(frame_ms) + 1e-3 >= value(slowest),
+            "{row:?}"
+        );
+        assert!(
+            (value(frame_ms) - value(slowest) - value(cost)).abs() < 1e-3,
+            "{row:?}"
+        );
+        if &row[phase] == "lockstep" {
+            assert!(
+                value(slowest) > 0.0,
+                "every lockstep frame renders: {row:?}"
+            );
+        }
+    }
+    // --quick: 20 timed frames per phase.
+    assert_eq!(counts.get("lockstep"), Some(&20));
+    assert_eq!(counts.get("protocol"), Some(&20));
+}
