@@ -49,6 +49,11 @@ fn out_dir(name: &str) -> PathBuf {
 /// (left on 1, front on the master, right on 2), the panel in an operator window, with
 /// `extra` appended (TOML sections).
 fn write_config(dir: &Path, name: &str, extra: &str) -> PathBuf {
+    write_config_with_output(dir, name, extra, "frame-sequential")
+}
+
+/// As [`write_config`], every wall window in stereo format `output`.
+fn write_config_with_output(dir: &Path, name: &str, extra: &str, output: &str) -> PathBuf {
     let desktop = std::fs::read_to_string(repo().join("config/desktop.toml")).expect("config");
     let app_start = desktop.find("\n[app]").expect("[app] in desktop.toml");
     let app_end = app_start
@@ -64,7 +69,7 @@ fn write_config(dir: &Path, name: &str, extra: &str) -> PathBuf {
     for (part, (name, pos, node)) in parts.iter_mut().skip(1).zip(WALLS) {
         assert!(part.contains(&format!("\"{name}\"")));
         *part = format!(
-            "{}\nwindow_position = [{}, {}]\noutput = \"frame-sequential\"\nnode = {node}\n\n",
+            "{}\nwindow_position = [{}, {}]\noutput = \"{output}\"\nnode = {node}\n\n",
             part.trim_end(),
             pos[0],
             pos[1]
@@ -231,6 +236,15 @@ impl Cluster {
             );
             std::thread::sleep(Duration::from_millis(100));
         }
+    }
+
+    /// The newest frame count `rank` has logged in a stats line (cluster or not).
+    fn frames_of(&self, rank: usize) -> u64 {
+        self.lines_of(rank)
+            .iter()
+            .filter_map(|l| l.split("| frames ").nth(1)?.split(' ').next()?.parse().ok())
+            .max()
+            .unwrap_or(0)
     }
 
     /// Waits for mpirun to end (at most `limit`: nothing may hang); its status.
@@ -773,4 +787,56 @@ fn the_cluster_bench_reports_what_lockstep_costs_per_frame() {
     // --quick: 20 timed frames per phase.
     assert_eq!(counts.get("lockstep"), Some(&20));
     assert_eq!(counts.get("protocol"), Some(&20));
+}
+
+/// The windows themselves: the three wall windows of a three-rank cluster show, pixel for
+/// pixel, what the single-process CAVE mode's windows show for the same (still) state.
+#[test]
+fn the_cluster_windows_equal_the_single_process_windows() {
+    let out = out_dir("windows");
+    let config_path = write_config_with_output(&out, "cluster.toml", "", "side-by-side-half");
+    let _x_lock = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let mut shots = Vec::new();
+    for cluster_mode in [true, false] {
+        let x = Xvfb::start(SCREEN);
+        let args = if cluster_mode {
+            launch(&config_path, &[])
+        } else {
+            // One process, every wall: the same binary and config without --cluster.
+            let mut a = launch(&config_path, &[]);
+            a[1] = "1".into();
+            a.retain(|s| s != "--cluster");
+            a
+        };
+        let mut run = Cluster::start(&x.display, &args, "info", &out);
+        let start = Instant::now();
+        while run.frames_of(0) < 8 {
+            assert!(start.elapsed() < Duration::from_secs(240), "{}", run.log());
+            if let Ok(Some(status)) = run.child.try_wait() {
+                panic!("exited {status}:\n{}", run.log());
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let shot = x.screenshot(&out.join(format!("screen-cluster-{cluster_mode}.png")));
+        press_key(&x.display, [0, 260], 0xff1b);
+        run.wait_exit(Duration::from_secs(60));
+        shots.push(shot);
+    }
+    for (name, pos, _) in WALLS {
+        let crop = |img: &image::RgbImage| {
+            image::imageops::crop_imm(img, pos[0] as u32, pos[1] as u32, 320, 240).to_image()
+        };
+        let (cluster, single) = (crop(&shots[0]), crop(&shots[1]));
+        assert!(
+            single.pixels().any(|p| p.0 != [0, 0, 0]),
+            "the {name} window is black in single-process mode"
+        );
+        let differing = cluster
+            .pixels()
+            .zip(single.pixels())
+            .filter(|(a, b)| a != b)
+            .count();
+        // Exact: the same renderer, state and composition in both.
+        assert_eq!(differing, 0, "wall {name}: {differing} pixels differ");
+    }
 }

@@ -852,8 +852,14 @@ fn render_views(
             state.settings.panorama.show = false;
         }
     }
-    // Every wall draws the whole scene once per view of it.
-    let walls = state.cave().walls.len().max(1);
+    // Every wall this process renders (all but in cluster mode) draws the whole scene once
+    // per view of it.
+    let views_per_wall = if state.settings.render.mode.is_stereo() {
+        2
+    } else {
+        1
+    };
+    let walls = (stats.views / views_per_wall).max(1);
     info.triangles_per_wall = stats.triangles_submitted / walls;
     info.dispatches = stats.dispatches;
     info.fine_triangles = stats.fine_triangles;

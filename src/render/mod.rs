@@ -513,21 +513,19 @@ impl Renderer {
         self.targets.truncate(cave.walls.len());
         self.wall_names.truncate(cave.walls.len());
         for (i, wall) in cave.walls.iter().enumerate() {
-            let up_to_date = self
-                .targets
-                .get(i)
-                .is_some_and(|t| t.size == wall.resolution)
+            // Another process's wall (cluster mode) keeps a 1×1 placeholder, not its memory.
+            let drawn = self
+                .wall_filter
+                .as_ref()
+                .is_none_or(|w| w.get(i).copied().unwrap_or(false));
+            let size = if drawn { wall.resolution } else { [1, 1] };
+            let up_to_date = self.targets.get(i).is_some_and(|t| t.size == size)
                 && self.wall_names.get(i) == Some(&wall.name);
             if up_to_date {
                 continue;
             }
             self.targets_generation += 1;
-            let targets = WallTargets::new(
-                &self.device,
-                &wall.name,
-                wall.resolution,
-                self.settings.msaa,
-            );
+            let targets = WallTargets::new(&self.device, &wall.name, size, self.settings.msaa);
             if i < self.targets.len() {
                 self.targets[i] = targets;
                 self.wall_names[i] = wall.name.clone();
@@ -1113,7 +1111,7 @@ impl Renderer {
     }
 
     /// Draws only the walls whose entry is true (cluster mode: a process draws its own
-    /// walls; the others' targets stay as they were). `None`: every wall.
+    /// walls; the others' targets shrink to 1×1 at the next frame). `None`: every wall.
     pub fn set_wall_filter(&mut self, walls: Option<Vec<bool>>) {
         self.wall_filter = walls;
     }
