@@ -1360,9 +1360,6 @@ enabled = false
 /// from another X client (XTEST), as a keyboard would send it.
 #[test]
 fn f12_writes_every_walls_eye_images_and_the_settings() {
-    use x11rb::connection::Connection;
-    use x11rb::protocol::xproto::{ConnectionExt, InputFocus};
-    use x11rb::protocol::xtest::ConnectionExt as _;
     let out = out_dir();
     let config_path = write_config(&out, "shot-base.toml");
     let text = std::fs::read_to_string(&config_path)
@@ -1384,32 +1381,10 @@ fn f12_writes_every_walls_eye_images_and_the_settings() {
         &cwd,
     );
     app.wait_frames(3);
-    let (conn, windows) = x_windows(&x.display);
+    let (_conn, windows) = x_windows(&x.display);
     let preview = windows.first().expect("the preview window").0;
-    conn.set_input_focus(InputFocus::PARENT, preview, x11rb::CURRENT_TIME)
-        .unwrap();
-    // The keycode of F12 (keysym 0xffc9) in the server's keymap.
-    let setup = conn.setup();
-    let (min, max) = (setup.min_keycode, setup.max_keycode);
-    let map = conn
-        .get_keyboard_mapping(min, max - min + 1)
-        .unwrap()
-        .reply()
-        .unwrap();
-    let per = usize::from(map.keysyms_per_keycode);
-    let index = map
-        .keysyms
-        .iter()
-        .position(|&k| k == 0xffc9)
-        .expect("F12 in the keymap");
-    let f12 = min + (index / per) as u8;
-    for press in [2u8, 3] {
-        // KeyPress, KeyRelease.
-        conn.xtest_fake_input(press, f12, x11rb::CURRENT_TIME, preview, 0, 0, 0)
-            .unwrap();
-        conn.flush().unwrap();
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    // F12 (keysym 0xffc9).
+    common::xvfb::press_key(&x.display, preview, 0xffc9);
     let dir = app.wait_for_line("the screenshot", Duration::from_secs(120), |l| {
         l.split("screenshot written to ").nth(1).map(str::to_owned)
     });

@@ -302,13 +302,11 @@ fn launch(config: &Path, args: &[&str]) -> Vec<String> {
     v
 }
 
-/// Presses `keysym` in window `window` through XTEST, as a keyboard would.
+/// Presses `keysym` in the window whose top-left corner is at `window_at`.
 fn press_key(display: &str, window_at: [i16; 2], keysym: u32) {
-    use x11rb::connection::Connection;
-    use x11rb::protocol::xproto::{ConnectionExt, InputFocus};
-    use x11rb::protocol::xtest::ConnectionExt as _;
+    use x11rb::protocol::xproto::ConnectionExt;
     let (conn, screen) = x11rb::connect(Some(display)).expect("X connection");
-    let root = conn.setup().roots[screen].root;
+    let root = x11rb::connection::Connection::setup(&conn).roots[screen].root;
     let tree = conn.query_tree(root).unwrap().reply().unwrap();
     let window = tree
         .children
@@ -318,29 +316,22 @@ fn press_key(display: &str, window_at: [i16; 2], keysym: u32) {
             let a = conn.get_window_attributes(w).unwrap().reply().unwrap();
             a.map_state == x11rb::protocol::xproto::MapState::VIEWABLE && [g.x, g.y] == window_at
         })
-        .expect("the operator window");
-    conn.set_input_focus(InputFocus::PARENT, window, x11rb::CURRENT_TIME)
-        .unwrap();
-    let setup = conn.setup();
-    let (min, max) = (setup.min_keycode, setup.max_keycode);
-    let map = conn
-        .get_keyboard_mapping(min, max - min + 1)
-        .unwrap()
-        .reply()
-        .unwrap();
-    let per = usize::from(map.keysyms_per_keycode);
-    let index = map
-        .keysyms
-        .iter()
-        .position(|&k| k == keysym)
-        .expect("the key in the keymap");
-    let code = min + (index / per) as u8;
-    for event in [2u8, 3] {
-        // KeyPress, KeyRelease.
-        conn.xtest_fake_input(event, code, x11rb::CURRENT_TIME, window, 0, 0, 0)
-            .unwrap();
-        conn.flush().unwrap();
-        std::thread::sleep(Duration::from_millis(60));
+        .expect("the window");
+    common::xvfb::press_key(display, window, keysym);
+}
+
+/// Asserts that each of `ranks` ended with an error message.
+fn assert_stopped_with_error(cluster: &Cluster, ranks: std::ops::Range<usize>) {
+    for rank in ranks {
+        assert!(
+            // (mpirun tags each write: "error: " and the message may come apart.)
+            cluster
+                .lines_of(rank)
+                .iter()
+                .any(|l| l.contains("omnicave stopped: ")),
+            "rank {rank} ends with an error:\n{}",
+            cluster.log()
+        );
     }
 }
 
@@ -679,16 +670,7 @@ fn a_node_with_another_config_or_a_missing_node_is_refused_by_name() {
     let mut cluster = Cluster::start(&x.display, &args, "info", &out);
     cluster.wait_exit(Duration::from_secs(240));
     let log = cluster.log();
-    for rank in 0..2 {
-        assert!(
-            // (mpirun tags each write: "error: " and the message may come apart.)
-            cluster
-                .lines_of(rank)
-                .iter()
-                .any(|l| l.contains("omnicave stopped: ")),
-            "rank {rank} ends with an error:\n{log}"
-        );
-    }
+    assert_stopped_with_error(&cluster, 0..2);
     assert!(
         log.contains("node 2 (") && log.contains("its settings (config) differs from the master's"),
         "{log}"
@@ -707,16 +689,7 @@ fn a_node_with_another_config_or_a_missing_node_is_refused_by_name() {
     let mut cluster = Cluster::start(&x.display, &args, "info", &out);
     cluster.wait_exit(Duration::from_secs(240));
     let log = cluster.log();
-    for rank in 0..2 {
-        assert!(
-            // (mpirun tags each write: "error: " and the message may come apart.)
-            cluster
-                .lines_of(rank)
-                .iter()
-                .any(|l| l.contains("omnicave stopped: ")),
-            "rank {rank} ends with an error:\n{log}"
-        );
-    }
+    assert_stopped_with_error(&cluster, 0..2);
     assert!(
         log.contains("wall right is on node 2, but the cluster has 2 processes"),
         "{log}"

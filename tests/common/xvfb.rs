@@ -83,3 +83,35 @@ impl Drop for Xvfb {
         let _ = self.child.wait();
     }
 }
+
+/// Focuses `window` on `display` and presses the key of `keysym` in it through XTEST, as a
+/// keyboard would (KeyPress, then KeyRelease).
+pub fn press_key(display: &str, window: u32, keysym: u32) {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{ConnectionExt, InputFocus};
+    use x11rb::protocol::xtest::ConnectionExt as _;
+    let (conn, _) = x11rb::connect(Some(display)).expect("X connection");
+    conn.set_input_focus(InputFocus::PARENT, window, x11rb::CURRENT_TIME)
+        .expect("focus");
+    // The key's code in the server's keymap.
+    let setup = conn.setup();
+    let (min, max) = (setup.min_keycode, setup.max_keycode);
+    let map = conn
+        .get_keyboard_mapping(min, max - min + 1)
+        .expect("keymap")
+        .reply()
+        .expect("keymap");
+    let per = usize::from(map.keysyms_per_keycode);
+    let index = map
+        .keysyms
+        .iter()
+        .position(|&k| k == keysym)
+        .expect("the key in the keymap");
+    let code = min + (index / per) as u8;
+    for event in [2u8, 3] {
+        conn.xtest_fake_input(event, code, x11rb::CURRENT_TIME, window, 0, 0, 0)
+            .expect("XTEST");
+        conn.flush().expect("flush");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
