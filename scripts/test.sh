@@ -18,6 +18,8 @@ cargo fmt --check
 # Everything is built and tested with cluster mode (MPI) in: one build serves both.
 echo "== cargo clippy"
 cargo clippy --all-targets --locked --features cluster -- -D warnings
+echo "== cargo clippy, without cluster mode (a build without MPI must stay clean)"
+cargo clippy --all-targets --locked -- -D warnings
 echo "== Khronos glTF validator on assets/"
 (cd tools/gltf-validator && npm install --no-audit --no-fund --silent && node validate.mjs ../../assets/*.glb)
 echo "== cargo test"

@@ -611,10 +611,12 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!(
-                "error: {}",
+            // One write: several processes may share this stderr (mpirun tags each write).
+            let text = format!(
+                "error: {}\n",
                 omnicave::messages::cut_long_lines(&error_text(&e))
             );
+            let _ = std::io::Write::write_all(&mut std::io::stderr().lock(), text.as_bytes());
             ExitCode::FAILURE
         }
     }

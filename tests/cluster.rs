@@ -303,21 +303,24 @@ fn launch(config: &Path, args: &[&str]) -> Vec<String> {
 }
 
 /// Presses `keysym` in the window whose top-left corner is at `window_at`.
-fn press_key(display: &str, window_at: [i16; 2], keysym: u32) {
+fn press_key(display: &str, at: [i16; 2], keysym: u32) {
+    common::xvfb::press_key(display, window_at(display, at), keysym);
+}
+
+/// The window whose top-left corner is at `at` on `display`.
+fn window_at(display: &str, at: [i16; 2]) -> u32 {
     use x11rb::protocol::xproto::ConnectionExt;
     let (conn, screen) = x11rb::connect(Some(display)).expect("X connection");
     let root = x11rb::connection::Connection::setup(&conn).roots[screen].root;
     let tree = conn.query_tree(root).unwrap().reply().unwrap();
-    let window = tree
-        .children
+    tree.children
         .into_iter()
         .find(|&w| {
             let g = conn.get_geometry(w).unwrap().reply().unwrap();
             let a = conn.get_window_attributes(w).unwrap().reply().unwrap();
-            a.map_state == x11rb::protocol::xproto::MapState::VIEWABLE && [g.x, g.y] == window_at
+            a.map_state == x11rb::protocol::xproto::MapState::VIEWABLE && [g.x, g.y] == at
         })
-        .expect("the window");
-    common::xvfb::press_key(display, window, keysym);
+        .expect("the window")
 }
 
 /// Asserts that each of `ranks` ended with an error message.
@@ -812,4 +815,34 @@ fn the_cluster_windows_equal_the_single_process_windows() {
         // Exact: the same renderer, state and composition in both.
         assert_eq!(differing, 0, "wall {name}: {differing} pixels differ");
     }
+}
+
+/// A node that leaves by itself (its only window destroyed from outside) tells the master,
+/// which reports it at once, long before its 20 s timeout; the others go on.
+#[test]
+fn a_node_whose_window_is_destroyed_leaves_and_is_reported_at_once() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::ConnectionExt;
+    let out = out_dir("leave");
+    let config_path = write_config(&out, "cluster.toml", "[cluster]\ntimeout_ms = 20000");
+    let _x_lock = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
+    let mut cluster = Cluster::start(&x.display, &launch(&config_path, &[]), "info", &out);
+    cluster.wait_frame(0, 4, Duration::from_secs(240));
+    let right = window_at(&x.display, [660, 0]);
+    let (conn, _) = x11rb::connect(Some(&x.display)).expect("X connection");
+    let destroyed_at = Instant::now();
+    conn.destroy_window(right).unwrap();
+    conn.flush().unwrap();
+    let reported = cluster.wait_for(0, "the node's leaving", Duration::from_secs(60), |l| {
+        l.contains("node 2 (").then_some(())?;
+        l.contains("lost: left the cluster").then(|| l.to_owned())
+    });
+    assert!(reported.contains("destroyed from outside"), "{reported}");
+    let after = destroyed_at.elapsed();
+    assert!(after < Duration::from_secs(10), "reported after {after:?}");
+    let m = cluster.frame_of(0).unwrap();
+    cluster.wait_frame(0, m + 3, Duration::from_secs(120));
+    press_key(&x.display, [0, 260], 0xff1b);
+    cluster.wait_exit(Duration::from_secs(60));
 }

@@ -78,6 +78,10 @@ pub struct MasterLink {
     generation: u64,
     /// Nodes lost so far, in words (panel and log).
     pub lost: Vec<String>,
+    /// Nodes lost while broadcasting this frame (reported with the barrier's).
+    pending: Vec<NodeEvent>,
+    /// This frame is known to take long (see [`Master::barrier`]).
+    slow: bool,
 }
 
 /// A node's session.
@@ -89,6 +93,8 @@ pub struct NodeLink {
     pub render_started: Option<Instant>,
     /// The generation of the settings applied.
     pub generation: u64,
+    /// This frame is known to take long (new settings or a screenshot).
+    slow: bool,
 }
 
 /// What the node loop does next.
@@ -126,6 +132,8 @@ impl ClusterLink {
                 sent: None,
                 generation: 0,
                 lost: Vec::new(),
+                pending: Vec::new(),
+                slow: false,
             })))
         } else {
             let session = Node::start(transport, identity, timeouts)?;
@@ -135,6 +143,7 @@ impl ClusterLink {
                 frame: 0,
                 render_started: None,
                 generation: 0,
+                slow: false,
             }))
         }
     }
@@ -172,13 +181,21 @@ impl MasterLink {
             None
         };
         let fs = frame_state(state, frame, self.generation, screenshot);
-        self.session
-            .broadcast(text.as_deref().map(|t| (self.generation, t)), &fs)
+        // New settings may compile pipelines, and a screenshot reads walls back: such a
+        // frame gets the start-up timeout at the barrier.
+        self.slow = changed || screenshot != 0;
+        self.pending = self
+            .session
+            .broadcast(text.as_deref().map(|t| (self.generation, t)), &fs);
+        Ok(())
     }
 
-    /// The barrier before present; lost nodes are logged and kept for the panel.
-    pub fn barrier(&mut self, frame: u64) -> Result<(), ClusterError> {
-        for NodeEvent::Lost { message, .. } in self.session.barrier(frame)? {
+    /// The barrier before present (`recorded`: this frame was read back for `--record`);
+    /// lost nodes are logged and kept for the panel.
+    pub fn barrier(&mut self, frame: u64, recorded: bool) -> Result<(), ClusterError> {
+        let pending = std::mem::take(&mut self.pending);
+        let slow = self.slow || recorded;
+        for NodeEvent::Lost { message, .. } in self.session.barrier(frame, slow, pending)? {
             self.lost.push(message);
         }
         Ok(())
@@ -189,6 +206,7 @@ impl NodeLink {
     /// Waits for the master's next frame; applies its settings on the way.
     pub fn next(&mut self, state: &mut AppState) -> Result<NodeNext, ClusterError> {
         let mut failure = None;
+        let before = self.generation;
         let generation = &mut self.generation;
         let step = self.session.next_frame(|g, text| {
             if let Err(e) = apply_settings(state, text) {
@@ -209,6 +227,7 @@ impl NodeLink {
                 }
                 apply_frame_state(state, &s);
                 self.frame = s.frame;
+                self.slow = self.generation != before || s.screenshot != 0;
                 self.render_started = Some(Instant::now());
                 Ok(NodeNext::Render(s))
             }
@@ -216,11 +235,13 @@ impl NodeLink {
         }
     }
 
-    /// Reports the frame rendered and waits for "present" (`Some(reason)`: stop instead).
-    pub fn barrier(&mut self) -> Result<Option<String>, ClusterError> {
+    /// Reports the frame rendered and waits for "present" (`Some(reason)`: stop instead;
+    /// `recorded`: this frame was read back for `--record`).
+    pub fn barrier(&mut self, recorded: bool) -> Result<Option<String>, ClusterError> {
         let render_ms = self
             .render_started
             .map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3);
-        self.session.barrier(self.frame, render_ms)
+        self.session
+            .barrier(self.frame, render_ms, self.slow || recorded)
     }
 }

@@ -182,6 +182,20 @@ fn start_cluster(config: &Config, scene: &Scene) -> Result<ClusterLink, AppError
     if config.app.mode != AppMode::Cave {
         return Err(ClusterError::NotCaveMode.into());
     }
+    // The panel belongs to the master, which takes the input.
+    if let PanelPlacement::Overlay(wall) = config.app.panel
+        && cluster_link::node_of(config, wall) != 0
+    {
+        return Err(ClusterError::PanelOnNode {
+            wall: config
+                .cave
+                .walls
+                .get(wall)
+                .map_or_else(String::new, |w| w.name.clone()),
+            node: cluster_link::node_of(config, wall),
+        }
+        .into());
+    }
     #[cfg(feature = "cluster")]
     {
         use crate::cluster::Transport as _;
@@ -212,8 +226,12 @@ const MOUSE_TURN_PER_PIXEL: f32 = 0.004;
 impl App {
     fn fail(&mut self, event_loop: &ActiveEventLoop, error: AppError) {
         tracing::error!("{error}");
-        if let Some(ClusterLink::Master(master)) = self.cluster.as_mut() {
-            master.session.stop(&format!("the master failed: {error}"));
+        match self.cluster.as_mut() {
+            Some(ClusterLink::Master(master)) => {
+                master.session.stop(&format!("the master failed: {error}"));
+            }
+            Some(ClusterLink::Node(node)) => node.session.leave(&error.to_string()),
+            None => {}
         }
         self.result = Err(error);
         event_loop.exit();
@@ -274,7 +292,14 @@ impl App {
             Some(g) => g,
             None => Gpu::headless()?,
         };
-        let mut renderer = Renderer::new(&gpu, self.state.cave(), self.state.render_settings())?;
+        // Another process's walls get 1×1 targets from the start (no full-size spike).
+        let mut cave = self.state.cave().clone();
+        for (wall, mine) in cave.walls.iter_mut().zip(&own) {
+            if !mine {
+                wall.resolution = [1, 1];
+            }
+        }
+        let mut renderer = Renderer::new(&gpu, &cave, self.state.render_settings())?;
         if rank.is_some() {
             renderer.set_wall_filter(Some(own.clone()));
         }
@@ -384,7 +409,8 @@ impl App {
             self.fail(event_loop, e.into());
             return;
         }
-        if let Err(e) = render_views(gfx, &mut self.state, &mut self.info) {
+        let node = matches!(self.cluster, Some(ClusterLink::Node(_)));
+        if let Err(e) = render_views(gfx, &mut self.state, &mut self.info, node) {
             self.fail(event_loop, e);
             return;
         }
@@ -414,11 +440,11 @@ impl App {
                 }
             });
         }
-        if let Some(dir) = &self.options.record
+        let recorded = self.options.record.is_some()
             && self
                 .eye_frame
-                .is_multiple_of(self.options.record_every.max(1))
-        {
+                .is_multiple_of(self.options.record_every.max(1));
+        if let Some(dir) = self.options.record.as_ref().filter(|_| recorded) {
             let describe = !matches!(self.cluster, Some(ClusterLink::Node(_)));
             if let Err(e) = record_frame(
                 gfx,
@@ -434,7 +460,7 @@ impl App {
         // Cluster mode: every process presents this frame together, once all have rendered it.
         match self.cluster.as_mut() {
             Some(ClusterLink::Master(master)) => {
-                let passed = master.barrier(self.eye_frame);
+                let passed = master.barrier(self.eye_frame, recorded);
                 let info = self.info.cluster.get_or_insert_with(Default::default);
                 info.figures = master.session.figures;
                 let nodes = master.session.nodes();
@@ -453,7 +479,7 @@ impl App {
                     return;
                 }
             }
-            Some(ClusterLink::Node(node)) => match node.barrier() {
+            Some(ClusterLink::Node(node)) => match node.barrier(recorded) {
                 Ok(None) => {}
                 Ok(Some(why)) => {
                     self.quit_now(event_loop, &format!("the master said stop: {why}"));
@@ -697,8 +723,13 @@ impl App {
 
     fn quit_now(&mut self, event_loop: &ActiveEventLoop, why: &str) {
         tracing::info!("quitting: {why}");
-        if let Some(ClusterLink::Master(master)) = self.cluster.as_mut() {
-            master.session.stop(&format!("the master quit ({why})"));
+        match self.cluster.as_mut() {
+            Some(ClusterLink::Master(master)) => {
+                master.session.stop(&format!("the master quit ({why})"));
+            }
+            // After the master's stop this says nothing more; otherwise the master hears why.
+            Some(ClusterLink::Node(node)) => node.session.leave(why),
+            None => {}
         }
         if let Some(gfx) = self.gfx.as_ref()
             && let Err(e) = gfx.renderer.wait_idle()
@@ -831,21 +862,27 @@ impl ApplicationHandler for App {
 }
 
 /// Renders the walls (and the panorama when shown) from the state; applies settings that
-/// change pipelines or targets first.
+/// change pipelines or targets first. A cluster `node` shows no panorama (the master's
+/// operator window does), and a setting it cannot apply ends it rather than let its walls
+/// differ from the others'.
 fn render_views(
     gfx: &mut Graphics,
     state: &mut AppState,
     info: &mut PanelInfo,
+    node: bool,
 ) -> Result<(), AppError> {
     let settings = state.render_settings();
     if gfx.renderer.settings() != settings
         && let Err(e) = gfx.renderer.set_settings(settings, state.render_cave())
     {
+        if node {
+            return Err(e.into());
+        }
         tracing::error!("{e}; keeping the previous settings");
         state.settings.render.msaa = gfx.renderer.settings().msaa;
     }
     let stats = gfx.renderer.render(&state.frame_params())?;
-    if state.settings.panorama.show {
+    if state.settings.panorama.show && !node {
         let frame = state.frame_params();
         if let Err(e) = gfx.renderer.render_panorama(&frame, &state.settings.pano()) {
             tracing::error!("panorama: {e}; closing the panorama view");

@@ -116,7 +116,7 @@ pub fn run_cluster(
                         render(s.frame)?
                     };
                     if node
-                        .barrier(s.frame, ms)
+                        .barrier(s.frame, ms, false)
                         .map_err(BenchError::Cluster)?
                         .is_some()
                     {
@@ -138,11 +138,11 @@ pub fn run_cluster(
                 head_position: base,
                 ..Default::default()
             };
-            master
-                .broadcast(None, &state)
-                .map_err(BenchError::Cluster)?;
+            let lost = master.broadcast(None, &state);
             let master_render_ms = if first == 0 { render(frame)? } else { 0.0 };
-            let lost = master.barrier(frame).map_err(BenchError::Cluster)?;
+            let lost = master
+                .barrier(frame, false, lost)
+                .map_err(BenchError::Cluster)?;
             if !lost.is_empty() {
                 master.stop("bench: a node was lost");
                 return Err(BenchError::Cluster(

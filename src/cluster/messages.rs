@@ -62,6 +62,11 @@ pub enum Message {
     /// Master → node: stop now (quit, a refused start, or a policy stop), and why. `clean`:
     /// every process is alive and ends together (MPI may finalize).
     Stop { reason: String, clean: bool },
+    /// Node → master: a clean stop received; this node finalizes MPI and ends.
+    Bye,
+    /// Node → master: this node is leaving by itself (its window closed, a signal, an
+    /// error), and why.
+    Leave { reason: String },
 }
 
 /// What a process loaded, compared at start-up: CRC-32 and length of the settings (as
@@ -142,6 +147,8 @@ const KIND_FRAME: u8 = 4;
 const KIND_RENDERED: u8 = 5;
 const KIND_PRESENT: u8 = 6;
 const KIND_STOP: u8 = 7;
+const KIND_BYE: u8 = 8;
+const KIND_LEAVE: u8 = 9;
 
 impl Message {
     /// Writes the message into `out` (cleared first; its capacity is reused, so the
@@ -195,6 +202,11 @@ impl Message {
             Message::Stop { reason, clean } => {
                 out.push(KIND_STOP);
                 out.push(u8::from(*clean));
+                put_text(out, reason);
+            }
+            Message::Bye => out.push(KIND_BYE),
+            Message::Leave { reason } => {
+                out.push(KIND_LEAVE);
                 put_text(out, reason);
             }
         }
@@ -270,6 +282,8 @@ impl Message {
                 },
             },
             KIND_PRESENT => Message::Present { frame: r.u64()? },
+            KIND_BYE => Message::Bye,
+            KIND_LEAVE => Message::Leave { reason: r.text()? },
             KIND_STOP => Message::Stop {
                 clean: r.flag()?,
                 reason: r.text()?,
@@ -455,6 +469,10 @@ mod tests {
                 reason: "quit from the master's panel".into(),
                 clean: true,
             },
+            Message::Bye,
+            Message::Leave {
+                reason: "its window was closed".into(),
+            },
         ]
     }
 
@@ -517,7 +535,7 @@ mod tests {
             let mut bytes: Vec<u8> = (0..len).map(|i| (seed >> (i % 56)) as u8).collect();
             if bytes.len() >= 5 {
                 bytes[..4].copy_from_slice(&MAGIC.to_le_bytes());
-                bytes[4] = (seed % 9) as u8;
+                bytes[4] = (seed % 11) as u8;
             }
             let _ = Message::decode(&bytes);
         }

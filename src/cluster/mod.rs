@@ -75,4 +75,8 @@ pub enum ClusterError {
         "cluster mode drives the walls' windows: it needs `app.mode = \"cave\"` (or `--mode cave`), not the preview"
     )]
     NotCaveMode,
+    #[error(
+        "the panel is an overlay on wall {wall}, which node {node} drives: in cluster mode the panel is the master's (app.panel = \"window\", or overlay on a wall of node 0)"
+    )]
+    PanelOnNode { wall: String, node: usize },
 }

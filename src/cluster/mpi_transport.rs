@@ -21,6 +21,11 @@ use super::{ClusterError, Transport};
 /// tag in order).
 const TAG: c_int = 7901;
 
+/// How long a message whose first bytes have arrived may take to arrive whole.
+const RECEIVE_LIMIT: std::time::Duration = std::time::Duration::from_secs(10);
+/// How long dropping the transport waits for its sends to complete before finalizing.
+const DRAIN_LIMIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// A send in flight: MPI reads `bytes` until `request` completes.
 struct InFlight {
     request: ffi::MPI_Request,
@@ -61,8 +66,11 @@ fn check(code: c_int, what: &str) -> Result<(), ClusterError> {
 impl MpiTransport {
     /// Initialises MPI (once per process) and makes communication errors return codes.
     pub fn init() -> Result<Self, ClusterError> {
-        let universe = mpi::initialize()
-            .ok_or_else(|| ClusterError::Mpi("MPI was already initialised".into()))?;
+        // Only the main thread calls MPI, but the process has other threads (tracking,
+        // gamepads): "funneled" is the level that says so.
+        let (universe, _) =
+            mpi::initialize_with_threading(mpi::environment::Threading::Funneled)
+                .ok_or_else(|| ClusterError::Mpi("MPI was already initialised".into()))?;
         let world = universe.world();
         let (rank, size) = (world.rank() as usize, world.size() as usize);
         // SAFETY: MPI is initialised; both handles are MPI's predefined constants.
@@ -158,23 +166,27 @@ impl Transport for MpiTransport {
             return Ok(false);
         }
         let mut flag: c_int = 0;
+        let mut message = std::mem::MaybeUninit::<ffi::MPI_Message>::uninit();
         let mut status = std::mem::MaybeUninit::<ffi::MPI_Status>::uninit();
-        // SAFETY: MPI writes the status when flag is set; it is read only then.
+        // SAFETY: MPI writes the message handle and the status when flag is set; they are
+        // read only then. The matched message is taken out of the queue (no other receive
+        // can take it), so the receive below gets exactly it.
         let code = unsafe {
-            ffi::MPI_Iprobe(
+            ffi::MPI_Improbe(
                 from as c_int,
                 TAG,
                 ffi::RSMPI_COMM_WORLD,
                 &mut flag,
+                message.as_mut_ptr(),
                 status.as_mut_ptr(),
             )
         };
-        check(code, "MPI_Iprobe")?;
+        check(code, "MPI_Improbe")?;
         if flag == 0 {
             return Ok(false);
         }
-        // SAFETY: set by the successful probe above.
-        let status = unsafe { status.assume_init() };
+        // SAFETY: both set by the successful probe above.
+        let (mut message, status) = unsafe { (message.assume_init(), status.assume_init()) };
         let mut count: c_int = 0;
         // SAFETY: a valid status from the probe.
         let code = unsafe { ffi::MPI_Get_count(&status, ffi::RSMPI_UINT8_T, &mut count) };
@@ -185,25 +197,53 @@ impl Transport for MpiTransport {
         let capped = len.min(MAX_MESSAGE_BYTES + 1);
         into.clear();
         into.resize(capped, 0);
-        // SAFETY: `into` holds `capped` bytes; MPI writes at most that many (a longer
-        // message is truncated with an error code, checked below).
+        let mut request = std::mem::MaybeUninit::<ffi::MPI_Request>::uninit();
+        // SAFETY: `into` holds `capped` bytes and is not touched until the request completes
+        // below (or is leaked if it never does); MPI writes at most that many.
         let code = unsafe {
-            ffi::MPI_Recv(
+            ffi::MPI_Imrecv(
                 into.as_mut_ptr() as *mut c_void,
                 capped as c_int,
                 ffi::RSMPI_UINT8_T,
-                from as c_int,
-                TAG,
-                ffi::RSMPI_COMM_WORLD,
-                ffi::RSMPI_STATUS_IGNORE,
+                &mut message,
+                request.as_mut_ptr(),
             )
         };
+        check(code, "MPI_Imrecv")?;
+        // SAFETY: a successful MPI_Imrecv wrote the request handle.
+        let mut request = unsafe { request.assume_init() };
+        // A large message (the settings) may still be arriving: wait for it, bounded, so a
+        // sender that dies half-way cannot block this process.
+        let start = std::time::Instant::now();
+        loop {
+            let mut done: c_int = 0;
+            // SAFETY: the pending request from MPI_Imrecv above.
+            let code = unsafe { ffi::MPI_Test(&mut request, &mut done, ffi::RSMPI_STATUS_IGNORE) };
+            if code != 0 && len > capped {
+                return Err(ClusterError::Malformed(format!(
+                    "a message of {len} bytes from rank {from}, over the {MAX_MESSAGE_BYTES}-byte budget"
+                )));
+            }
+            check(code, "MPI_Test (receive)")?;
+            if done != 0 {
+                break;
+            }
+            if start.elapsed() > RECEIVE_LIMIT {
+                // MPI may still write into the buffer: give it up for good.
+                std::mem::forget(std::mem::take(into));
+                self.abandon(from);
+                return Err(ClusterError::Mpi(format!(
+                    "a message of {len} bytes from rank {from} did not arrive within {} s",
+                    RECEIVE_LIMIT.as_secs()
+                )));
+            }
+            std::thread::yield_now();
+        }
         if len > capped {
             return Err(ClusterError::Malformed(format!(
                 "a message of {len} bytes from rank {from}, over the {MAX_MESSAGE_BYTES}-byte budget"
             )));
         }
-        check(code, "MPI_Recv")?;
         Ok(true)
     }
 
@@ -227,11 +267,30 @@ impl Transport for MpiTransport {
 
 impl Drop for MpiTransport {
     fn drop(&mut self) {
-        if !self.finalize
-            && let Some(universe) = self.universe.take()
-        {
-            // MPI_Finalize synchronises with every rank, a lost one included: skip it.
-            std::mem::forget(universe);
+        // MPI_Finalize with sends still pending is erroneous: let them complete, bounded.
+        let start = std::time::Instant::now();
+        while self.finalize && self.in_flight.iter().any(|l| !l.is_empty()) {
+            for peer in 0..self.size {
+                if self.reap(peer).is_err() {
+                    self.finalize = false;
+                }
+            }
+            if start.elapsed() > DRAIN_LIMIT {
+                self.finalize = false;
+            }
+            std::thread::yield_now();
+        }
+        if !self.finalize {
+            // Sends that never completed: MPI may still read their buffers.
+            for list in &mut self.in_flight {
+                for flight in list.drain(..) {
+                    std::mem::forget(flight.bytes);
+                }
+            }
+            if let Some(universe) = self.universe.take() {
+                // MPI_Finalize synchronises with every rank, a lost one included: skip it.
+                std::mem::forget(universe);
+            }
         }
     }
 }

@@ -110,9 +110,13 @@ pub struct Master<T: Transport> {
     nodes: Vec<NodeStatus>,
     timeouts: Timeouts,
     send_buf: Vec<u8>,
+    /// The settings message of the latest generation, encoded once for every node.
+    settings_buf: Vec<u8>,
     receive_buf: Vec<u8>,
     /// No barrier passed yet: the first frame compiles shaders and gets the start-up timeout.
     first_frame: bool,
+    /// Every node has been told to stop.
+    stopped: bool,
     pub figures: MasterFigures,
 }
 
@@ -143,22 +147,26 @@ impl<T: Transport> Master<T> {
         let mut buf = Vec::new();
         let deadline = Instant::now() + timeouts.startup;
         let mut refusal = None;
+        // A node that never reported may be alive and slow: it is left out of the stop.
+        let mut silent = None;
         for (rank, node) in nodes.iter_mut().enumerate().skip(1) {
             let left = deadline.saturating_duration_since(Instant::now());
             let got = wait_for(left, || {
                 Ok(transport
                     .try_receive(rank, &mut buf)?
                     .then(|| Message::decode(&buf)))
-            })?;
+            });
             let hello = match got {
-                None => {
+                Ok(Some(Ok(Message::Hello(id)))) => id,
+                Ok(None) => {
+                    silent = Some(rank);
                     refusal = Some(ClusterError::NoHello {
                         node: rank,
                         seconds: timeouts.startup.as_secs_f64(),
                     });
                     break;
                 }
-                Some(Err(e)) => {
+                Err(e) | Ok(Some(Err(e))) => {
                     refusal = Some(ClusterError::Mismatch {
                         node: rank,
                         host: "host unknown".into(),
@@ -166,8 +174,7 @@ impl<T: Transport> Master<T> {
                     });
                     break;
                 }
-                Some(Ok(Message::Hello(id))) => id,
-                Some(Ok(other)) => {
+                Ok(Some(Ok(other))) => {
                     refusal = Some(ClusterError::Unexpected {
                         from: format!("node {rank}"),
                         expected: "its start-up report",
@@ -191,16 +198,21 @@ impl<T: Transport> Master<T> {
             nodes,
             timeouts,
             send_buf: Vec::new(),
+            settings_buf: Vec::new(),
             receive_buf: buf,
             first_frame: true,
+            stopped: false,
             figures: MasterFigures::default(),
         };
         if let Some(e) = refusal {
+            if let Some(rank) = silent {
+                master.lose(rank, "did not report at start-up");
+            }
             master.stop(&format!("the cluster did not start: {e}"));
             return Err(e);
         }
         for rank in 1..size {
-            master.send(rank, &Message::Start)?;
+            master.send(rank, &Message::Start);
         }
         Ok(master)
     }
@@ -210,9 +222,13 @@ impl<T: Transport> Master<T> {
         &self.nodes
     }
 
-    fn send(&mut self, rank: usize, message: &Message) -> Result<(), ClusterError> {
+    /// Sends `message` to `rank`; a node the transport fails to reach is lost.
+    fn send(&mut self, rank: usize, message: &Message) -> Option<NodeEvent> {
         message.encode(&mut self.send_buf);
-        self.transport.send(rank, &self.send_buf)
+        match self.transport.send(rank, &self.send_buf) {
+            Ok(()) => None,
+            Err(e) => Some(self.lose(rank, &format!("cannot be reached: {e}"))),
+        }
     }
 
     fn live(&self) -> impl Iterator<Item = usize> + use<'_, T> {
@@ -224,43 +240,62 @@ impl<T: Transport> Master<T> {
     }
 
     /// Sends this frame's settings (when `settings` is given: they changed) and state to every
-    /// live node.
+    /// live node. Nodes that cannot be reached are lost (returned).
     pub fn broadcast(
         &mut self,
         settings: Option<(u64, &str)>,
         state: &FrameState,
-    ) -> Result<(), ClusterError> {
+    ) -> Vec<NodeEvent> {
         let start = Instant::now();
+        let mut events = Vec::new();
+        if let Some((generation, toml)) = settings {
+            // Encoded once per change (rare), the same bytes for every node.
+            Message::Settings {
+                generation,
+                toml: toml.to_owned(),
+            }
+            .encode(&mut self.settings_buf);
+        }
+        Message::Frame(*state).encode(&mut self.send_buf);
         for rank in 1..self.nodes.len() {
             if self.nodes[rank].lost.is_some() {
                 continue;
             }
-            if let Some((generation, toml)) = settings {
-                // Encoded per node only when settings change (rare); the frame state below
-                // reuses one buffer.
-                let message = Message::Settings {
-                    generation,
-                    toml: toml.to_owned(),
-                };
-                self.send(rank, &message)?;
+            let mut sent = Ok(());
+            if settings.is_some() {
+                sent = self.transport.send(rank, &self.settings_buf);
             }
-            self.send(rank, &Message::Frame(*state))?;
+            if sent.is_ok() {
+                sent = self.transport.send(rank, &self.send_buf);
+            }
+            if let Err(e) = sent {
+                events.push(self.lose(rank, &format!("cannot be reached: {e}")));
+                // `lose` used the send buffer for its stop message.
+                Message::Frame(*state).encode(&mut self.send_buf);
+            }
         }
         self.figures.broadcast_ms = start.elapsed().as_secs_f64() * 1e3;
-        Ok(())
+        events
     }
 
     /// Waits until every live node has rendered `frame`, then tells them to present it.
-    /// Nodes that do not report in time are lost: returned as events (and told to stop);
-    /// with `on_node_loss = "stop"` the whole cluster stops and this is an error.
-    pub fn barrier(&mut self, frame: u64) -> Result<Vec<NodeEvent>, ClusterError> {
+    /// Nodes that do not report in time, leave, or send anything else are lost: returned as
+    /// events (and told to stop); with `on_node_loss = "stop"` (`lost_so_far` counts the
+    /// broadcast's losses too) the whole cluster stops and this is an error. `slow`: a frame
+    /// known to take long (new settings compiling pipelines, a screenshot or a recorded
+    /// frame read back), given the start-up timeout.
+    pub fn barrier(
+        &mut self,
+        frame: u64,
+        slow: bool,
+        mut events: Vec<NodeEvent>,
+    ) -> Result<Vec<NodeEvent>, ClusterError> {
         let start = Instant::now();
-        let timeout = if self.first_frame {
+        let timeout = if self.first_frame || slow {
             self.timeouts.startup
         } else {
             self.timeouts.frame
         };
-        let mut events = Vec::new();
         for rank in 1..self.nodes.len() {
             if self.nodes[rank].lost.is_some() {
                 continue;
@@ -268,25 +303,21 @@ impl<T: Transport> Master<T> {
             let left = timeout.saturating_sub(start.elapsed());
             let (transport, buf) = (&mut self.transport, &mut self.receive_buf);
             let reply = wait_for(left, || {
-                loop {
-                    if !transport.try_receive(rank, buf)? {
-                        return Ok(None);
-                    }
-                    match Message::decode(buf) {
-                        Ok(Message::Rendered { frame: f, figures }) if f == frame => {
-                            return Ok(Some(Ok(figures)));
-                        }
-                        // An older frame's report from a node that was slow: skip it.
-                        Ok(Message::Rendered { frame: f, .. }) if f < frame => {}
-                        Ok(other) => return Ok(Some(Err(format!("sent {other:?}")))),
-                        Err(e) => return Ok(Some(Err(e.to_string()))),
-                    }
+                if !transport.try_receive(rank, buf)? {
+                    return Ok(None);
                 }
-            })?;
+                Ok(Some(match Message::decode(buf) {
+                    Ok(Message::Rendered { frame: f, figures }) if f == frame => Ok(figures),
+                    Ok(Message::Leave { reason }) => Err(format!("left the cluster: {reason}")),
+                    Ok(other) => Err(format!("sent {other:?} instead of its frame {frame}")),
+                    Err(e) => Err(e.to_string()),
+                }))
+            });
             match reply {
-                Some(Ok(figures)) => self.nodes[rank].figures = figures,
-                Some(Err(why)) => events.push(self.lose(rank, &why)),
-                None => events.push(self.lose(
+                Ok(Some(Ok(figures))) => self.nodes[rank].figures = figures,
+                Ok(Some(Err(why))) => events.push(self.lose(rank, &why)),
+                Err(e) => events.push(self.lose(rank, &format!("cannot be reached: {e}"))),
+                Ok(None) => events.push(self.lose(
                     rank,
                     &format!(
                         "did not report frame {frame} within {} ms (died or stalled)",
@@ -307,9 +338,12 @@ impl<T: Transport> Master<T> {
             self.stop(&format!("the cluster stops: {what}"));
             return Err(ClusterError::NodeLostStop(what));
         }
-        let live: Vec<usize> = self.live().collect();
-        for rank in live {
-            self.send(rank, &Message::Present { frame })?;
+        for rank in 1..self.nodes.len() {
+            if self.nodes[rank].lost.is_none()
+                && let Some(e) = self.send(rank, &Message::Present { frame })
+            {
+                events.push(e);
+            }
         }
         Ok(events)
     }
@@ -318,36 +352,77 @@ impl<T: Transport> Master<T> {
     fn lose(&mut self, rank: usize, why: &str) -> NodeEvent {
         let message = format!("{} lost: {why}", self.nodes[rank].describe());
         tracing::error!(target: "omnicave::cluster", "{message}");
-        let _ = self.send(
-            rank,
-            &Message::Stop {
-                reason: format!("dropped by the master: {why}"),
-                clean: false,
-            },
-        );
+        Message::Stop {
+            reason: format!("dropped by the master: {why}"),
+            clean: false,
+        }
+        .encode(&mut self.send_buf);
+        let _ = self.transport.send(rank, &self.send_buf);
         self.transport.abandon(rank);
         self.nodes[rank].lost = Some(why.to_owned());
         NodeEvent::Lost { rank, message }
     }
 
-    /// Tells every live node to stop (quit, or a refused start).
+    /// Tells every live node to stop (quit, or a refused start). A clean stop (no node
+    /// lost) waits, at most the frame timeout, for every node's goodbye; a node that does not
+    /// answer is abandoned (and MPI is then left without finalizing, which would wait for it).
     pub fn stop(&mut self, reason: &str) {
-        let clean = self.nodes.iter().all(|n| n.lost.is_none());
+        if self.stopped {
+            return;
+        }
+        self.stopped = true;
+        let clean = self.all_live();
         let live: Vec<usize> = self.live().collect();
+        for &rank in &live {
+            Message::Stop {
+                reason: reason.to_owned(),
+                clean,
+            }
+            .encode(&mut self.send_buf);
+            if self.transport.send(rank, &self.send_buf).is_err() {
+                self.transport.abandon(rank);
+            }
+        }
+        if !clean {
+            return;
+        }
+        let start = Instant::now();
         for rank in live {
-            let _ = self.send(
-                rank,
-                &Message::Stop {
-                    reason: reason.to_owned(),
-                    clean,
-                },
-            );
+            let left = self.timeouts.frame.saturating_sub(start.elapsed());
+            let (transport, buf) = (&mut self.transport, &mut self.receive_buf);
+            let bye = wait_for(left, || {
+                loop {
+                    if !transport.try_receive(rank, buf)? {
+                        return Ok(None);
+                    }
+                    // A frame's report or a goodbye may come first.
+                    if let Ok(Message::Bye | Message::Leave { .. }) = Message::decode(buf) {
+                        return Ok(Some(()));
+                    }
+                }
+            });
+            if !matches!(bye, Ok(Some(()))) {
+                tracing::warn!(
+                    target: "omnicave::cluster",
+                    "{} did not acknowledge the stop",
+                    self.nodes[rank].describe()
+                );
+                self.transport.abandon(rank);
+            }
         }
     }
 
     /// Whether every node is still live.
     pub fn all_live(&self) -> bool {
         self.nodes.iter().all(|n| n.lost.is_none())
+    }
+}
+
+impl<T: Transport> Drop for Master<T> {
+    /// A master that ends without a word (an error, a signal before the first frame) still
+    /// tells the nodes, so none waits for it.
+    fn drop(&mut self) {
+        self.stop("the master ended");
     }
 }
 
@@ -387,6 +462,8 @@ pub struct Node<T: Transport> {
     /// When this node last presented (its wait for the next state starts there).
     last_present: Instant,
     first_frame: bool,
+    /// The master said stop (or is gone): nothing more is sent to it.
+    ended: bool,
     pub figures: NodeFigures,
 }
 
@@ -407,12 +484,16 @@ impl<T: Transport> Node<T> {
             receive_buf: Vec::new(),
             last_present: Instant::now(),
             first_frame: true,
+            ended: false,
             figures: NodeFigures::default(),
         };
         // The master waits up to the start-up timeout for the slowest node, then answers.
         match node.receive(timeouts.startup * 2)? {
             Message::Start => Ok(node),
-            Message::Stop { reason, .. } => Err(ClusterError::Refused(reason)),
+            Message::Stop { reason, clean } => {
+                node.stopped(clean);
+                Err(ClusterError::Refused(reason))
+            }
             other => Err(ClusterError::Unexpected {
                 from: "the master".into(),
                 expected: "start or stop",
@@ -423,21 +504,45 @@ impl<T: Transport> Node<T> {
 
     fn receive(&mut self, timeout: Duration) -> Result<Message, ClusterError> {
         let (transport, buf) = (&mut self.transport, &mut self.receive_buf);
-        let got = wait_for(timeout, || Ok(transport.try_receive(0, buf)?.then_some(())))?;
+        let got = wait_for(timeout, || Ok(transport.try_receive(0, buf)?.then_some(())));
         match got {
-            Some(()) => Message::decode(&self.receive_buf),
-            None => {
-                // MPI's finalize would wait for the lost master.
-                self.transport.abandon(0);
+            Ok(Some(())) => Message::decode(&self.receive_buf),
+            Ok(None) => {
+                self.master_gone();
                 Err(ClusterError::MasterLost {
                     seconds: timeout.as_secs_f64(),
                 })
             }
+            Err(e) => {
+                self.master_gone();
+                Err(e)
+            }
         }
     }
 
-    fn frame_timeout(&self) -> Duration {
-        if self.first_frame {
+    /// The master is gone: nothing more goes to it, and MPI is not finalized (that would
+    /// wait for it).
+    fn master_gone(&mut self) {
+        self.ended = true;
+        self.transport.abandon(0);
+    }
+
+    /// The master said stop: a clean stop is acknowledged (both then finalize MPI); after
+    /// a lost node, nobody finalizes.
+    fn stopped(&mut self, clean: bool) {
+        if clean {
+            Message::Bye.encode(&mut self.send_buf);
+            if self.transport.send(0, &self.send_buf).is_err() {
+                self.transport.abandon(0);
+            }
+        } else {
+            self.transport.abandon(0);
+        }
+        self.ended = true;
+    }
+
+    fn frame_timeout(&self, slow: bool) -> Duration {
+        if self.first_frame || slow {
             self.timeouts.startup * 2
         } else {
             // The master's own frame (input, panel, its walls) plus its wait for the others.
@@ -451,9 +556,10 @@ impl<T: Transport> Node<T> {
         &mut self,
         mut apply_settings: impl FnMut(u64, &str),
     ) -> Result<NodeStep, ClusterError> {
-        let timeout = self.frame_timeout();
+        let deadline = Instant::now() + self.frame_timeout(false);
         loop {
-            match self.receive(timeout)? {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.receive(left)? {
                 Message::Settings { generation, toml } => apply_settings(generation, &toml),
                 Message::Frame(state) => {
                     self.figures.state_wait_ms =
@@ -461,9 +567,7 @@ impl<T: Transport> Node<T> {
                     return Ok(NodeStep::Frame(state));
                 }
                 Message::Stop { reason, clean } => {
-                    if !clean {
-                        self.transport.abandon(0);
-                    }
+                    self.stopped(clean);
                     return Ok(NodeStep::Stop(reason));
                 }
                 other => {
@@ -478,8 +582,14 @@ impl<T: Transport> Node<T> {
     }
 
     /// Reports `frame` rendered (`render_ms` of CPU to record and submit it) and waits for
-    /// the master's "present": `None` to present, or the master's reason to stop.
-    pub fn barrier(&mut self, frame: u64, render_ms: f64) -> Result<Option<String>, ClusterError> {
+    /// the master's "present": `None` to present, or the master's reason to stop. `slow`:
+    /// a frame known to take long (see [`Master::barrier`]).
+    pub fn barrier(
+        &mut self,
+        frame: u64,
+        render_ms: f64,
+        slow: bool,
+    ) -> Result<Option<String>, ClusterError> {
         self.figures.render_ms = render_ms as f32;
         Message::Rendered {
             frame,
@@ -488,13 +598,11 @@ impl<T: Transport> Node<T> {
         .encode(&mut self.send_buf);
         self.transport.send(0, &self.send_buf)?;
         let start = Instant::now();
-        let timeout = self.frame_timeout();
+        let timeout = self.frame_timeout(slow);
         let answer = match self.receive(timeout)? {
             Message::Present { frame: f } if f == frame => None,
             Message::Stop { reason, clean } => {
-                if !clean {
-                    self.transport.abandon(0);
-                }
+                self.stopped(clean);
                 Some(reason)
             }
             other => {
@@ -509,6 +617,27 @@ impl<T: Transport> Node<T> {
         self.last_present = Instant::now();
         self.first_frame = false;
         Ok(answer)
+    }
+
+    /// This node leaves by itself (window closed, a signal, an error): the master hears why
+    /// at once instead of waiting out its timeout, and MPI is not finalized.
+    pub fn leave(&mut self, reason: &str) {
+        if self.ended {
+            return;
+        }
+        self.ended = true;
+        Message::Leave {
+            reason: reason.to_owned(),
+        }
+        .encode(&mut self.send_buf);
+        let _ = self.transport.send(0, &self.send_buf);
+        self.transport.abandon(0);
+    }
+}
+
+impl<T: Transport> Drop for Node<T> {
+    fn drop(&mut self) {
+        self.leave("the node ended");
     }
 }
 
@@ -550,12 +679,14 @@ mod tests {
     type NodeRun = Result<(Vec<u64>, Vec<String>, Option<String>), String>;
 
     /// A node thread that runs `frames` frames and returns the frame numbers it rendered and
-    /// the settings it was handed (or stops when told).
+    /// the settings it was handed (or stops when told). After its frames it leaves (as a
+    /// closed window does), or with `vanish` goes silent (as a killed process).
     fn node_thread(
         t: MemoryTransport,
         identity: Identity,
         frames: usize,
         on_loss: NodeLoss,
+        vanish: bool,
     ) -> std::thread::JoinHandle<NodeRun> {
         std::thread::spawn(move || {
             let mut node =
@@ -570,9 +701,15 @@ mod tests {
                     NodeStep::Stop(why) => return Ok((seen, settings, Some(why))),
                 };
                 seen.push(state.frame);
-                if let Some(why) = node.barrier(state.frame, 1.0).map_err(|e| e.to_string())? {
+                if let Some(why) = node
+                    .barrier(state.frame, 1.0, false)
+                    .map_err(|e| e.to_string())?
+                {
                     return Ok((seen, settings, Some(why)));
                 }
+            }
+            if vanish {
+                std::mem::forget(node);
             }
             Ok((seen, settings, None))
         })
@@ -583,7 +720,7 @@ mod tests {
         let mut ts = MemoryTransport::cluster(3).into_iter();
         let master_t = ts.next().unwrap();
         let nodes: Vec<_> = ts
-            .map(|t| node_thread(t, id("n", 1), 5, NodeLoss::Continue))
+            .map(|t| node_thread(t, id("n", 1), 5, NodeLoss::Continue, false))
             .collect();
         let mut master =
             Master::start(master_t, &id("m", 1), walls(), timeouts(NodeLoss::Continue)).unwrap();
@@ -594,8 +731,8 @@ mod tests {
                 head_position: Vec3::Y,
                 ..Default::default()
             };
-            master.broadcast(settings, &state).unwrap();
-            assert!(master.barrier(frame).unwrap().is_empty());
+            let lost = master.broadcast(settings, &state);
+            assert!(master.barrier(frame, false, lost).unwrap().is_empty());
         }
         for n in nodes {
             let (seen, settings, stop) = n.join().unwrap().unwrap();
@@ -611,8 +748,20 @@ mod tests {
     fn a_node_that_loaded_another_scene_is_refused_by_name() {
         let mut ts = MemoryTransport::cluster(3).into_iter();
         let master_t = ts.next().unwrap();
-        let n1 = node_thread(ts.next().unwrap(), id("pc-1", 1), 1, NodeLoss::Continue);
-        let n2 = node_thread(ts.next().unwrap(), id("pc-2", 2), 1, NodeLoss::Continue);
+        let n1 = node_thread(
+            ts.next().unwrap(),
+            id("pc-1", 1),
+            1,
+            NodeLoss::Continue,
+            false,
+        );
+        let n2 = node_thread(
+            ts.next().unwrap(),
+            id("pc-2", 2),
+            1,
+            NodeLoss::Continue,
+            false,
+        );
         let err = Master::start(master_t, &id("m", 1), walls(), timeouts(NodeLoss::Continue))
             .err()
             .unwrap()
@@ -635,7 +784,13 @@ mod tests {
     fn a_node_that_never_reports_is_named_at_start_up() {
         let mut ts = MemoryTransport::cluster(3).into_iter();
         let master_t = ts.next().unwrap();
-        let n1 = node_thread(ts.next().unwrap(), id("pc-1", 1), 1, NodeLoss::Continue);
+        let n1 = node_thread(
+            ts.next().unwrap(),
+            id("pc-1", 1),
+            1,
+            NodeLoss::Continue,
+            false,
+        );
         let _silent = ts.next().unwrap();
         let err = Master::start(master_t, &id("m", 1), walls(), timeouts(NodeLoss::Continue))
             .err()
@@ -650,25 +805,23 @@ mod tests {
         for on_loss in [NodeLoss::Continue, NodeLoss::Stop] {
             let mut ts = MemoryTransport::cluster(3).into_iter();
             let master_t = ts.next().unwrap();
-            let n1 = node_thread(ts.next().unwrap(), id("pc-1", 1), 6, on_loss);
-            // Node 2 renders two frames, then dies (its transport dropped).
-            let n2 = node_thread(ts.next().unwrap(), id("pc-2", 1), 2, on_loss);
+            let n1 = node_thread(ts.next().unwrap(), id("pc-1", 1), 6, on_loss, false);
+            // Node 2 renders two frames, then goes silent.
+            let n2 = node_thread(ts.next().unwrap(), id("pc-2", 1), 2, on_loss, true);
             let mut master =
                 Master::start(master_t, &id("m", 1), walls(), timeouts(on_loss)).unwrap();
             let mut lost_at = None;
             let mut stopped = None;
             for frame in 0..6 {
-                master
-                    .broadcast(
-                        None,
-                        &FrameState {
-                            frame,
-                            ..Default::default()
-                        },
-                    )
-                    .unwrap();
+                let lost = master.broadcast(
+                    None,
+                    &FrameState {
+                        frame,
+                        ..Default::default()
+                    },
+                );
                 let started = Instant::now();
-                match master.barrier(frame) {
+                match master.barrier(frame, false, lost) {
                     Ok(events) => {
                         if let Some(NodeEvent::Lost { rank, message }) = events.first() {
                             assert_eq!(*rank, 2);
@@ -712,13 +865,68 @@ mod tests {
     fn a_node_whose_master_is_gone_ends_instead_of_hanging() {
         let mut ts = MemoryTransport::cluster(2).into_iter();
         let master_t = ts.next().unwrap();
-        let n1 = node_thread(ts.next().unwrap(), id("pc-1", 1), 5, NodeLoss::Continue);
+        let n1 = node_thread(
+            ts.next().unwrap(),
+            id("pc-1", 1),
+            5,
+            NodeLoss::Continue,
+            false,
+        );
         let mut master =
             Master::start(master_t, &id("m", 1), walls(), timeouts(NodeLoss::Continue)).unwrap();
-        master.broadcast(None, &FrameState::default()).unwrap();
-        master.barrier(0).unwrap();
-        drop(master);
+        let lost = master.broadcast(None, &FrameState::default());
+        master.barrier(0, false, lost).unwrap();
+        // Gone without a word (as a killed process): its channels stay open, silent.
+        std::mem::forget(master);
         let e = n1.join().unwrap().unwrap_err();
         assert!(e.contains("the master did not answer"), "{e}");
+    }
+
+    #[test]
+    fn a_node_that_leaves_is_reported_at_once_and_a_clean_stop_is_acknowledged() {
+        let mut ts = MemoryTransport::cluster(3).into_iter();
+        let master_t = ts.next().unwrap();
+        let n1 = node_thread(
+            ts.next().unwrap(),
+            id("pc-1", 1),
+            4,
+            NodeLoss::Continue,
+            false,
+        );
+        let n2 = node_thread(
+            ts.next().unwrap(),
+            id("pc-2", 1),
+            1,
+            NodeLoss::Continue,
+            false,
+        );
+        let mut master =
+            Master::start(master_t, &id("m", 1), walls(), timeouts(NodeLoss::Continue)).unwrap();
+        for frame in 0..3 {
+            let lost = master.broadcast(
+                None,
+                &FrameState {
+                    frame,
+                    ..Default::default()
+                },
+            );
+            let started = Instant::now();
+            let events = master.barrier(frame, false, lost).unwrap();
+            if frame == 1 {
+                let [NodeEvent::Lost { rank: 2, message }] = &events[..] else {
+                    panic!("{events:?}");
+                };
+                assert!(
+                    message.contains("left the cluster: the node ended"),
+                    "{message}"
+                );
+                // At once, not after the 200 ms timeout.
+                assert!(started.elapsed() < Duration::from_millis(150));
+            }
+        }
+        n2.join().unwrap().unwrap();
+        master.stop("done");
+        let (seen, _, stop) = n1.join().unwrap().unwrap();
+        assert_eq!((seen, stop.as_deref()), (vec![0, 1, 2], Some("done")));
     }
 }
