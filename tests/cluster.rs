@@ -602,6 +602,51 @@ fn a_stalled_node_is_reported_and_the_others_go_on() {
     );
 }
 
+/// A killed node (SIGKILL) under `on_node_loss = "continue"`: the master reports it within the
+/// timeout, naming it and its wall, and the master and the other node go on; everything ends
+/// when the master quits.
+#[test]
+fn a_killed_node_is_reported_and_the_others_go_on() {
+    let out = out_dir("kill-continue");
+    let config_path = write_config(
+        &out,
+        "cluster.toml",
+        "[cluster]\ntimeout_ms = 3000\non_node_loss = \"continue\"",
+    );
+    let _x_lock = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
+    let x = Xvfb::start(SCREEN);
+    let mut cluster = Cluster::start(&x.display, &launch(&config_path, &[]), "info", &out);
+    let pid = cluster.pid_of(2);
+    cluster.wait_frame(0, 4, Duration::from_secs(240));
+    let killed_at = Instant::now();
+    assert!(
+        Command::new("kill")
+            .args(["-KILL", &pid.to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    cluster.wait_for(0, "the lost node", Duration::from_secs(60), |l| {
+        (l.contains("node 2 (") && l.contains("wall right) lost")).then_some(())
+    });
+    let after = killed_at.elapsed();
+    // The timeout (3 s) plus at most one frame in flight on this slow machine.
+    assert!(after < Duration::from_secs(15), "reported after {after:?}");
+    let (m, n) = (cluster.frame_of(0).unwrap(), cluster.frame_of(1).unwrap());
+    cluster.wait_frame(0, m + 4, Duration::from_secs(120));
+    cluster.wait_frame(1, n + 4, Duration::from_secs(120));
+    press_key(&x.display, [0, 260], 0xff1b);
+    cluster.wait_exit(Duration::from_secs(60));
+    assert!(
+        cluster
+            .lines_of(1)
+            .iter()
+            .any(|l| l.contains("the master said stop")),
+        "{}",
+        cluster.log()
+    );
+}
+
 /// With `on_node_loss = "stop"`, a killed node stops the whole cluster cleanly: the master
 /// names it and exits with an error, the other node is told and ends. Nothing hangs.
 #[test]
