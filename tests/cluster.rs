@@ -323,6 +323,34 @@ fn window_at(display: &str, at: [i16; 2]) -> u32 {
         .expect("the window")
 }
 
+/// Sends `signal` (`-STOP`, `-CONT`, `-KILL`) to process `pid`.
+fn signal(pid: u32, signal: &str) {
+    let status = Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .expect("kill");
+    assert!(status.success(), "kill {signal} {pid}");
+}
+
+/// Asserts that `rank` stopped because the master said so.
+fn assert_told_to_stop(cluster: &Cluster, rank: usize) {
+    assert!(
+        cluster
+            .lines_of(rank)
+            .iter()
+            .any(|l| l.contains("the master said stop")),
+        "rank {rank} was not told to stop:\n{}",
+        cluster.log()
+    );
+}
+
+/// The master and node 1 render four more frames each.
+fn assert_master_and_node_1_go_on(cluster: &mut Cluster) {
+    let (m, n) = (cluster.frame_of(0).unwrap(), cluster.frame_of(1).unwrap());
+    cluster.wait_frame(0, m + 4, Duration::from_secs(120));
+    cluster.wait_frame(1, n + 4, Duration::from_secs(120));
+}
+
 /// Asserts that each of `ranks` ended with an error message.
 fn assert_stopped_with_error(cluster: &Cluster, ranks: std::ops::Range<usize>) {
     for rank in ranks {
@@ -431,13 +459,7 @@ fn three_ranks_show_per_pixel_what_one_process_shows_frame_after_frame() {
     let log = cluster.log();
     assert!(status.success(), "mpirun {status}:\n{log}");
     for rank in 1..3 {
-        assert!(
-            cluster
-                .lines_of(rank)
-                .iter()
-                .any(|l| l.contains("the master said stop")),
-            "rank {rank} did not stop with the master:\n{log}"
-        );
+        assert_told_to_stop(&cluster, rank);
     }
 
     // The same frames on the same eye in every process.
@@ -555,13 +577,7 @@ fn a_stalled_node_is_reported_and_the_others_go_on() {
     let pid = cluster.pid_of(2);
     cluster.wait_frame(0, 4, Duration::from_secs(240));
     let stopped_at = Instant::now();
-    assert!(
-        Command::new("kill")
-            .args(["-STOP", &pid.to_string()])
-            .status()
-            .unwrap()
-            .success()
-    );
+    signal(pid, "-STOP");
     let reported = cluster.wait_for(0, "the lost node", Duration::from_secs(60), |l| {
         l.contains("node 2 (").then_some(())?;
         l.contains("wall right) lost").then(|| l.to_owned())
@@ -571,35 +587,20 @@ fn a_stalled_node_is_reported_and_the_others_go_on() {
     // The timeout (3 s) plus at most one frame in flight on this slow machine.
     assert!(after < Duration::from_secs(15), "reported after {after:?}");
     // The master and node 1 go on.
-    let (m, n) = (cluster.frame_of(0).unwrap(), cluster.frame_of(1).unwrap());
-    cluster.wait_frame(0, m + 4, Duration::from_secs(120));
-    cluster.wait_frame(1, n + 4, Duration::from_secs(120));
+    assert_master_and_node_1_go_on(&mut cluster);
     assert!(
         cluster.log().contains("LOST: did not report frame"),
         "the stats line names the lost node:\n{}",
         cluster.log()
     );
     // Woken, the dropped node ends by itself.
-    assert!(
-        Command::new("kill")
-            .args(["-CONT", &pid.to_string()])
-            .status()
-            .unwrap()
-            .success()
-    );
+    signal(pid, "-CONT");
     cluster.wait_for(2, "the dropped node's end", Duration::from_secs(60), |l| {
         l.contains("dropped by the master").then_some(())
     });
     press_key(&x.display, [0, 260], 0xff1b);
     cluster.wait_exit(Duration::from_secs(60));
-    assert!(
-        cluster
-            .lines_of(1)
-            .iter()
-            .any(|l| l.contains("the master said stop")),
-        "{}",
-        cluster.log()
-    );
+    assert_told_to_stop(&cluster, 1);
 }
 
 /// A killed node (SIGKILL) under `on_node_loss = "continue"`: the master reports it within the
@@ -619,32 +620,17 @@ fn a_killed_node_is_reported_and_the_others_go_on() {
     let pid = cluster.pid_of(2);
     cluster.wait_frame(0, 4, Duration::from_secs(240));
     let killed_at = Instant::now();
-    assert!(
-        Command::new("kill")
-            .args(["-KILL", &pid.to_string()])
-            .status()
-            .unwrap()
-            .success()
-    );
+    signal(pid, "-KILL");
     cluster.wait_for(0, "the lost node", Duration::from_secs(60), |l| {
         (l.contains("node 2 (") && l.contains("wall right) lost")).then_some(())
     });
     let after = killed_at.elapsed();
     // The timeout (3 s) plus at most one frame in flight on this slow machine.
     assert!(after < Duration::from_secs(15), "reported after {after:?}");
-    let (m, n) = (cluster.frame_of(0).unwrap(), cluster.frame_of(1).unwrap());
-    cluster.wait_frame(0, m + 4, Duration::from_secs(120));
-    cluster.wait_frame(1, n + 4, Duration::from_secs(120));
+    assert_master_and_node_1_go_on(&mut cluster);
     press_key(&x.display, [0, 260], 0xff1b);
     cluster.wait_exit(Duration::from_secs(60));
-    assert!(
-        cluster
-            .lines_of(1)
-            .iter()
-            .any(|l| l.contains("the master said stop")),
-        "{}",
-        cluster.log()
-    );
+    assert_told_to_stop(&cluster, 1);
 }
 
 /// With `on_node_loss = "stop"`, a killed node stops the whole cluster cleanly: the master
@@ -662,13 +648,7 @@ fn a_killed_node_stops_every_process_when_so_configured() {
     let mut cluster = Cluster::start(&x.display, &launch(&config_path, &[]), "info", &out);
     let pid = cluster.pid_of(1);
     cluster.wait_frame(0, 4, Duration::from_secs(240));
-    assert!(
-        Command::new("kill")
-            .args(["-KILL", &pid.to_string()])
-            .status()
-            .unwrap()
-            .success()
-    );
+    signal(pid, "-KILL");
     cluster.wait_exit(Duration::from_secs(60));
     let log = cluster.log();
     // (mpirun --enable-recovery does not pass the ranks' exit status on: the log says it.)
@@ -685,13 +665,7 @@ fn a_killed_node_stops_every_process_when_so_configured() {
             && log.contains("stopping the cluster"),
         "{log}"
     );
-    assert!(
-        cluster
-            .lines_of(2)
-            .iter()
-            .any(|l| l.contains("the master said stop")),
-        "node 2 was told:\n{log}"
-    );
+    assert_told_to_stop(&cluster, 2);
 }
 
 /// A node that loaded another config is refused at start-up, by node; so is a config whose
