@@ -76,8 +76,6 @@ pub struct MasterLink {
     /// The settings as last sent (their head position is ignored: it travels per frame).
     sent: Option<ConfigFile>,
     generation: u64,
-    /// Nodes lost so far, in words (panel and log).
-    pub lost: Vec<String>,
     /// Nodes lost while broadcasting this frame (reported with the barrier's).
     pending: Vec<NodeEvent>,
     /// This frame is known to take long (see [`Master::barrier`]).
@@ -131,7 +129,6 @@ impl ClusterLink {
                 session,
                 sent: None,
                 generation: 0,
-                lost: Vec::new(),
                 pending: Vec::new(),
                 slow: false,
             })))
@@ -190,14 +187,13 @@ impl MasterLink {
         Ok(())
     }
 
-    /// The barrier before present (`recorded`: this frame was read back for `--record`);
-    /// lost nodes are logged and kept for the panel.
+    /// The barrier before present (`recorded`: this frame was read back for `--record`).
+    /// Lost nodes were logged when lost; the panel and the stats line show them from the
+    /// session's node list.
     pub fn barrier(&mut self, frame: u64, recorded: bool) -> Result<(), ClusterError> {
         let pending = std::mem::take(&mut self.pending);
         let slow = self.slow || recorded;
-        for NodeEvent::Lost { message, .. } in self.session.barrier(frame, slow, pending)? {
-            self.lost.push(message);
-        }
+        self.session.barrier(frame, slow, pending)?;
         Ok(())
     }
 }
