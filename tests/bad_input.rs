@@ -98,6 +98,27 @@ fn config_errors_name_file_field_and_value() {
             base.replacen("resolution = [1280, 720]", "resolution = [1280, 0]", 1),
             vec!["wall[0].resolution", "[1280, 0]"],
         ),
+        // Cluster settings (issue 21): the wall's rank, the timeouts and the policy.
+        (
+            "node-range.toml",
+            base.replacen("node = 2  ", "node = 5000", 1),
+            vec!["wall[2].node", "5000", "between 0 and 1023"],
+        ),
+        (
+            "node-negative.toml",
+            base.replacen("node = 1  ", "node = -1 ", 1),
+            vec!["wall[0].node", "-1"],
+        ),
+        (
+            "cluster-timeout.toml",
+            base.replace("timeout_ms = 2000", "timeout_ms = 0"),
+            vec!["cluster.timeout_ms", "0", "between 10 and 600000"],
+        ),
+        (
+            "cluster-policy.toml",
+            base.replace("on_node_loss = \"continue\"", "on_node_loss = \"explode\""),
+            vec!["on_node_loss", "explode", "continue"],
+        ),
         (
             "negative-ipd.toml",
             base.replace("eye_separation = 0.064", "eye_separation = -0.064"),

@@ -878,7 +878,7 @@ pub struct WallSection {
     /// Cluster mode: the process (MPI rank) that renders and shows this wall; default 0, the
     /// master. Ignored outside cluster mode.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(inner(range(min = 0, max = 1023)))]
+    #[schemars(range(min = 0, max = 1023))]
     pub node: Option<u32>,
 }
 
