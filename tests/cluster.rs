@@ -125,6 +125,7 @@ impl Cluster {
                 "--oversubscribe",
                 "--enable-recovery",
             ])
+            // No cross-process memory copy between ranks: containers often forbid it (ptrace).
             .args([
                 "--tag-output",
                 "--mca",
@@ -727,6 +728,8 @@ fn the_cluster_bench_reports_what_lockstep_costs_per_frame() {
     let report = out.join("report");
     let output = Command::new(mpirun())
         .args(["--allow-run-as-root", "--oversubscribe", "-np", "3"])
+        // As in `Cluster::start`: containers often forbid the cross-process copy (ptrace).
+        .args(["--mca", "btl_vader_single_copy_mechanism", "none"])
         .arg(env!("CARGO_BIN_EXE_omnicave"))
         .args([
             "bench",
