@@ -2,10 +2,10 @@
 // Paired with src/render/tessellator.rs; the CPU twin is src/tess/ (keep the three in step).
 //
 // Per view: cs_init culls source triangles and seeds the live list; each round cs_prepare sizes
-// the next indirect dispatch and cs_split splits every live triangle's edges by the criterion
-// (children to the other live list, finished triangles to the output); cs_flush finishes what
-// is left at the maximum depth; cs_prefix and cs_scatter sort the output by draw (material)
-// and write one indirect draw per draw. No CPU read-back anywhere.
+// the next indirect dispatch and cs_split splits every live triangle's edges by the criterion,
+// SPLIT_LEVELS levels deep (what is left to split to the other live list, finished triangles
+// to the output); cs_flush finishes what is left at the maximum depth; cs_prefix and
+// cs_scatter sort the output by draw (material) and write one indirect draw per draw. No CPU read-back anywhere.
 
 // Keep in sync with `TessUniforms` in src/render/tessellator.rs (tests/gpu_layout.rs checks).
 struct TessUniforms {
@@ -44,7 +44,6 @@ struct TessUniforms {
     cluster_pad: u32,
 }
 
-const DEAD: u32 = 0xffffffffu;
 const WORKGROUP: u32 = 64u;
 
 // Counter slots (keep in sync with src/render/tessellator.rs).
@@ -399,16 +398,19 @@ fn cs_prepare() {
     atomicStore(&count_out, 0u);
 }
 
-@compute @workgroup_size(64)
-fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = min(atomicLoad(&count_in), tess.live_capacity);
-    if id.x >= n {
-        return;
-    }
-    let e = live_in[id.x];
-    if e.depth == DEAD {
-        return;
-    }
+// Levels one cs_split invocation splits: its triangle's children are tested and split again in
+// the same invocation, down to this many levels, so `rounds` levels take
+// ceil(rounds / SPLIT_LEVELS) split dispatches (each dispatch and its preparation cost a fixed
+// time, about 50 µs on a software rasteriser). Keep in sync with src/render/tessellator.rs.
+const SPLIT_LEVELS: u32 = 5u;
+// Depth-first, each triangle popped pushes at most 4: 3 more entries per level.
+const SPLIT_STACK: u32 = 3u * SPLIT_LEVELS + 1u;
+
+var<private> kids: array<TessEntry, 4>;
+
+// Splits `e` once by the criterion into `kids` and returns how many there are: 0 when no
+// edge splits or the budget refuses (then `e` is finished as it is and the overflow flagged).
+fn split_once(e: TessEntry) -> u32 {
     let p = source_positions(e.source);
     let c = array<vec2<u32>, 3>(e.c0, e.c1, e.c2);
     let s = array<bool, 3>(
@@ -423,12 +425,10 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
         }
     }
     if n_split == 0u {
-        emit(e);
-        return;
+        return 0u;
     }
     let m = array<vec2<u32>, 3>(midpoint(c[0], c[1]), midpoint(c[1], c[2]), midpoint(c[2], c[0]));
     let d = e.depth + 1u;
-    var kids: array<TessEntry, 4>;
     var count = 0u;
     if n_split == 3u {
         kids[0] = make_entry(e.source, d, c[0], m[0], m[2]);
@@ -466,25 +466,56 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
         // Budget: draw this triangle unrefined and report it.
         atomicSub(&counters[C_BUDGET], extra);
         atomicStore(&counters[C_OVERFLOW], 1u);
-        emit(e);
-        return;
+        return 0u;
     }
-    let base = atomicAdd(&count_out, count);
-    if base + count <= tess.live_capacity {
-        for (var k = 0u; k < count; k++) {
-            live_out[base + k] = kids[k];
-        }
+    return count;
+}
+
+// Leaves a triangle for the next round (or the flush at the maximum depth).
+fn push_live(e: TessEntry) {
+    let slot = atomicAdd(&count_out, 1u);
+    if slot < tess.live_capacity {
+        live_out[slot] = e;
         return;
     }
     // Cannot happen while live capacity >= output capacity (the budget bounds both); kept so
-    // that a smaller live list degrades like the budget: dead padding, parent unrefined.
-    for (var k = base; k < min(base + count, tess.live_capacity); k++) {
-        var dead = e;
-        dead.depth = DEAD;
-        live_out[k] = dead;
-    }
+    // that a smaller live list degrades like the budget: the triangle is drawn unrefined.
     atomicStore(&counters[C_OVERFLOW], 1u);
     emit(e);
+}
+
+@compute @workgroup_size(64)
+fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = min(atomicLoad(&count_in), tess.live_capacity);
+    if id.x >= n {
+        return;
+    }
+    let root = live_in[id.x];
+    // Depth first over the triangle's descendants, SPLIT_LEVELS levels down.
+    var stack: array<TessEntry, SPLIT_STACK>;
+    var level: array<u32, SPLIT_STACK>;
+    stack[0] = root;
+    level[0] = 0u;
+    var top = 1u;
+    while top > 0u {
+        top -= 1u;
+        let e = stack[top];
+        let l = level[top];
+        if l == SPLIT_LEVELS || e.depth >= tess.rounds {
+            push_live(e);
+            continue;
+        }
+        let count = split_once(e);
+        if count == 0u {
+            emit(e);
+            continue;
+        }
+        for (var k = 0u; k < count; k++) {
+            stack[top] = kids[k];
+            level[top] = l + 1u;
+            top += 1u;
+        }
+    }
 }
 
 @compute @workgroup_size(64)
@@ -493,10 +524,7 @@ fn cs_flush(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= n {
         return;
     }
-    let e = live_in[id.x];
-    if e.depth != DEAD {
-        emit(e);
-    }
+    emit(live_in[id.x]);
 }
 
 // One thread: per-draw offsets (prefix sum), indirect draw arguments, and the scatter

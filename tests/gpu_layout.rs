@@ -308,3 +308,29 @@ fn the_vertex_stride_and_light_count_match() {
     assert_eq!(floats(offset_of!(GpuVertex, color)), 10);
     assert_eq!(floats(offset_of!(GpuVertex, tangent)), 14);
 }
+
+/// The value of the WGSL `const NAME: u32` in `source`, as naga evaluates it.
+fn wgsl_u32_constant(source: &str, name: &str) -> Option<u32> {
+    let module = naga::front::wgsl::parse_str(source).expect("WGSL parses");
+    let (_, constant) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))?;
+    match module.global_expressions[constant.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => Some(v),
+        _ => None,
+    }
+}
+
+#[test]
+fn shared_constants_match_their_wgsl_twins() {
+    use omnicave::render::tessellator::SPLIT_LEVELS;
+    let source = compose(shaders::TESSELLATE);
+    assert_eq!(
+        wgsl_u32_constant(&source, "SPLIT_LEVELS"),
+        Some(SPLIT_LEVELS),
+        "split levels per dispatch: shaders/tessellate.wgsl and src/render/tessellator.rs"
+    );
+    // The checker itself reads constants: one that is not there is not found.
+    assert_eq!(wgsl_u32_constant(&source, "NO_SUCH_CONSTANT"), None);
+}

@@ -12,7 +12,7 @@
 pub enum ViewStage {
     /// cs_init: back-face and frustum culling, seeding the live list.
     TessCull,
-    /// The split rounds (prepare + split, `max_depth` times) and the final flush.
+    /// The split rounds (prepare + split, `max_depth` / `SPLIT_LEVELS` times) and the flush.
     TessSplit,
     /// Sorting the output by draw and writing the indirect draws.
     TessSort,
@@ -35,6 +35,14 @@ impl ViewStage {
         ViewStage::Sky,
         ViewStage::Resolve,
     ];
+
+    /// Whether the stage belongs to the tessellator (culling, splitting, sorting).
+    pub fn is_tessellation(self) -> bool {
+        matches!(
+            self,
+            ViewStage::TessCull | ViewStage::TessSplit | ViewStage::TessSort
+        )
+    }
 
     /// Short name (report columns, the panel).
     pub fn name(self) -> &'static str {

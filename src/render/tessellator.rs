@@ -138,13 +138,25 @@ pub fn stats_from_bytes(bytes: &[u8], input: u32, capacity: u32, out: &mut Vec<T
     }
 }
 
-/// Number of split rounds a setting asks for.
-/// Compute dispatches [`TessBuffers::encode`] records for one view: culling, a prepare and a
-/// split per round, then prepare, flush, prefix and scatter.
-pub fn dispatches_per_view(rounds: u32) -> usize {
-    1 + 2 * rounds as usize + 4
+/// Levels of splitting one split dispatch does (keep in sync with `SPLIT_LEVELS` in
+/// shaders/tessellate.wgsl): each invocation splits its triangle and then its children and
+/// grandchildren, so fewer dispatches cover the same depth. Measured on lavapipe (living room,
+/// `edge:64`, `bench --quick`): each dispatch and its preparation cost a fixed time whatever
+/// they hold, and one level per dispatch spent most of the tessellation stages on that.
+pub const SPLIT_LEVELS: u32 = 5;
+
+/// Split dispatches that reach `rounds` levels.
+pub fn split_dispatches(rounds: u32) -> u32 {
+    rounds.div_ceil(SPLIT_LEVELS)
 }
 
+/// Compute dispatches [`TessBuffers::encode`] records for one view: culling, a prepare and a
+/// split per split dispatch, then prepare, flush, prefix and scatter.
+pub fn dispatches_per_view(rounds: u32) -> usize {
+    1 + 2 * split_dispatches(rounds) as usize + 4
+}
+
+/// Number of split levels (the maximum depth) a setting asks for.
 pub fn rounds(settings: &TessSettings) -> u32 {
     if settings.criterion.is_some() {
         settings.max_depth.min(MAX_DEPTH_LIMIT)
@@ -615,7 +627,8 @@ impl TessBuffers {
                 pass.write_timestamp(m.queries, m.cull);
             }
             pass.set_bind_group(2, &self.args_group, &[]);
-            for round in 0..rounds {
+            let splits = split_dispatches(rounds);
+            for round in 0..splits {
                 let lists = if round.is_multiple_of(2) {
                     &self.lists_ab
                 } else {
@@ -627,7 +640,7 @@ impl TessBuffers {
                 pass.set_pipeline(&tess.split);
                 pass.dispatch_workgroups_indirect(&self.args, 0);
             }
-            let last = if rounds.is_multiple_of(2) {
+            let last = if splits.is_multiple_of(2) {
                 &self.lists_ab
             } else {
                 &self.lists_ba
