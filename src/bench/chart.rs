@@ -1,18 +1,51 @@
-//! The speed-against-accuracy chart of the bench, written as SVG by hand (no plotting
-//! dependency): frame time against 99th-percentile error on log axes, one series per method
-//! family, the Pareto front marked.
+//! The bench's charts, written as SVG by hand (no plotting dependency): one series per family
+//! on log-log axes. Speed against accuracy (frame time against 99th-percentile error, the
+//! Pareto front marked) and scaling (frame time against the scene's triangles).
 
 use std::fmt::Write as _;
 
-/// One method on the chart.
+/// One point on a chart.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChartPoint {
-    /// The series (render mode and criterion kind).
+    /// The series (e.g. render mode and criterion kind).
     pub family: String,
-    /// The point's own label (the criterion's parameter, or empty).
+    /// The point's own label (e.g. the criterion's parameter), or empty.
     pub label: String,
-    pub time_ms: f64,
-    pub error_px: f64,
+    pub x: f64,
+    pub y: f64,
+}
+
+/// What a chart's axes show and what it marks.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axes {
+    pub x_label: String,
+    pub y_label: String,
+    /// Smallest y drawn, and its tick's label: points below sit on it (exact methods' 0 px).
+    pub y_floor: Option<(f64, String)>,
+    /// Ring the points nothing beats in both x and y, joined by a dashed staircase.
+    pub pareto: bool,
+}
+
+impl Axes {
+    /// Speed against accuracy: frame time (x) against 99th-percentile error (y).
+    pub fn speed_against_accuracy() -> Self {
+        Self {
+            x_label: "frame time of the whole stereo frame, ms (log)".into(),
+            y_label: "99th-percentile geometric error, px (log)".into(),
+            y_floor: Some((ERROR_FLOOR_PX, "≤ 0.001".into())),
+            pareto: true,
+        }
+    }
+
+    /// Scaling: the scene's triangles (x) against frame time (y).
+    pub fn time_against_triangles() -> Self {
+        Self {
+            x_label: "triangles in the scene (log)".into(),
+            y_label: "frame time of the whole stereo frame, ms (log)".into(),
+            y_floor: None,
+            pareto: false,
+        }
+    }
 }
 
 /// Smallest error drawn: exact methods (0 px) sit on this floor, labelled as such.
@@ -22,19 +55,19 @@ pub const ERROR_FLOOR_PX: f64 = 0.001;
 /// of increasing time.
 pub fn pareto_front(points: &[ChartPoint]) -> Vec<usize> {
     let mut order: Vec<usize> = (0..points.len())
-        .filter(|&i| points[i].time_ms.is_finite() && points[i].error_px.is_finite())
+        .filter(|&i| points[i].x.is_finite() && points[i].y.is_finite())
         .collect();
     order.sort_by(|&a, &b| {
         points[a]
-            .time_ms
-            .total_cmp(&points[b].time_ms)
-            .then(points[a].error_px.total_cmp(&points[b].error_px))
+            .x
+            .total_cmp(&points[b].x)
+            .then(points[a].y.total_cmp(&points[b].y))
     });
     let mut front = Vec::new();
     let mut best = f64::INFINITY;
     for i in order {
-        if points[i].error_px < best {
-            best = points[i].error_px;
+        if points[i].y < best {
+            best = points[i].y;
             front.push(i);
         }
     }
@@ -63,7 +96,11 @@ fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
 }
 
 fn tick_label(v: f64) -> String {
-    if v >= 1.0 {
+    if v >= 1e6 {
+        format!("{}M", v / 1e6)
+    } else if v >= 1e4 {
+        format!("{}k", v / 1e3)
+    } else if v >= 1.0 {
         format!("{v:.0}")
     } else {
         let digits = (-v.log10().floor()) as usize;
@@ -94,14 +131,15 @@ fn escape(s: &str) -> String {
 }
 
 /// The chart as an SVG document.
-pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
+pub fn svg(points: &[ChartPoint], axes: &Axes, title: &str, subtitle: &str) -> String {
     let (w, h) = (960.0, 600.0);
     let (left, right, top, bottom) = (80.0, 290.0, 70.0, 70.0);
     let (pw, ph) = (w - left - right, h - top - bottom);
-    let shown = |p: &ChartPoint| p.error_px.max(ERROR_FLOOR_PX);
-    let (x0, x1) = log_range(points.iter().map(|p| p.time_ms));
+    let floor = axes.y_floor.as_ref().map_or(0.0, |(v, _)| *v);
+    let shown = |p: &ChartPoint| p.y.max(floor);
+    let (x0, x1) = log_range(points.iter().map(|p| p.x));
     let (y0, y1) = log_range(points.iter().map(shown));
-    let y0 = y0.min(ERROR_FLOOR_PX);
+    let y0 = if floor > 0.0 { y0.min(floor) } else { y0 };
     let sx = |v: f64| left + (v.log10() - x0.log10()) / (x1.log10() - x0.log10()) * pw;
     let sy = |v: f64| top + ph - (v.log10() - y0.log10()) / (y1.log10() - y0.log10()) * ph;
 
@@ -134,10 +172,9 @@ pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
     }
     for t in log_ticks(y0, y1) {
         let y = sy(t);
-        let label = if (t - ERROR_FLOOR_PX).abs() < 1e-12 {
-            "≤ 0.001".to_owned()
-        } else {
-            tick_label(t)
+        let label = match &axes.y_floor {
+            Some((v, label)) if (t - v).abs() < 1e-12 => label.clone(),
+            _ => tick_label(t),
         };
         let _ = writeln!(
             out,
@@ -153,14 +190,16 @@ pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
     );
     let _ = writeln!(
         out,
-        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">frame time of the whole stereo frame, ms (log)</text>"#,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
         left + pw / 2.0,
-        h - 22.0
+        h - 22.0,
+        escape(&axes.x_label)
     );
     let _ = writeln!(
         out,
-        r#"<text transform="translate(22 {:.1}) rotate(-90)" text-anchor="middle">99th-percentile geometric error, px (log)</text>"#,
-        top + ph / 2.0
+        r#"<text transform="translate(22 {:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
+        top + ph / 2.0,
+        escape(&axes.y_label)
     );
 
     // Series: points of one family joined in the order given (coarse to fine).
@@ -176,7 +215,7 @@ pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
         if members.len() > 1 {
             let path: Vec<String> = members
                 .iter()
-                .map(|p| format!("{:.1},{:.1}", sx(p.time_ms), sy(shown(p))))
+                .map(|p| format!("{:.1},{:.1}", sx(p.x), sy(shown(p))))
                 .collect();
             let _ = writeln!(
                 out,
@@ -185,7 +224,7 @@ pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
             );
         }
         for p in &members {
-            let (x, y) = (sx(p.time_ms), sy(shown(p)));
+            let (x, y) = (sx(p.x), sy(shown(p)));
             let _ = writeln!(
                 out,
                 r#"<circle cx="{x:.1}" cy="{y:.1}" r="4.5" fill="{colour}"/>"#
@@ -210,11 +249,15 @@ pub fn svg(points: &[ChartPoint], title: &str, subtitle: &str) -> String {
             escape(family)
         );
     }
+    if !axes.pareto {
+        out.push_str("</svg>\n");
+        return out;
+    }
     // The Pareto front: rings and a dashed staircase.
     let front = pareto_front(points);
     let mut stairs = Vec::new();
     for (n, &i) in front.iter().enumerate() {
-        let (x, y) = (sx(points[i].time_ms), sy(shown(&points[i])));
+        let (x, y) = (sx(points[i].x), sy(shown(&points[i])));
         if n > 0 {
             let prev_y = sy(shown(&points[front[n - 1]]));
             stairs.push(format!("{x:.1},{prev_y:.1}"));
@@ -269,12 +312,12 @@ pub fn png(svg: &str) -> Result<Vec<u8>, String> {
 mod tests {
     use super::*;
 
-    fn p(family: &str, t: f64, e: f64) -> ChartPoint {
+    fn p(family: &str, x: f64, y: f64) -> ChartPoint {
         ChartPoint {
             family: family.into(),
             label: String::new(),
-            time_ms: t,
-            error_px: e,
+            x,
+            y,
         }
     }
 
@@ -297,16 +340,41 @@ mod tests {
             p("omni", 12.0, 0.0),
             p("omni", 20.0, 0.2),
         ];
-        let s = svg(&points, "title", "sub");
+        let s = svg(&points, &Axes::speed_against_accuracy(), "title", "sub");
         assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
         assert!(s.contains("frame time of the whole stereo frame, ms (log)"));
         assert!(s.contains("geometric error, px (log)"));
         assert!(s.contains(">stereo</text>") && s.contains(">omni</text>"));
         // Three points and two legend dots (one per family); the front's rings are larger.
         assert!(s.matches("r=\"4.5\"").count() == 5, "{s}");
+        assert!(
+            s.contains(">≤ 0.001</text>"),
+            "the floor's tick is labelled"
+        );
         assert_eq!(
             log_ticks(1.0, 100.0),
             vec![1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0]
         );
+    }
+
+    #[test]
+    fn scaling_chart_has_its_axes_thousands_ticks_and_no_front() {
+        let points = [
+            p("stereo", 7_000.0, 60.0),
+            p("stereo", 225_000.0, 400.0),
+            p("exact", 7_000.0, 80.0),
+            p("exact", 225_000.0, 480.0),
+        ];
+        let s = svg(&points, &Axes::time_against_triangles(), "t", "s");
+        assert!(s.contains(">triangles in the scene (log)</text>"), "{s}");
+        assert!(s.contains(">frame time of the whole stereo frame, ms (log)</text>"));
+        assert!(
+            s.contains(">10k</text>") && s.contains(">100k</text>"),
+            "{s}"
+        );
+        // Four points, two legend dots, one line per series, no Pareto rings.
+        assert_eq!(s.matches("r=\"4.5\"").count(), 6, "{s}");
+        assert_eq!(s.matches("<polyline").count(), 2, "{s}");
+        assert!(!s.contains("r=\"8\"") && !s.contains("Pareto"), "{s}");
     }
 }

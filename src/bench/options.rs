@@ -6,7 +6,7 @@ use std::path::PathBuf;
 #[derive(Debug, Clone)]
 pub struct BenchOptions {
     pub config: PathBuf,
-    /// Scenes; empty: the config's scene and the bundled city.
+    /// Scenes; empty: the config's scene, the bundled city and the bundled atrium.
     pub scenes: Vec<PathBuf>,
     /// Sky for the sky methods; `None`: the config's, else the bundled one.
     pub sky: Option<PathBuf>,

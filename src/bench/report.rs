@@ -1,5 +1,5 @@
-//! The bench's reports: `results.csv`, `report.md` (frame times, sky costs, accuracy and the
-//! overhead question) and the speed-against-accuracy chart.
+//! The bench's reports: `results.csv`, `report.md` (frame times, sky costs, accuracy, the
+//! overhead question and scaling with scene size) and their charts.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -12,6 +12,7 @@ use super::methods::{Method, family};
 use super::options::BenchOptions;
 use crate::cave::RenderMode;
 use crate::config::Config;
+use crate::render::frame_timer::ViewStage;
 use crate::scene::Shading;
 use crate::sky::SkyMode;
 
@@ -278,13 +279,33 @@ pub(super) fn write_outputs(
     }
     let summary = summarise(rows);
     write_accuracy_sections(&mut md, &summary);
+    let scaling = scaling_points(&summary);
+    // Both eyes of every wall.
+    write_scaling_section(&mut md, &summary, 2 * config.cave.walls.len());
     let md_path = options.out.join("report.md");
     write_file(&md_path, &md)?;
     let mut files = vec![csv_path, md_path];
+    let subtitle = |cases: usize| {
+        format!(
+            "walls {} · MSAA ×{} · median frame time over {cases} viewpoint/head case(s)",
+            walls.join(", "),
+            config.settings.render.msaa,
+        )
+    };
+    if summary.len() > 1 {
+        let svg = chart::svg(
+            &scaling,
+            &chart::Axes::time_against_triangles(),
+            "Scaling with scene size: stereo, plain warp and the cheapest exact method",
+            &subtitle(summary.iter().map(|s| s.cases).max().unwrap_or(0)),
+        );
+        files.extend(write_chart(&options.out, "time-vs-triangles", &svg)?);
+    }
     if let Some(first) = summary.first() {
         let points = chart_points(first);
         let svg = chart::svg(
             &points,
+            &chart::Axes::speed_against_accuracy(),
             &format!("Speed against accuracy: {}", first.scene),
             &format!(
                 "walls {} · MSAA ×{} · median frame time and worst p99 error over {} \
@@ -294,21 +315,25 @@ pub(super) fn write_outputs(
                 first.cases
             ),
         );
-        let svg_path = options.out.join("speed-vs-accuracy.svg");
-        write_file(&svg_path, &svg)?;
-        files.push(svg_path);
-        let png_path = options.out.join("speed-vs-accuracy.png");
-        let png = chart::png(&svg).map_err(|message| BenchError::Chart {
-            path: png_path.clone(),
-            message,
-        })?;
-        std::fs::write(&png_path, png).map_err(|source| BenchError::Write {
-            path: png_path.clone(),
-            source,
-        })?;
-        files.push(png_path);
+        files.extend(write_chart(&options.out, "speed-vs-accuracy", &svg)?);
     }
     Ok(files)
+}
+
+/// Writes a chart as `NAME.svg` and `NAME.png` into `dir`; returns both paths.
+fn write_chart(dir: &Path, name: &str, svg: &str) -> Result<[PathBuf; 2], BenchError> {
+    let svg_path = dir.join(format!("{name}.svg"));
+    write_file(&svg_path, svg)?;
+    let png_path = dir.join(format!("{name}.png"));
+    let png = chart::png(svg).map_err(|message| BenchError::Chart {
+        path: png_path.clone(),
+        message,
+    })?;
+    std::fs::write(&png_path, png).map_err(|source| BenchError::Write {
+        path: png_path.clone(),
+        source,
+    })?;
+    Ok([svg_path, png_path])
 }
 
 /// One method on one scene, over all head positions.
@@ -340,6 +365,8 @@ pub struct MethodSummary {
 #[derive(Debug, Clone)]
 pub struct SceneSummary {
     pub scene: String,
+    /// Source triangles in the scene.
+    pub triangles: usize,
     /// Measured situations (viewpoint and head).
     pub cases: usize,
     pub methods: Vec<MethodSummary>,
@@ -421,6 +448,11 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                 })
                 .collect();
             SceneSummary {
+                triangles: of_scene
+                    .iter()
+                    .map(|r| r.input_triangles)
+                    .max()
+                    .unwrap_or(0),
                 scene,
                 cases: cases.len(),
                 methods,
@@ -454,16 +486,139 @@ pub fn chart_points(summary: &SceneSummary) -> Vec<chart::ChartPoint> {
                 .criterion
                 .map(|c| c.to_string().split(':').nth(1).unwrap_or("").to_owned())
                 .unwrap_or_default(),
-            time_ms: m.time_ms,
-            error_px: f64::from(m.error_p99),
+            x: m.time_ms,
+            y: f64::from(m.error_p99),
         })
         .collect()
+}
+
+/// Series of the scaling chart and table: plain off-axis stereo, the plain warp
+/// (omni-offaxis without tessellation) and the cheapest exact omnistereo method.
+pub const SCALING_SERIES: [&str; 3] = ["off-axis stereo", "plain warp", "cheapest exact"];
+
+/// Per scene, the methods of the scaling series (`None` where the run has none).
+fn scaling_methods(s: &SceneSummary) -> [Option<&MethodSummary>; 3] {
+    // As the reference: shaded, shadowed, no sky.
+    let plain = |m: &&MethodSummary| {
+        m.method.sky.is_none()
+            && m.method.tess.criterion.is_none()
+            && m.method.shading == Shading::Pbr
+            && m.method.shadows
+    };
+    [
+        s.methods
+            .iter()
+            .filter(plain)
+            .find(|m| m.method.mode == RenderMode::Stereo),
+        s.methods
+            .iter()
+            .filter(plain)
+            .find(|m| m.method.mode == RenderMode::OmniOffAxis),
+        s.cheapest_exact(),
+    ]
+}
+
+/// The scaling chart's points: frame time against the scene's triangles, one series each
+/// for stereo, the plain warp and the cheapest exact method (labelled with its criterion).
+pub fn scaling_points(summary: &[SceneSummary]) -> Vec<chart::ChartPoint> {
+    let mut points = Vec::new();
+    for (k, family) in SCALING_SERIES.iter().enumerate() {
+        for s in summary {
+            if let Some(m) = scaling_methods(s)[k] {
+                points.push(chart::ChartPoint {
+                    family: (*family).into(),
+                    label: if k == 2 {
+                        m.method
+                            .tess
+                            .criterion
+                            .map_or(String::new(), |c| c.to_string())
+                    } else {
+                        String::new()
+                    },
+                    x: s.triangles as f64,
+                    y: m.time_ms,
+                });
+            }
+        }
+    }
+    points
+}
+
+/// How frame time and the tessellator's work grow with the scene: per scene, its triangles,
+/// each series' time and ratio, and the source triangles the exact method refines.
+fn write_scaling_section(md: &mut String, summary: &[SceneSummary], views: usize) {
+    if summary.len() < 2 {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Scaling with scene size\n\nTime: median frame over the cases, ms (× stereo: the \
+         geometric mean over the cases of the paired ratio). `refined`: source triangles that \
+         entered the tessellator per frame, summed over the {views} views (largest over the \
+         cases), against the scene's triangles × views. Chart: `time-vs-triangles.svg`.\n\n\
+         | scene | triangles | stereo ms | plain warp ms (×) | cheapest exact | ms (×) | tess \
+         stages ms | refined | of |\n|---|---:|---:|---:|---|---:|---:|---:|---:|"
+    );
+    let ratio = |m: &MethodSummary| m.ratio_to_stereo.map_or("–".into(), |r| format!("{r:.3}"));
+    for s in summary {
+        let [stereo, plain, exact] = scaling_methods(s);
+        let ms =
+            |m: Option<&MethodSummary>| m.map_or("–".into(), |m| format!("{:.2}", m.time_ms));
+        let ms_ratio = |m: Option<&MethodSummary>| {
+            m.map_or("–".into(), |m| format!("{:.2} ({})", m.time_ms, ratio(m)))
+        };
+        // The culling, split and sort stages (the columns after the shadow maps).
+        let tess_ms = exact.and_then(|m| m.stages_ms).map_or("–".into(), |st| {
+            let tess: f64 = ViewStage::ALL
+                .iter()
+                .zip(&st[1..])
+                .filter(|(stage, _)| stage.is_tessellation())
+                .map(|(_, ms)| ms)
+                .sum();
+            format!("{tess:.2}")
+        });
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            s.scene,
+            s.triangles,
+            ms(stereo),
+            ms_ratio(plain),
+            exact.map_or("none exact".into(), |m| format!("`{}`", m.method.name)),
+            ms_ratio(exact),
+            tess_ms,
+            exact.map_or("–".into(), |m| m.refined_input.to_string()),
+            s.triangles * views,
+        );
+    }
 }
 
 /// The error target the report answers for (px, 99th percentile).
 pub const TARGET_P99_PX: f32 = 0.5;
 /// ... and for the largest error of any case (px): "exact" means both.
 pub const TARGET_MAX_PX: f32 = 1.0;
+
+impl SceneSummary {
+    /// The cheapest omnistereo method with tessellation that is exact
+    /// ([`MethodSummary::is_exact`]): the lowest paired ratio to stereo (what drifts on a shared
+    /// machine cancels in it), else the lowest median time.
+    pub fn cheapest_exact(&self) -> Option<&MethodSummary> {
+        let cost = |m: &MethodSummary| m.ratio_to_stereo.unwrap_or(f64::INFINITY);
+        self.methods
+            .iter()
+            .filter(|m| {
+                m.method.mode.is_omni()
+                    && m.method.sky.is_none()
+                    && m.method.tess.criterion.is_some()
+                    && m.is_exact()
+            })
+            .min_by(|a, b| {
+                cost(a)
+                    .total_cmp(&cost(b))
+                    .then(a.time_ms.total_cmp(&b.time_ms))
+            })
+    }
+}
 
 impl MethodSummary {
     /// Exact omnistereo: every case's p99 error within [`TARGET_P99_PX`] and its maximum
@@ -510,14 +665,7 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
             );
         }
         // The overhead of omnistereo with tessellation at the target error.
-        let tessellated = |m: &&MethodSummary| {
-            m.method.mode.is_omni() && m.method.tess.criterion.is_some() && m.is_exact()
-        };
-        let best = s
-            .methods
-            .iter()
-            .filter(tessellated)
-            .min_by(|a, b| a.time_ms.total_cmp(&b.time_ms));
+        let best = s.cheapest_exact();
         let _ = writeln!(
             md,
             "\n**Exact (p99 ≤ {TARGET_P99_PX} px and max ≤ {TARGET_MAX_PX} px in every case)** \
@@ -525,7 +673,7 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
             s.scene,
             match best {
                 Some(m) => format!(
-                    "the fastest omnistereo + tessellation method is `{}`, {:.2} ms, **{} × \
+                    "the cheapest omnistereo + tessellation method is `{}`, {:.2} ms, **{} × \
                      off-axis stereo** ({:+.0} %), drawing {} triangles.",
                     m.method.name,
                     m.time_ms,
@@ -634,6 +782,80 @@ fn machine() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bench::methods::methods;
+
+    /// A method of the quick list by name, with its time, ratio and accuracy.
+    fn summary(name: &str, time_ms: f64, ratio: f64, p99: f32, max: f32) -> MethodSummary {
+        let method = methods(true)
+            .into_iter()
+            .find(|m| m.name == name)
+            .unwrap_or_else(|| panic!("no method {name}"));
+        MethodSummary {
+            method,
+            time_ms,
+            ratio_to_stereo: Some(ratio),
+            error_p99: p99,
+            error_max: max,
+            seam_max: 0.0,
+            image_diff_pct: 0.0,
+            drawn_triangles: 0,
+            stages_ms: None,
+            dispatches: 0,
+            refined_input: 0,
+        }
+    }
+
+    #[test]
+    fn scaling_series_take_stereo_the_plain_warp_and_the_cheapest_exact_by_ratio() {
+        let scene = |name: &str, triangles: usize| SceneSummary {
+            scene: name.into(),
+            triangles,
+            cases: 3,
+            methods: vec![
+                summary("stereo", 100.0, 1.0, 9.0, 12.0),
+                summary("stereo + shadows off", 90.0, 0.9, 9.0, 12.0),
+                summary("omni-offaxis", 101.0, 1.01, 1.0, 50.0),
+                // Not exact: too large a maximum, however cheap.
+                summary("omni-offaxis + tess error:4", 105.0, 1.05, 0.3, 1.6),
+                // Exact, faster by median time but dearer by the paired ratio.
+                summary("omni-offaxis + tess sphere:64", 120.0, 1.25, 0.2, 0.9),
+                summary("omni-offaxis + tess edge:64", 125.0, 1.20, 0.1, 0.5),
+            ],
+        };
+        let summaries = [scene("small", 7_000), scene("large", 225_000)];
+        let cheapest = summaries[0].cheapest_exact().expect("an exact method");
+        assert_eq!(cheapest.method.name, "omni-offaxis + tess edge:64");
+        let points = scaling_points(&summaries);
+        let series: Vec<(&str, f64, f64)> = points
+            .iter()
+            .map(|p| (p.family.as_str(), p.x, p.y))
+            .collect();
+        assert_eq!(
+            series,
+            vec![
+                ("off-axis stereo", 7_000.0, 100.0),
+                ("off-axis stereo", 225_000.0, 100.0),
+                ("plain warp", 7_000.0, 101.0),
+                ("plain warp", 225_000.0, 101.0),
+                ("cheapest exact", 7_000.0, 125.0),
+                ("cheapest exact", 225_000.0, 125.0),
+            ]
+        );
+        assert_eq!(points[4].label, "edge:64");
+        let mut md = String::new();
+        write_scaling_section(&mut md, &summaries, 6);
+        assert!(
+            md.contains(
+                "| small | 7000 | 100.00 | 101.00 (1.010) | `omni-offaxis + tess edge:64` | \
+                 125.00 (1.200) | – | 0 | 42000 |"
+            ),
+            "{md}"
+        );
+        // One scene: nothing to scale against.
+        let mut one = String::new();
+        write_scaling_section(&mut one, &summaries[..1], 6);
+        assert!(one.is_empty());
+    }
 
     #[test]
     fn a_cell_with_a_comma_or_quote_stays_one_cell() {

@@ -68,9 +68,12 @@ pub fn run(
     let mut scenes: Vec<(String, Option<Scene>)> = Vec::new();
     let scene_paths: Vec<PathBuf> = if options.scenes.is_empty() {
         let mut v: Vec<PathBuf> = config.scene_path.iter().cloned().collect();
-        let city = bundled_path(&options.config, "assets/city.glb");
-        if city.is_file() && !v.contains(&city) {
-            v.push(city);
+        // The bundled city and the large atrium (225 108 triangles), for scaling with size.
+        for bundled in ["assets/city.glb", "assets/atrium.glb"] {
+            let path = bundled_path(&options.config, bundled);
+            if path.is_file() && !v.contains(&path) {
+                v.push(path);
+            }
         }
         v
     } else {
