@@ -681,6 +681,35 @@ fn shading_normal(in: SurfaceInput, ddx: vec4<f32>, ddy: vec4<f32>, front_facing
     return select(n, normalize(bent), dot(bent, bent) > 1e-12);
 }
 
+// 3×3 percentage-closer filtering: the mean of nine bilinear comparisons one texel apart
+// around `uv`. Together they weigh the 4×4 texels around `uv` separably, (1 - f, 1, 1, f) along
+// each axis (f: where `uv` lies between texel centres), so four gathers of 2×2 comparisons
+// give the same sum from 16 comparisons instead of 36 (and 4 fetches instead of 9).
+fn pcf_3x3(uv: vec2<f32>, layer: u32, depth: f32) -> f32 {
+    let size = 1.0 / frame.shadow_params.z;
+    let st = uv * size - 0.5;
+    let f = fract(st);
+    // The corner between texels (i - 1, i) and (i + 1, i + 2) along each axis, i = floor(st).
+    let corner = floor(st);
+    let wx = array<f32, 4>(1.0 - f.x, 1.0, 1.0, f.x);
+    let wy = array<f32, 4>(1.0 - f.y, 1.0, 1.0, f.y);
+    var lit = 0.0;
+    for (var b = 0u; b < 2u; b++) {
+        for (var a = 0u; a < 2u; a++) {
+            // Gathering at a texel corner returns the 2×2 texels around it: x (left, lower
+            // row), y (right, lower), z (right, upper), w (left, upper), rows counted along v.
+            let at = (corner + vec2<f32>(f32(2u * a), f32(2u * b))) * frame.shadow_params.z;
+            let g = textureGatherCompare(shadow_maps, shadow_sampler, at, layer, depth);
+            let x0 = wx[2u * a];
+            let x1 = wx[2u * a + 1u];
+            let y0 = wy[2u * b];
+            let y1 = wy[2u * b + 1u];
+            lit += (g.w * x0 + g.z * x1) * y0 + (g.x * x0 + g.y * x1) * y1;
+        }
+    }
+    return lit / 9.0;
+}
+
 // How much of light k reaches CAVE-space point `p` with unit normal `n` (on the viewer's
 // side): 1 where its shadow maps do not see it occluded, 0 where they do, between at a
 // filtered edge. Shadows depend only on the point, not on the eye: exact in every mode.
@@ -713,17 +742,7 @@ fn light_visibility(k: u32, p: vec3<f32>, n: vec3<f32>) -> f32 {
         if frame.shadow_params.y < 0.5 {
             return textureSampleCompareLevel(shadow_maps, shadow_sampler, uv, layer, ndc.z);
         }
-        // 3×3 percentage-closer filtering, each tap a bilinear comparison.
-        var lit = 0.0;
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                let offset = vec2<f32>(f32(dx), f32(dy)) * frame.shadow_params.z;
-                lit += textureSampleCompareLevel(
-                    shadow_maps, shadow_sampler, uv + offset, layer, ndc.z,
-                );
-            }
-        }
-        return lit / 9.0;
+        return pcf_3x3(uv, layer, ndc.z);
     }
     return 1.0;
 }
