@@ -189,6 +189,26 @@ fn quick_bench_writes_complete_and_sane_results() {
         }
     }
 
+    // The triangle control draws stereo's picture: cutting every triangle in four without a
+    // warp moves no pixel but where a new inner edge rounds differently (measured: the
+    // pixels off the reference within 0.001 points of stereo's; 0.05 points is about 60 of
+    // the 124 416 pixels of six 192×108 views). Uniform subdivision refines every cluster,
+    // seen or not, so every triangle-view entered the tessellator: as many as stereo draws
+    // (every triangle in every view).
+    let control = omnicave::bench::methods::TRIANGLE_CONTROL;
+    for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
+        let (drawn, stereo) = (off_of(s, h, control), off_of(s, h, "stereo"));
+        assert!(
+            (drawn - stereo).abs() < 0.05,
+            "{s}, {h}: {drawn} against {stereo}"
+        );
+        assert_eq!(
+            value(s, h, control, "refined_input_triangles"),
+            value(s, h, "stereo", "drawn_triangles"),
+            "{s}, {h}"
+        );
+    }
+
     // Seams: off-axis stereo projects both walls from one eye, so an edge meets itself exactly
     // at the shared edge (0.05 px: float rounding of the crossing, found in clip space);
     // tessellation keeps the jump within the seam tolerance (1 px, as tests/tessellation.rs
@@ -238,6 +258,7 @@ fn quick_bench_writes_complete_and_sane_results() {
         "× off-axis stereo",
         "| omni-offaxis + tess error | error:",
         "●",
+        "`stereo + tess uniform:1` draws stereo's picture through the tessellator",
     ] {
         assert!(report.contains(needle), "report.md lacks '{needle}'");
     }

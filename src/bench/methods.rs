@@ -34,6 +34,13 @@ const SWEEP: [Sweep; 4] = [
     (|n| Criterion::Uniform(n as u32), &[1.0, 2.0, 3.0]),
 ];
 
+/// The control for the cost of triangles as such: the reference's picture drawn with four
+/// times its triangles (and the tessellator's stages). What a tessellated method pays for
+/// the triangles it adds, apart from its warp; on a software rasteriser, which shades whole
+/// blocks along every triangle's border, most of what separates the exact methods from
+/// stereo.
+pub const TRIANGLE_CONTROL: &str = "stereo + tess uniform:1";
+
 /// The methods compared, the reference (plain off-axis stereo, no sky) first: mono, stereo,
 /// both omnistereo warps without tessellation, the off-axis warp with each criterion at
 /// several parameters, and the sky modes.
@@ -76,6 +83,9 @@ pub fn methods(quick: bool) -> Vec<Method> {
         m(RenderMode::Stereo, none, None),
         simple,
         unshadowed,
+        // And what triangles cost the rasteriser: stereo's picture, through the tessellator
+        // with every triangle cut in four and no warp (see [`TRIANGLE_CONTROL`]).
+        m(RenderMode::Stereo, with(Criterion::Uniform(1)), None),
         m(RenderMode::Mono, none, None),
         m(RenderMode::Stereo, none, Some(SkyMode::Offaxis)),
         m(RenderMode::OmniOnAxis, none, None),
@@ -206,6 +216,21 @@ mod tests {
         assert!(m[0].sky.is_none() && m[0].tess.criterion.is_none());
         for sky in [SkyMode::Offaxis, SkyMode::OmniQuad, SkyMode::OmniExact] {
             assert!(m.iter().any(|x| x.sky == Some(sky)));
+        }
+        // The triangle control, in both lists: stereo, no sky, every triangle cut in four.
+        for quick in [false, true] {
+            let all = methods(quick);
+            let control = all
+                .iter()
+                .find(|x| x.name == TRIANGLE_CONTROL)
+                .expect("the triangle control");
+            assert_eq!(control.mode, RenderMode::Stereo);
+            assert_eq!(control.tess.criterion, Some(Criterion::Uniform(1)));
+            assert!(control.sky.is_none() && control.shadows);
+            let mut names: Vec<&str> = all.iter().map(|x| x.name.as_str()).collect();
+            names.sort_unstable();
+            names.dedup();
+            assert_eq!(names.len(), all.len(), "method names are unique");
         }
     }
 

@@ -724,7 +724,32 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
             };
         }
         write_stage_table(md, s);
+        write_triangle_control(md, s);
     }
+}
+
+/// What the triangle control says about this scene: how much four times the triangles cost
+/// with the picture unchanged, against the exact methods' ratios.
+fn write_triangle_control(md: &mut String, s: &SceneSummary) {
+    let Some(control) = s
+        .methods
+        .iter()
+        .find(|m| m.method.name == super::methods::TRIANGLE_CONTROL)
+    else {
+        return;
+    };
+    let Some(ratio) = control.ratio_to_stereo else {
+        return;
+    };
+    let _ = writeln!(
+        md,
+        "
+`{}` draws stereo's picture through the tessellator with every triangle cut in \
+         four and no warp: {ratio:.2} × stereo. That is what more triangles cost here with \
+         the picture unchanged: the part of a tessellated method's ratio that comes from the \
+         triangles it adds, not from its warp.",
+        control.method.name
+    );
 }
 
 /// Where each method's GPU time goes, per stage summed over the views (median over the
