@@ -696,8 +696,8 @@ fn pcf_3x3(uv: vec2<f32>, layer: u32, depth: f32) -> f32 {
     var lit = 0.0;
     for (var b = 0u; b < 2u; b++) {
         for (var a = 0u; a < 2u; a++) {
-            // Gathering at a texel corner returns the 2×2 texels around it: x (left, lower
-            // row), y (right, lower), z (right, upper), w (left, upper), rows counted along v.
+            // Gathering at a texel corner returns the 2×2 texels around it: x (u min, v max),
+            // y (u max, v max), z (u max, v min), w (u min, v min).
             let at = (corner + vec2<f32>(f32(2u * a), f32(2u * b))) * frame.shadow_params.z;
             let g = textureGatherCompare(shadow_maps, shadow_sampler, at, layer, depth);
             let x0 = wx[2u * a];

@@ -197,10 +197,10 @@ fn quick_bench_writes_complete_and_sane_results() {
     // (every triangle in every view).
     let control = omnicave::bench::methods::TRIANGLE_CONTROL;
     for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
-        let (drawn, stereo) = (off_of(s, h, control), off_of(s, h, "stereo"));
+        let (off, stereo) = (off_of(s, h, control), off_of(s, h, "stereo"));
         assert!(
-            (drawn - stereo).abs() < 0.05,
-            "{s}, {h}: {drawn} against {stereo}"
+            (off - stereo).abs() < 0.05,
+            "{s}, {h}: {off} % against stereo's {stereo} %"
         );
         assert_eq!(
             value(s, h, control, "refined_input_triangles"),

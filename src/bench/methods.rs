@@ -227,6 +227,7 @@ mod tests {
             assert_eq!(control.mode, RenderMode::Stereo);
             assert_eq!(control.tess.criterion, Some(Criterion::Uniform(1)));
             assert!(control.sky.is_none() && control.shadows);
+            assert_eq!(control.shading, Shading::Pbr);
             let mut names: Vec<&str> = all.iter().map(|x| x.name.as_str()).collect();
             names.sort_unstable();
             names.dedup();

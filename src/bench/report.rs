@@ -436,11 +436,19 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                             .iter()
                             .filter_map(|r| r.image_diff_pct)
                             .fold(0.0, f64::max),
-                        drawn_triangles: mine
-                            .iter()
-                            .filter_map(|r| r.accuracy.map(|a| a.emitted))
-                            .max()
-                            .unwrap_or(0),
+                        // The CPU twin does not tessellate without the warp, so for the
+                        // triangle control (stereo through the tessellator) the GPU's count.
+                        drawn_triangles: if m.mode.is_omni() || m.tess.criterion.is_none() {
+                            mine.iter()
+                                .filter_map(|r| r.accuracy.map(|a| a.emitted))
+                                .max()
+                                .unwrap_or(0)
+                        } else {
+                            mine.iter()
+                                .map(|r| r.drawn_triangles as u64)
+                                .max()
+                                .unwrap_or(0)
+                        },
                         stages_ms: stage_medians(&mine),
                         dispatches: mine.iter().map(|r| r.dispatches).max().unwrap_or(0),
                         refined_input: mine.iter().map(|r| r.refined_input).max().unwrap_or(0),
@@ -478,6 +486,8 @@ pub fn chart_points(summary: &SceneSummary) -> Vec<chart::ChartPoint> {
     summary
         .methods
         .iter()
+        // The triangle control draws stereo's picture: a measurement, not a method to pick.
+        .filter(|m| m.method.name != super::methods::TRIANGLE_CONTROL)
         .map(|m| chart::ChartPoint {
             family: family(&m.method),
             label: m
@@ -694,7 +704,7 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
         for m in s
             .methods
             .iter()
-            .filter(|m| m.method.tess.criterion.is_some())
+            .filter(|m| m.method.tess.criterion.is_some() && m.method.mode.is_omni())
         {
             let f = family(&m.method);
             if !kinds.contains(&f) {
@@ -745,9 +755,9 @@ fn write_triangle_control(md: &mut String, s: &SceneSummary) {
         md,
         "
 `{}` draws stereo's picture through the tessellator with every triangle cut in \
-         four and no warp: {ratio:.2} × stereo. That is what more triangles cost here with \
-         the picture unchanged: the part of a tessellated method's ratio that comes from the \
-         triangles it adds, not from its warp.",
+         four (after the tessellator's culling) and no warp: {ratio:.2} × stereo. That is what \
+         the tessellator's stages and four times the triangles cost here with the picture \
+         unchanged: how much the adapter charges for added triangles, whatever the warp.",
         control.method.name
     );
 }
