@@ -738,8 +738,8 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
     }
 }
 
-/// What the triangle control says about this scene: how much four times the triangles cost
-/// with the picture unchanged, against the exact methods' ratios.
+/// What the triangle control says about this scene: how much the tessellator's stages and
+/// four times the triangles cost with the picture unchanged.
 fn write_triangle_control(md: &mut String, s: &SceneSummary) {
     let Some(control) = s
         .methods
