@@ -194,7 +194,8 @@ fn quick_bench_writes_complete_and_sane_results() {
     // pixels off the reference within 0.001 points of stereo's; 0.05 points is about 60 of
     // the 124 416 pixels of six 192×108 views). Uniform subdivision refines every cluster,
     // seen or not, so every triangle-view entered the tessellator: as many as stereo draws
-    // (every triangle in every view).
+    // (every triangle in every view). The CPU twin tessellates it as the GPU does: the same
+    // count of triangles drawn.
     let control = omnicave::bench::methods::TRIANGLE_CONTROL;
     for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
         let (off, stereo) = (off_of(s, h, control), off_of(s, h, "stereo"));
@@ -206,6 +207,11 @@ fn quick_bench_writes_complete_and_sane_results() {
             value(s, h, control, "refined_input_triangles"),
             value(s, h, "stereo", "drawn_triangles"),
             "{s}, {h}"
+        );
+        assert_eq!(
+            value(s, h, control, "cpu_drawn_triangles"),
+            value(s, h, control, "drawn_triangles"),
+            "{s}, {h}: CPU twin against GPU"
         );
     }
 

@@ -9,7 +9,7 @@ use crate::cave::{Head, RenderMode, view_setups};
 use crate::config::Config;
 use crate::scene::Scene;
 use crate::tess::error::{ErrorStats, border_crossings, edge_error_samples};
-use crate::tess::{TessSettings, double_sided_flags, tess_view, tessellate};
+use crate::tess::{double_sided_flags, tess_view, tessellate};
 
 /// Output budget of the CPU twin per view (the GPU's default is 1 M; the CPU twin needs no
 /// more than the largest setting the bench uses).
@@ -51,15 +51,9 @@ pub fn accuracy(
     let omni = config.settings.omni();
     let ideal_views = view_setups(cave, &head, RenderMode::OmniOffAxis, ipd);
     let flags = double_sided_flags(scene);
-    let settings = if method.mode.is_omni() {
-        method.tess
-    } else {
-        // Without the warp nothing is tessellated; culling as the compute pass would.
-        TessSettings {
-            criterion: None,
-            ..method.tess
-        }
-    };
+    // As the renderer: tessellated wherever a criterion is set, with or without the warp
+    // (the triangle control is stereo through the tessellator).
+    let settings = method.tess;
     let mut samples = Vec::new();
     let mut result = Accuracy::default();
     let views = view_setups(cave, &head, method.mode, ipd);

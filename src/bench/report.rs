@@ -436,19 +436,11 @@ pub fn summarise(rows: &[Row]) -> Vec<SceneSummary> {
                             .iter()
                             .filter_map(|r| r.image_diff_pct)
                             .fold(0.0, f64::max),
-                        // The CPU twin does not tessellate without the warp, so for the
-                        // triangle control (stereo through the tessellator) the GPU's count.
-                        drawn_triangles: if m.mode.is_omni() || m.tess.criterion.is_none() {
-                            mine.iter()
-                                .filter_map(|r| r.accuracy.map(|a| a.emitted))
-                                .max()
-                                .unwrap_or(0)
-                        } else {
-                            mine.iter()
-                                .map(|r| r.drawn_triangles as u64)
-                                .max()
-                                .unwrap_or(0)
-                        },
+                        drawn_triangles: mine
+                            .iter()
+                            .filter_map(|r| r.accuracy.map(|a| a.emitted))
+                            .max()
+                            .unwrap_or(0),
                         stages_ms: stage_medians(&mine),
                         dispatches: mine.iter().map(|r| r.dispatches).max().unwrap_or(0),
                         refined_input: mine.iter().map(|r| r.refined_input).max().unwrap_or(0),
