@@ -100,9 +100,11 @@ fn pole_merge_factor(elevation: f32, omni: vec4<f32>) -> f32 {
 }
 
 // The eye that should see `v`: the head moved sideways by half the IPD, perpendicular to the
-// horizontal direction from the head to `v`.
-fn omni_eye(v: vec3<f32>, view: ViewUniforms, omni: vec4<f32>) -> vec3<f32> {
-    let head = view.omni_head.xyz;
+// horizontal direction from the head to `v`. `omni_head` is the view's (xyz head, w signed half
+// IPD). Views and frames are passed by the fields used, never whole: lavapipe copies a struct
+// argument through memory for every invocation.
+fn omni_eye(v: vec3<f32>, omni_head: vec4<f32>, omni: vec4<f32>) -> vec3<f32> {
+    let head = omni_head.xyz;
     let d = v - head;
     let horizontal = vec2<f32>(d.x, d.z);
     let len = length(horizontal);
@@ -112,16 +114,16 @@ fn omni_eye(v: vec3<f32>, view: ViewUniforms, omni: vec4<f32>) -> vec3<f32> {
         dir = vec3<f32>(horizontal.x / len, 0.0, horizontal.y / len);
     }
     let right = cross(dir, vec3<f32>(0.0, 1.0, 0.0));
-    return head + view.omni_head.w * pole_merge_factor(elevation, omni) * right;
+    return head + omni_head.w * pole_merge_factor(elevation, omni) * right;
 }
 
-// Moves `v` so that the projection from C = view.eye_position draws it where the ray e→v meets
-// the wall plane. Similar triangles: v' = v − (s(v)/s(e))·(e − C).
-fn omni_warp(v: vec3<f32>, e: vec3<f32>, view: ViewUniforms, variant: f32) -> vec3<f32> {
-    let c = view.eye_position.xyz;
-    let n = view.wall_plane.xyz;
-    let sv = dot(n, v) + view.wall_plane.w;
-    let se = dot(n, e) + view.wall_plane.w;
+// Moves `v` so that the projection from C (the view's eye_position) draws it where the ray e→v
+// meets the wall plane (the view's wall_plane). Similar triangles: v' = v − (s(v)/s(e))·(e − C).
+fn omni_warp(v: vec3<f32>, e: vec3<f32>, c: vec3<f32>, wall_plane: vec4<f32>, variant: f32)
+    -> vec3<f32> {
+    let n = wall_plane.xyz;
+    let sv = dot(n, v) + wall_plane.w;
+    let se = dot(n, e) + wall_plane.w;
     if variant < 1.5 {
         return v - (sv / max(se, 1e-6)) * (e - c);
     }

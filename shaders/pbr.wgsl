@@ -1,7 +1,12 @@
 // Physically based shading as glTF 2.0 defines it (Appendix B: metallic-roughness BRDF with
 // GGX distribution, height-correlated Smith visibility and Schlick's Fresnel), in CAVE space,
 // and the simple Blinn-Phong model it replaced (`[render] shading = "simple"`).
-// Mirrored on the CPU by src/pbr.rs (keep the two in step). Prepended to shaders/scene.wgsl.
+// Mirrored on the CPU by src/render/pbr.rs (keep the two in step). Prepended to
+// shaders/scene.wgsl only: it reads that shader's module-scope `frame` (FrameUniforms) and
+// calls its `light_visibility` (shadows) directly. WGSL cannot pass a uniform buffer by
+// pointer; passing the 1.6 KB struct by value, or the lights' visibility as an array, makes
+// lavapipe copy them through memory for every fragment (together a third of the desktop
+// preview's frame).
 
 const INV_PI: f32 = 0.31830988618379067;
 
@@ -113,43 +118,37 @@ fn env_brdf_approx(f0: vec3<f32>, roughness: f32, n_dot_v: f32) -> vec3<f32> {
 
 // The even radiance that gives the irradiance arriving at a surface facing CAVE-space unit
 // direction `n`: the config's ambient plus the sky's light (E(n) / π).
-fn ambient_radiance(frame: FrameUniforms, n: vec3<f32>) -> vec3<f32> {
+fn ambient_radiance(n: vec3<f32>) -> vec3<f32> {
     var l = frame.ambient.rgb;
     if frame.sky_params.x > 0.5 {
         let d = normalize((frame.sky_from_cave * vec4<f32>(n, 0.0)).xyz);
-        let y = array<f32, 9>(
-            0.282095,
-            0.488603 * d.y,
-            0.488603 * d.z,
-            0.488603 * d.x,
-            1.092548 * d.x * d.y,
-            1.092548 * d.y * d.z,
-            0.315392 * (3.0 * d.z * d.z - 1.0),
-            1.092548 * d.x * d.z,
-            0.546274 * (d.x * d.x - d.y * d.y),
-        );
-        var e = vec3<f32>(0.0);
-        for (var i = 0u; i < 9u; i++) {
-            e += frame.sky_sh[i].rgb * y[i];
-        }
+        // The real spherical-harmonic basis up to band 2 (src/sky/irradiance.rs `sh_basis`),
+        // written out: no local array to index.
+        let e = frame.sky_sh[0].rgb * 0.282095
+            + frame.sky_sh[1].rgb * (0.488603 * d.y)
+            + frame.sky_sh[2].rgb * (0.488603 * d.z)
+            + frame.sky_sh[3].rgb * (0.488603 * d.x)
+            + frame.sky_sh[4].rgb * (1.092548 * d.x * d.y)
+            + frame.sky_sh[5].rgb * (1.092548 * d.y * d.z)
+            + frame.sky_sh[6].rgb * (0.315392 * (3.0 * d.z * d.z - 1.0))
+            + frame.sky_sh[7].rgb * (1.092548 * d.x * d.z)
+            + frame.sky_sh[8].rgb * (0.546274 * (d.x * d.x - d.y * d.y));
         l += max(e, vec3<f32>(0.0)) * INV_PI;
     }
     return l;
 }
 
-// The lit colour of a surface point seen from `eye` (emission is added by the caller);
-// `visibility[k]` is how much of light k reaches the point (shadows: 0 to 1).
-fn shade_pbr(
-    frame: FrameUniforms,
-    s: SurfacePoint,
-    eye: vec3<f32>,
-    visibility: array<f32, MAX_LIGHTS>,
-) -> vec3<f32> {
+// The lit colour of a surface point seen from `eye` (emission is added by the caller). Light
+// k reaches it as far as `light_visibility(k, s.position, facing_normal)` says (shadows: 0 to
+// 1), where `facing_normal` is the interpolated unit normal on the viewer's side (not bent by
+// a normal map) that shadow look-ups lift the point along.
+fn shade_pbr(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> vec3<f32> {
     let v = normalize(eye - s.position);
     var color = vec3<f32>(0.0);
     for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
         let inc = light_incoming(frame.lights[k], s.position);
-        color += brdf_cos(s, v, inc.direction) * inc.radiance * visibility[k];
+        let seen = light_visibility(k, s.position, facing_normal);
+        color += brdf_cos(s, v, inc.direction) * inc.radiance * seen;
     }
     // Ambient light: diffuse c_diff·L(n), specular the environment BRDF times the light
     // around the mirror direction (the sky's irradiance there: exact for rough surfaces, a
@@ -158,25 +157,20 @@ fn shade_pbr(
     let c_diff = mix(s.base_color, vec3<f32>(0.0), s.metallic);
     let n_dot_v = max(dot(s.normal, v), 1e-4);
     let mirror = reflect(-v, s.normal);
-    let ambient = c_diff * ambient_radiance(frame, s.normal)
-        + env_brdf_approx(f0, s.roughness, n_dot_v) * ambient_radiance(frame, mirror);
+    let ambient = c_diff * ambient_radiance(s.normal)
+        + env_brdf_approx(f0, s.roughness, n_dot_v) * ambient_radiance(mirror);
     return color + ambient * s.occlusion;
 }
 
 // The simple model: Blinn-Phong with an exponent and strength fitted to the roughness and
 // metallic factors, on the base colour (maps other than base colour and emission unused).
-fn shade_simple(
-    frame: FrameUniforms,
-    s: SurfacePoint,
-    eye: vec3<f32>,
-    visibility: array<f32, MAX_LIGHTS>,
-) -> vec3<f32> {
+fn shade_simple(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> vec3<f32> {
     let v = normalize(eye - s.position);
     let roughness = max(s.roughness, 0.02);
     let a = roughness * roughness;
     let shininess = clamp(2.0 / (a * a) - 2.0, 1.0, 512.0);
     let strength = 0.04 + 0.5 * (1.0 - roughness) + 0.4 * s.metallic;
-    var diffuse = ambient_radiance(frame, s.normal);
+    var diffuse = ambient_radiance(s.normal);
     var specular = vec3<f32>(0.0);
     for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
         let inc = light_incoming(frame.lights[k], s.position);
@@ -184,7 +178,7 @@ fn shade_simple(
         if n_dot_l > 0.0 {
             // Light colours carry π (a white matte surface facing a light of intensity 1 is
             // white in the physically based model): the simple model takes it out.
-            let e = inc.radiance * INV_PI * visibility[k];
+            let e = inc.radiance * INV_PI * light_visibility(k, s.position, facing_normal);
             diffuse += n_dot_l * e;
             let h = normalize(inc.direction + v);
             specular += pow(max(dot(s.normal, h), 0.0), shininess) * e;
@@ -194,14 +188,9 @@ fn shade_simple(
 }
 
 // The lit colour in the frame's shading model.
-fn shade_surface(
-    frame: FrameUniforms,
-    s: SurfacePoint,
-    eye: vec3<f32>,
-    visibility: array<f32, MAX_LIGHTS>,
-) -> vec3<f32> {
+fn shade_surface(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> vec3<f32> {
     if frame.shading == 1u {
-        return shade_simple(frame, s, eye, visibility);
+        return shade_simple(s, eye, facing_normal);
     }
-    return shade_pbr(frame, s, eye, visibility);
+    return shade_pbr(s, eye, facing_normal);
 }

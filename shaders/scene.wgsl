@@ -97,7 +97,8 @@ fn transform_vertex(position: vec3<f32>, a: Attributes) -> VertexOutput {
     if frame.omni.x > 0.5 {
         // Omnistereo: the warp that makes the projection from C draw this vertex where its
         // own eye sees it.
-        projected = omni_warp(p, omni_eye(p, view, frame.omni), view, frame.omni.x);
+        let e = omni_eye(p, view.omni_head, frame.omni);
+        projected = omni_warp(p, e, view.eye_position.xyz, view.wall_plane, frame.omni.x);
     }
     let c = cave_attributes(a);
     var out: VertexOutput;
@@ -218,7 +219,7 @@ struct PanoOutput {
 // The eye a CAVE-space point is seen from: the head, or in omnistereo its own eye.
 fn pano_eye(p: vec3<f32>) -> vec3<f32> {
     if view.pano_stereo == 2u {
-        return omni_eye(p, view, frame.omni);
+        return omni_eye(p, view.omni_head, frame.omni);
     }
     return view.eye_position.xyz;
 }
@@ -515,7 +516,7 @@ fn pano_ray(pixel: vec2<f32>, depth: f32) -> PanoRay {
     ray.dir = transpose(rotation) * unmapped.xyz;
     ray.origin = view.eye_position.xyz;
     if view.pano_stereo == 2u {
-        ray.origin = omni_eye(ray.origin + 1000.0 * ray.dir, view, frame.omni);
+        ray.origin = omni_eye(ray.origin + 1000.0 * ray.dir, view.omni_head, frame.omni);
     }
     ray.shown = unmapped.w > 0.5;
     return ray;
@@ -778,12 +779,8 @@ fn surface_color(
     s.metallic = clamp(material.metallic * mr.b, 0.0, 1.0);
     s.roughness = clamp(material.roughness * mr.g, 0.0, 1.0);
     s.occlusion = 1.0 + material.occlusion_strength * (occlusion - 1.0);
-    var visibility: array<f32, MAX_LIGHTS>;
     let facing_n = select(-1.0, 1.0, front_facing) * normalize(in.normal);
-    for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
-        visibility[k] = light_visibility(k, in.position, facing_n);
-    }
-    let lit = shade_surface(frame, s, eye, visibility);
+    let lit = shade_surface(s, eye, facing_n);
     return vec4<f32>(lit + material.emissive * emissive, alpha);
 }
 
@@ -799,7 +796,7 @@ fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @loca
     // (exact per pixel, not interpolated from the vertices' eyes).
     var eye = view.eye_position.xyz;
     if frame.omni.x > 0.5 {
-        eye = omni_eye(in.cave_position, view, frame.omni);
+        eye = omni_eye(in.cave_position, view.omni_head, frame.omni);
     }
     let color = surface_color(surface, dpdx(in.uvs), dpdy(in.uvs), eye, front_facing);
     if color.a < 0.0 {

@@ -109,8 +109,8 @@ fn project(world: vec3<f32>) -> Projected {
     let p = (frame.cave_from_world * vec4<f32>(world, 1.0)).xyz;
     var warped = p;
     if frame.omni.x > 0.5 {
-        let e = omni_eye(p, view, frame.omni);
-        warped = omni_warp(p, e, view, frame.omni.x);
+        let e = omni_eye(p, view.omni_head, frame.omni);
+        warped = omni_warp(p, e, view.eye_position.xyz, view.wall_plane, frame.omni.x);
     }
     var out: Projected;
     out.clip = view.clip_from_cave * vec4<f32>(warped, 1.0);
@@ -131,7 +131,7 @@ fn pano_point(world: vec3<f32>) -> vec3<f32> {
     let p = (frame.cave_from_world * vec4<f32>(world, 1.0)).xyz;
     var eye = view.eye_position.xyz;
     if view.pano_stereo == 2u {
-        eye = omni_eye(p, view, frame.omni);
+        eye = omni_eye(p, view.omni_head, frame.omni);
     }
     let v = (view.clip_from_cave * vec4<f32>(p - eye, 0.0)).xyz;
     let len = length(v);

@@ -70,7 +70,7 @@ fn differences(source: &str, wgsl_name: &str, rust: &RustLayout) -> Vec<String> 
     out
 }
 
-fn cases() -> Vec<(&'static str, &'static str, RustLayout)> {
+fn cases() -> Vec<(shaders::Feature, &'static str, RustLayout)> {
     vec![
         (
             shaders::SCENE,

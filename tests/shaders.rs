@@ -36,15 +36,15 @@ fn every_wgsl_file_validates() {
             );
             continue;
         }
-        let (_, built_in) = FEATURES
+        let feature = FEATURES
             .iter()
-            .find(|(name, _)| *name == stem)
+            .find(|f| f.stem == stem)
             .unwrap_or_else(|| panic!("shaders/{stem}.wgsl is not in render::shaders::FEATURES"));
         assert_eq!(
-            *built_in, text,
+            feature.source, text,
             "{stem}.wgsl differs from the compiled-in copy"
         );
-        validate(&format!("{stem}.wgsl"), &compose(&text));
+        validate(&format!("{stem}.wgsl"), &compose(*feature));
         seen += 1;
     }
     assert_eq!(

@@ -1,58 +1,87 @@
-//! WGSL sources: every feature shader is compiled with the shared sources (`common.wgsl`,
-//! `pbr.wgsl`) prepended.
+//! WGSL sources: every feature shader is compiled with the shared sources it names
+//! (`common.wgsl`, and `pbr.wgsl` for the scene) prepended.
 
 /// Shared structs and functions (uniforms, omnistereo, tessellation, projections).
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 
-/// Physically based shading (CPU twin: `src/pbr.rs`).
+/// Physically based shading (CPU twin: `src/render/pbr.rs`). It reads the including shader's
+/// `frame` uniform, so only the scene shader includes it.
 pub const PBR: &str = include_str!("../../shaders/pbr.wgsl");
 
-/// The shared sources by file stem, in the order they are prepended.
+/// The shared sources by file stem.
 pub const SHARED: &[(&str, &str)] = &[("common", COMMON), ("pbr", PBR)];
 
+/// A feature shader: its file stem, its own source and the shared sources compiled before it.
+#[derive(Clone, Copy, Debug)]
+pub struct Feature {
+    /// File name in `shaders/` without `.wgsl`.
+    pub stem: &'static str,
+    /// The feature's own code.
+    pub source: &'static str,
+    /// Shared sources prepended, in this order.
+    pub shared: &'static [&'static str],
+}
+
 /// Scene geometry (paired with `src/render/scene_pass.rs`).
-pub const SCENE: &str = include_str!("../../shaders/scene.wgsl");
+pub const SCENE: Feature = Feature {
+    stem: "scene",
+    source: include_str!("../../shaders/scene.wgsl"),
+    shared: &[COMMON, PBR],
+};
 
 /// Shadow maps' depth pass (paired with `src/render/shadow_pass.rs`).
-pub const SHADOW: &str = include_str!("../../shaders/shadow.wgsl");
+pub const SHADOW: Feature = Feature {
+    stem: "shadow",
+    source: include_str!("../../shaders/shadow.wgsl"),
+    shared: &[COMMON],
+};
 
 /// Adaptive tessellation compute passes (paired with `src/render/tessellator.rs`).
-pub const TESSELLATE: &str = include_str!("../../shaders/tessellate.wgsl");
+pub const TESSELLATE: Feature = Feature {
+    stem: "tessellate",
+    source: include_str!("../../shaders/tessellate.wgsl"),
+    shared: &[COMMON],
+};
 
 /// Skybox (paired with `src/render/sky_pass.rs`).
-pub const SKY: &str = include_str!("../../shaders/sky.wgsl");
+pub const SKY: Feature = Feature {
+    stem: "sky",
+    source: include_str!("../../shaders/sky.wgsl"),
+    shared: &[COMMON],
+};
 
 /// Stereo output formats (paired with `src/render/present.rs`).
-pub const PRESENT: &str = include_str!("../../shaders/present.wgsl");
+pub const PRESENT: Feature = Feature {
+    stem: "present",
+    source: include_str!("../../shaders/present.wgsl"),
+    shared: &[COMMON],
+};
 
 /// The panorama's image route (paired with `src/render/panorama.rs`).
-pub const PANORAMA: &str = include_str!("../../shaders/panorama.wgsl");
+pub const PANORAMA: Feature = Feature {
+    stem: "panorama",
+    source: include_str!("../../shaders/panorama.wgsl"),
+    shared: &[COMMON],
+};
 
-/// Every feature shader by file stem, for validation.
-pub const FEATURES: &[(&str, &str)] = &[
-    ("scene", SCENE),
-    ("shadow", SHADOW),
-    ("tessellate", TESSELLATE),
-    ("sky", SKY),
-    ("present", PRESENT),
-    ("panorama", PANORAMA),
-];
+/// Every feature shader, for validation.
+pub const FEATURES: &[Feature] = &[SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA];
 
-/// Full source of a feature shader: the shared sources followed by the feature's own code.
-pub fn compose(feature_source: &str) -> String {
+/// Full source of a feature shader: its shared sources followed by the feature's own code.
+pub fn compose(feature: Feature) -> String {
     let mut s = String::new();
-    for (_, shared) in SHARED {
+    for shared in feature.shared {
         s.push_str(shared);
         s.push('\n');
     }
-    s.push_str(feature_source);
+    s.push_str(feature.source);
     s
 }
 
 /// Builds the shader module for a feature (once, at pipeline creation).
-pub fn module(device: &wgpu::Device, label: &str, feature_source: &str) -> wgpu::ShaderModule {
+pub fn module(device: &wgpu::Device, label: &str, feature: Feature) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(compose(feature_source).into()),
+        source: wgpu::ShaderSource::Wgsl(compose(feature).into()),
     })
 }
