@@ -129,7 +129,8 @@ fn lights(frame: &FrameUniforms) -> &[GpuLight] {
 pub const LIT: [f32; MAX_LIGHTS] = [1.0; MAX_LIGHTS];
 
 /// The physically based colour of a surface point seen from `eye` (without emission);
-/// `visibility[k]`: how much of light k reaches it.
+/// `visibility[k]`: how much of light k reaches it (what the shader's `shade_pbr` asks
+/// `light_visibility` for, light by light, instead of taking an array).
 pub fn shade_pbr(
     frame: &FrameUniforms,
     s: &SurfacePoint,
