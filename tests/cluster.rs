@@ -848,7 +848,7 @@ fn a_node_whose_window_is_destroyed_leaves_and_is_reported_at_once() {
     let out = out_dir("leave");
     let config_path = write_config(&out, "cluster.toml", "[cluster]\ntimeout_ms = 20000");
     let _x_lock = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
-    let x = Xvfb::start(SCREEN);
+    let x = Xvfb::start_without_shm(SCREEN);
     let mut cluster = Cluster::start(&x.display, &launch(&config_path, &[]), "info", &out);
     cluster.wait_frame(0, 4, Duration::from_secs(240));
     let right = window_at(&x.display, [660, 0]);

@@ -10,6 +10,8 @@ pub mod panel;
 pub mod state;
 pub mod stats;
 mod window;
+#[cfg(target_os = "linux")]
+mod x11_errors;
 
 use std::panic::AssertUnwindSafe;
 use std::path::PathBuf;
@@ -94,6 +96,9 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         tracing::info!("stopped by a signal while loading");
         return Ok(());
     }
+    // A window destroyed from outside must not end the program through a stale X error.
+    #[cfg(target_os = "linux")]
+    x11_errors::install();
     let event_loop = EventLoop::new().map_err(|e| AppError::EventLoop(e.to_string()))?;
     let tracking = Tracking::new(config.tracking.clone());
     let mut info = PanelInfo::default();

@@ -18,6 +18,18 @@ pub struct Xvfb {
 impl Xvfb {
     /// Starts one with a screen of `size` pixels.
     pub fn start(size: [u32; 2]) -> Xvfb {
+        Xvfb::start_with(size, &[])
+    }
+
+    /// Starts one without the MIT-SHM extension, as a container's or remote display's X
+    /// server is: Mesa's software swapchain then presents with plain `PutImage`, whose errors
+    /// on a destroyed window reach winit's error handler (CI's run showed this).
+    #[allow(dead_code)] // used by some of the test binaries that include this module
+    pub fn start_without_shm(size: [u32; 2]) -> Xvfb {
+        Xvfb::start_with(size, &["-extension", "MIT-SHM"])
+    }
+
+    fn start_with(size: [u32; 2], extra_args: &[&str]) -> Xvfb {
         for n in 90..140 {
             if Path::new(&format!("/tmp/.X{n}-lock")).exists()
                 || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
@@ -29,6 +41,7 @@ impl Xvfb {
                 .arg(format!(":{n}"))
                 .args(["-screen", "0", &format!("{}x{}x24", size[0], size[1])])
                 .args(["-nolisten", "tcp"])
+                .args(extra_args)
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
                 .spawn()
