@@ -147,8 +147,11 @@ fn shade_pbr(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> vec3<
     var color = vec3<f32>(0.0);
     for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
         let inc = light_incoming(frame.lights[k], s.position);
-        let seen = light_visibility(k, s.position, facing_normal);
-        color += brdf_cos(s, v, inc.direction) * inc.radiance * seen;
+        let lit = brdf_cos(s, v, inc.direction) * inc.radiance;
+        // Shadows only where the light would add something (facing it, within its range).
+        if any(lit > vec3<f32>(0.0)) {
+            color += lit * light_visibility(k, s.position, facing_normal);
+        }
     }
     // Ambient light: diffuse c_diff·L(n), specular the environment BRDF times the light
     // around the mirror direction (the sky's irradiance there: exact for rough surfaces, a
@@ -175,7 +178,7 @@ fn shade_simple(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> ve
     for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
         let inc = light_incoming(frame.lights[k], s.position);
         let n_dot_l = dot(s.normal, inc.direction);
-        if n_dot_l > 0.0 {
+        if n_dot_l > 0.0 && any(inc.radiance > vec3<f32>(0.0)) {
             // Light colours carry π (a white matte surface facing a light of intensity 1 is
             // white in the physically based model): the simple model takes it out.
             let e = inc.radiance * INV_PI * light_visibility(k, s.position, facing_normal);

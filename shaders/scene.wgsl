@@ -692,22 +692,25 @@ fn pcf_3x3(uv: vec2<f32>, layer: u32, depth: f32) -> f32 {
     let f = fract(st);
     // The corner between texels (i - 1, i) and (i + 1, i + 2) along each axis, i = floor(st).
     let corner = floor(st);
-    let wx = array<f32, 4>(1.0 - f.x, 1.0, 1.0, f.x);
-    let wy = array<f32, 4>(1.0 - f.y, 1.0, 1.0, f.y);
-    var lit = 0.0;
-    for (var b = 0u; b < 2u; b++) {
-        for (var a = 0u; a < 2u; a++) {
-            // Gathering at a texel corner returns the 2×2 texels around it: x (u min, v max),
-            // y (u max, v max), z (u max, v min), w (u min, v min).
-            let at = (corner + vec2<f32>(f32(2u * a), f32(2u * b))) * frame.shadow_params.z;
-            let g = textureGatherCompare(shadow_maps, shadow_sampler, at, layer, depth);
-            let x0 = wx[2u * a];
-            let x1 = wx[2u * a + 1u];
-            let y0 = wy[2u * b];
-            let y1 = wy[2u * b + 1u];
-            lit += (g.w * x0 + g.z * x1) * y0 + (g.x * x0 + g.y * x1) * y1;
-        }
-    }
+    // Each gather returns the 2×2 texels around a corner: x (u min, v max), y (u max,
+    // v max), z (u max, v min), w (u min, v min); the outer texels weigh 1 - f and f.
+    let h = frame.shadow_params.z;
+    let g00 = textureGatherCompare(shadow_maps, shadow_sampler, corner * h, layer, depth);
+    let g10 = textureGatherCompare(
+        shadow_maps, shadow_sampler, (corner + vec2<f32>(2.0, 0.0)) * h, layer, depth,
+    );
+    let g01 = textureGatherCompare(
+        shadow_maps, shadow_sampler, (corner + vec2<f32>(0.0, 2.0)) * h, layer, depth,
+    );
+    let g11 = textureGatherCompare(
+        shadow_maps, shadow_sampler, (corner + vec2<f32>(2.0, 2.0)) * h, layer, depth,
+    );
+    let gx = 1.0 - f.x;
+    let gy = 1.0 - f.y;
+    let lit = (g00.w * gx + g00.z) * gy + (g00.x * gx + g00.y)
+        + (g10.w + g10.z * f.x) * gy + (g10.x + g10.y * f.x)
+        + (g01.w * gx + g01.z) + (g01.x * gx + g01.y) * f.y
+        + (g11.w + g11.z * f.x) + (g11.x + g11.y * f.x) * f.y;
     return lit / 9.0;
 }
 

@@ -595,6 +595,20 @@ impl App {
             self.surface_recoveries,
             self.eye_resyncs
         );
+        let b = &self.info.breakdown;
+        if !b.views.is_empty() {
+            let stages: Vec<String> = crate::render::ViewStage::ALL
+                .iter()
+                .map(|&stage| format!("{} {:.2}", stage.name(), b.stage_ms(stage)))
+                .collect();
+            tracing::info!(
+                target: "omnicave::stats",
+                "gpu stages (ms, all views): shadows {:.2} | {} | other {:.2}",
+                b.shadows_ms,
+                stages.join(" | "),
+                b.total_ms - b.shadows_ms - b.views.iter().flatten().sum::<f64>()
+            );
+        }
         self.log_cluster();
         let t = &self.info.tracking;
         let head = self.state.head();
