@@ -4,7 +4,7 @@
 // Per view: cs_init culls source triangles and seeds the live list; each round cs_prepare sizes
 // the next indirect dispatch and cs_split splits every live triangle's edges by the criterion,
 // SPLIT_LEVELS levels deep (what is left to split to the other live list, finished triangles
-// to the output); cs_flush finishes what is left at the maximum depth; cs_prefix and
+// and those at the maximum depth to the output, so the last round leaves nothing); cs_prefix and
 // cs_scatter sort the output by draw (material) and write one indirect draw per draw. No CPU read-back anywhere.
 
 // Keep in sync with `TessUniforms` in src/render/tessellator.rs (tests/gpu_layout.rs checks).
@@ -76,7 +76,7 @@ const C_DRAWS: u32 = 5u; // per-draw counts from here
 @group(1) @binding(2) var<storage, read_write> count_in: atomic<u32>;
 @group(1) @binding(3) var<storage, read_write> count_out: atomic<u32>;
 
-// Indirect arguments: [0..3) split dispatch, [3..6) flush/scatter dispatch, then 4 per draw.
+// Indirect arguments: [0..3) split dispatch, [3..6) scatter dispatch, then 4 per draw.
 // Bound only for the passes that write them: an indirect dispatch may not also bind its
 // argument buffer as writable storage.
 @group(2) @binding(0) var<storage, read_write> args: array<u32>;
@@ -383,8 +383,8 @@ fn cs_init(
     }
 }
 
-// One thread: size the split (args 0..3) and flush (args 3..6) dispatches from the live
-// count, and reset the next list (harmless before the flush, which reads only count_in).
+// One thread: size the split dispatch (args 0..3) from the live count, and reset the next
+// list.
 @compute @workgroup_size(1)
 fn cs_prepare() {
     let n = min(atomicLoad(&count_in), tess.live_capacity);
@@ -392,9 +392,6 @@ fn cs_prepare() {
     args[0] = groups;
     args[1] = 1u;
     args[2] = 1u;
-    args[3] = groups;
-    args[4] = 1u;
-    args[5] = 1u;
     atomicStore(&count_out, 0u);
 }
 
@@ -471,7 +468,7 @@ fn split_once(e: TessEntry) -> u32 {
     return count;
 }
 
-// Leaves a triangle for the next round (or the flush at the maximum depth).
+// Leaves a triangle for the next split dispatch.
 fn push_live(e: TessEntry) {
     let slot = atomicAdd(&count_out, 1u);
     if slot < tess.live_capacity {
@@ -501,7 +498,13 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
         top -= 1u;
         let e = stack[top];
         let l = level[top];
-        if l == SPLIT_LEVELS || e.depth >= tess.rounds {
+        if e.depth >= tess.rounds {
+            // At the maximum depth: finished here, so the last split dispatch leaves nothing
+            // for another dispatch to flush.
+            emit(e);
+            continue;
+        }
+        if l == SPLIT_LEVELS {
             push_live(e);
             continue;
         }
@@ -516,15 +519,6 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
             top += 1u;
         }
     }
-}
-
-@compute @workgroup_size(64)
-fn cs_flush(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = min(atomicLoad(&count_in), tess.live_capacity);
-    if id.x >= n {
-        return;
-    }
-    emit(live_in[id.x]);
 }
 
 // One thread: per-draw offsets (prefix sum), indirect draw arguments, and the scatter

@@ -12,7 +12,7 @@
 pub enum ViewStage {
     /// cs_init: back-face and frustum culling, seeding the live list.
     TessCull,
-    /// The split rounds (prepare + split, `max_depth` / `SPLIT_LEVELS` times) and the flush.
+    /// The split rounds (prepare + split, `max_depth` / `SPLIT_LEVELS` times).
     TessSplit,
     /// Sorting the output by draw and writing the indirect draws.
     TessSort,

@@ -151,9 +151,10 @@ pub fn split_dispatches(rounds: u32) -> u32 {
 }
 
 /// Compute dispatches [`TessBuffers::encode`] records for one view: culling, a prepare and a
-/// split per split dispatch, then prepare, flush, prefix and scatter.
+/// split per split dispatch, then prefix and scatter (the last split dispatch finishes every
+/// triangle at the maximum depth itself: no flush dispatch).
 pub fn dispatches_per_view(rounds: u32) -> usize {
-    1 + 2 * split_dispatches(rounds) as usize + 4
+    1 + 2 * split_dispatches(rounds) as usize + 2
 }
 
 /// Number of split levels (the maximum depth) a setting asks for.
@@ -172,7 +173,7 @@ const C_FRUSTUM: usize = 2;
 const C_OVERFLOW: usize = 3;
 // Slot 4 holds the triangles in flight (the budget); it never leaves the GPU.
 const C_DRAWS: usize = 5;
-/// Argument slots: 3 split dispatch + 3 flush/scatter dispatch, then 4 per draw.
+/// Argument slots: 3 split dispatch + 3 scatter dispatch, then 4 per draw.
 const ARGS_DRAWS: usize = 6;
 /// Bytes of per-view statistics copied out of the counters (C_OUT..=C_OVERFLOW).
 pub const STATS_BYTES: u64 = 16;
@@ -205,7 +206,6 @@ pub struct Tessellator {
     init: wgpu::ComputePipeline,
     prepare: wgpu::ComputePipeline,
     split: wgpu::ComputePipeline,
-    flush: wgpu::ComputePipeline,
     prefix: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     /// Layout for drawing tessellated output (group 2 of the scene pass).
@@ -355,7 +355,6 @@ impl Tessellator {
             init: pipeline("cs_init", &work_layout),
             prepare: pipeline("cs_prepare", &args_pipeline_layout),
             split: pipeline("cs_split", &work_layout),
-            flush: pipeline("cs_flush", &work_layout),
             prefix: pipeline("cs_prefix", &args_pipeline_layout),
             scatter: pipeline("cs_scatter", &work_layout),
             shared_layout,
@@ -640,16 +639,6 @@ impl TessBuffers {
                 pass.set_pipeline(&tess.split);
                 pass.dispatch_workgroups_indirect(&self.args, 0);
             }
-            let last = if splits.is_multiple_of(2) {
-                &self.lists_ab
-            } else {
-                &self.lists_ba
-            };
-            pass.set_bind_group(1, last, &[]);
-            pass.set_pipeline(&tess.prepare);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&tess.flush);
-            pass.dispatch_workgroups_indirect(&self.args, 12);
             if let Some(m) = inside {
                 pass.write_timestamp(m.queries, m.split);
             }
