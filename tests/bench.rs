@@ -69,7 +69,10 @@ fn quick_bench_writes_complete_and_sane_results() {
             .push(r[method].into());
     }
     assert_eq!(cases.len(), 2 * 3 + 2, "{:?}", cases.keys());
-    let expected: Vec<String> = methods(true).iter().map(|m| m.name.clone()).collect();
+    let expected: Vec<String> = methods(true, omnicave::tess::TessSettings::default())
+        .iter()
+        .map(|m| m.name.clone())
+        .collect();
     for (case, got) in &cases {
         assert_eq!(got, &expected, "{case:?}");
     }

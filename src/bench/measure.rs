@@ -346,7 +346,9 @@ mod tests {
                 scene: "s".into(),
                 viewpoint: "v".into(),
                 head: "h".into(),
-                method: super::super::methods::methods(true)[0].clone(),
+                method: super::super::methods::methods(true, crate::tess::TessSettings::default())
+                    [0]
+                .clone(),
                 timer: Timer::Gpu,
                 times_ms: times,
                 rounds_ms: rounds.to_vec(),

@@ -43,8 +43,10 @@ pub const TRIANGLE_CONTROL: &str = "stereo + tess uniform:1";
 
 /// The methods compared, the reference (plain off-axis stereo, no sky) first: mono, stereo,
 /// both omnistereo warps without tessellation, the off-axis warp with each criterion at
-/// several parameters, and the sky modes.
-pub fn methods(quick: bool) -> Vec<Method> {
+/// several parameters, and the sky modes. Every method tessellates with `base` (the config's
+/// `[tessellation]`: maximum depth, culling, drawing fine clusters directly) and its own
+/// criterion; `base`'s criterion is ignored.
+pub fn methods(quick: bool, base: TessSettings) -> Vec<Method> {
     let m = |mode: RenderMode, tess: TessSettings, sky: Option<SkyMode>| {
         let mut name = mode.name().to_owned();
         if let Some(c) = tess.criterion {
@@ -62,10 +64,13 @@ pub fn methods(quick: bool) -> Vec<Method> {
             shadows: true,
         }
     };
-    let none = TessSettings::default();
+    let none = TessSettings {
+        criterion: None,
+        ..base
+    };
     let with = |c: Criterion| TessSettings {
         criterion: Some(c),
-        ..TessSettings::default()
+        ..base
     };
     // What the physically based shading costs: stereo with the simple model it replaced.
     let simple = Method {
@@ -111,8 +116,13 @@ pub fn methods(quick: bool) -> Vec<Method> {
 
 /// The methods named in `names`, after the reference (plain stereo), which every ratio needs;
 /// all of them when `names` is empty. A name is one the report writes, or any render mode
-/// with any criterion, `MODE + tess CRITERION` (e.g. `omni-offaxis + tess error:3`).
-pub fn select_methods(all: Vec<Method>, names: &[String]) -> Result<Vec<Method>, BenchError> {
+/// with any criterion, `MODE + tess CRITERION` (e.g. `omni-offaxis + tess error:3`),
+/// tessellated with `base` as [`methods`] does.
+pub fn select_methods(
+    all: Vec<Method>,
+    names: &[String],
+    base: TessSettings,
+) -> Result<Vec<Method>, BenchError> {
     let Some(reference) = all.first().filter(|_| !names.is_empty()) else {
         return Ok(all);
     };
@@ -120,7 +130,7 @@ pub fn select_methods(all: Vec<Method>, names: &[String]) -> Result<Vec<Method>,
     for name in names {
         let method = match all.iter().find(|m| &m.name == name) {
             Some(m) => m.clone(),
-            None => parse_method(name).ok_or_else(|| BenchError::UnknownMethod {
+            None => parse_method(name, base).ok_or_else(|| BenchError::UnknownMethod {
                 name: name.clone(),
                 known: all
                     .iter()
@@ -137,7 +147,7 @@ pub fn select_methods(all: Vec<Method>, names: &[String]) -> Result<Vec<Method>,
 }
 
 /// `MODE + tess CRITERION` as a method (no sky, physically based shading, shadows on).
-fn parse_method(name: &str) -> Option<Method> {
+fn parse_method(name: &str, base: TessSettings) -> Option<Method> {
     let (mode, criterion) = name.split_once(" + tess ")?;
     let criterion = parse_criterion(criterion).ok()??;
     Some(Method {
@@ -145,7 +155,7 @@ fn parse_method(name: &str) -> Option<Method> {
         mode: RenderMode::from_name(mode)?,
         tess: TessSettings {
             criterion: Some(criterion),
-            ..TessSettings::default()
+            ..base
         },
         sky: None,
         shading: Shading::Pbr,
@@ -211,7 +221,7 @@ mod tests {
 
     #[test]
     fn methods_start_with_the_reference_and_cover_every_sky_mode() {
-        let m = methods(false);
+        let m = methods(false, TessSettings::default());
         assert_eq!(m[0].mode, RenderMode::Stereo);
         assert!(m[0].sky.is_none() && m[0].tess.criterion.is_none());
         for sky in [SkyMode::Offaxis, SkyMode::OmniQuad, SkyMode::OmniExact] {
@@ -219,7 +229,7 @@ mod tests {
         }
         // The triangle control, in both lists: stereo, no sky, every triangle cut in four.
         for quick in [false, true] {
-            let all = methods(quick);
+            let all = methods(quick, TessSettings::default());
             let control = all
                 .iter()
                 .find(|x| x.name == TRIANGLE_CONTROL)
@@ -237,22 +247,45 @@ mod tests {
 
     #[test]
     fn a_selection_keeps_the_reference_and_refuses_unknown_names() {
-        let all = methods(true);
-        let picked = select_methods(all.clone(), &["omni-offaxis + tess edge:64".into()])
+        let all = methods(true, TessSettings::default());
+        let base = TessSettings::default();
+        let picked = select_methods(all.clone(), &["omni-offaxis + tess edge:64".into()], base)
             .expect("known name");
         let names: Vec<&str> = picked.iter().map(|m| m.name.as_str()).collect();
         assert_eq!(names, ["stereo", "omni-offaxis + tess edge:64"]);
         assert_eq!(
-            select_methods(all.clone(), &[]).expect("all").len(),
+            select_methods(all.clone(), &[], base).expect("all").len(),
             all.len()
         );
         // Any mode with any criterion, parsed.
-        let own = select_methods(all.clone(), &["omni-onaxis + tess error:3".into()])
+        let own = select_methods(all.clone(), &["omni-onaxis + tess error:3".into()], base)
             .expect("a mode and a criterion");
         assert_eq!(own[1].mode, RenderMode::OmniOnAxis);
         assert_eq!(own[1].tess.criterion, Some(Criterion::Error(3.0)));
-        let e = select_methods(all, &["edge:64".into()]).expect_err("unknown name");
+        let e = select_methods(all, &["edge:64".into()], base).expect_err("unknown name");
         let text = e.to_string();
         assert!(text.contains("'edge:64'") && text.contains("'omni-offaxis + tess edge:64'"));
+    }
+
+    #[test]
+    fn methods_tessellate_with_the_configs_settings_and_their_own_criterion() {
+        let base = TessSettings {
+            criterion: Some(Criterion::Edge(5.0)),
+            max_depth: 14,
+            backface_cull: false,
+            frustum_cull: false,
+            skip_fine: false,
+        };
+        let all = methods(true, base);
+        for m in &all {
+            assert_eq!(m.tess.max_depth, 14, "{}", m.name);
+            assert!(!m.tess.backface_cull && !m.tess.frustum_cull && !m.tess.skip_fine);
+        }
+        // The config's criterion is not a method's: the reference stays untessellated.
+        assert_eq!(all[0].tess.criterion, None);
+        let parsed = select_methods(all, &["omni-offaxis + tess error:3".into()], base)
+            .expect("a mode and a criterion");
+        assert_eq!(parsed[1].tess.criterion, Some(Criterion::Error(3.0)));
+        assert_eq!(parsed[1].tess.max_depth, 14);
     }
 }

@@ -230,6 +230,18 @@ pub(super) fn write_outputs(
             .map(|s| format!(" --scene {}", s.display()))
             .collect::<String>(),
     );
+    let tess = config.settings.tess();
+    let on = |b: bool| if b { "on" } else { "off" };
+    let _ = writeln!(
+        md,
+        "Every tessellated method uses the config's `[tessellation]` with its own criterion: \
+         maximum depth {}, back-face culling {}, frustum culling {}, fine clusters drawn \
+         directly {}.\n",
+        tess.max_depth,
+        on(tess.backface_cull),
+        on(tess.frustum_cull),
+        on(tess.skip_fine)
+    );
     let _ = writeln!(md, "## Frame time of the whole stereo frame\n");
     let _ = writeln!(
         md,
@@ -813,7 +825,7 @@ mod tests {
 
     /// A method of the quick list by name, with its time, ratio and accuracy.
     fn summary(name: &str, time_ms: f64, ratio: f64, p99: f32, max: f32) -> MethodSummary {
-        let method = methods(true)
+        let method = methods(true, crate::tess::TessSettings::default())
             .into_iter()
             .find(|m| m.name == name)
             .unwrap_or_else(|| panic!("no method {name}"));

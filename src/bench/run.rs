@@ -109,7 +109,8 @@ pub fn run(
             info.name, info.backend, info.driver, info.driver_info
         )
     };
-    let methods = select_methods(methods(options.quick), &options.methods)?;
+    let base = config.settings.tess();
+    let methods = select_methods(methods(options.quick, base), &options.methods, base)?;
     let mut rows = Vec::new();
     let total: usize = scenes
         .iter()
