@@ -791,9 +791,9 @@ fn x_windows(display: &str) -> (x11rb::rust_connection::RustConnection, Vec<XWin
 /// `Surface::configure`; a window destroyed by another client (XDestroyWindow, as
 /// `xdotool windowclose` does) panicked in winit's size query. Now the surface is clamped
 /// (and the clamp logged), a destroyed wall window goes while the others keep rendering, and
-/// the operator window's loss ends the program with status 0. On a server without MIT-SHM
-/// (as in CI), where the frame's present to the destroyed window comes back as a `BadDrawable`
-/// that winit took for its own failure and panicked on (src/app/x11_errors.rs).
+/// the operator window's loss ends the program with status 0. The server runs without MIT-SHM
+/// (as CI's does): there the frame's present to the destroyed window comes back as a
+/// `BadDrawable`, which winit took for its own failure and panicked on (src/app/x11_errors.rs).
 #[test]
 fn windows_stretched_or_destroyed_from_outside_are_handled() {
     use x11rb::connection::Connection;

@@ -107,11 +107,13 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
     cave.walls.truncate(2); // left and front walls
     let head = Vec3::new(-0.4, 1.5, 0.3);
     let scene = box_room();
-    // (criterion, max depth): uniform:3 capped at depth 2 ends with live triangles, so the
-    // flush at the maximum depth is compared too.
+    // (criterion, max depth): uniform:3 capped at depth 2 and uniform:7 capped at depth 6 reach
+    // the maximum depth inside the first and the second split dispatch (SPLIT_LEVELS = 5),
+    // where the split that reaches it emits the triangle.
     for (criterion, max_depth) in [
         (Criterion::Uniform(3), 6),
         (Criterion::Uniform(3), 2),
+        (Criterion::Uniform(7), 6),
         (Criterion::Edge(40.0), 6),
         (Criterion::Sphere(60.0), 6),
         (Criterion::Error(1.0), 6),

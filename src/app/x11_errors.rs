@@ -15,6 +15,7 @@
 #![allow(unsafe_code)]
 
 use std::sync::Once;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// X protocol error codes (X11 protocol, "Errors"): the resource named in the request is not
 /// a window / not a window or pixmap.
@@ -40,13 +41,28 @@ pub fn install() {
             if !concerns_a_gone_window(event.error_code) {
                 return false;
             }
-            tracing::debug!(
-                "X error {} (request {}.{}) on resource {:#x}: a window that is gone; ignored",
-                event.error_code,
-                event.request_code,
-                event.minor_code,
-                event.resourceid
-            );
+            // The first one is worth seeing (a bug of ours would show here too); the rest of a
+            // window's last frame repeats it.
+            static SEEN: AtomicBool = AtomicBool::new(false);
+            if SEEN.swap(true, Ordering::Relaxed) {
+                tracing::debug!(
+                    "X error {} (request {}.{}) on resource {:#x}: a window that is gone; \
+                     ignored",
+                    event.error_code,
+                    event.request_code,
+                    event.minor_code,
+                    event.resourceid
+                );
+            } else {
+                tracing::info!(
+                    "X error {} (request {}.{}) on resource {:#x}: a window that is gone; \
+                     ignored (further ones are logged at debug level)",
+                    event.error_code,
+                    event.request_code,
+                    event.minor_code,
+                    event.resourceid
+                );
+            }
             true
         }));
     });

@@ -193,7 +193,7 @@ pub(super) fn measure(
     // The picture against the reference render (one read-back per method, outside the timing).
     let mut diffs: Vec<Option<f64>> = vec![None; methods.len()];
     if scene.is_some() {
-        renderer.render(&params(&reference_method()))?;
+        renderer.render(&params(&reference_method(config.settings.tess())))?;
         let reference = renderer.read_images()?;
         check_reference(scene_name, &reference)?;
         for (i, m) in methods.iter().enumerate() {

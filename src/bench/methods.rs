@@ -180,16 +180,18 @@ pub fn family(m: &Method) -> String {
 }
 
 /// The reference render for the image comparison: the off-axis warp tessellated until the
-/// geometric error is below 0.05 px (DESIGN.md's reference), deep enough for the city's
-/// ground quad.
-pub fn reference_method() -> Method {
+/// geometric error is below 0.05 px (DESIGN.md's reference) with the config's `base`
+/// settings, at least 10 levels deep (deep enough for the city's ground quad) and never
+/// shallower than the methods it judges.
+pub fn reference_method(base: TessSettings) -> Method {
+    let max_depth = base.max_depth.max(10);
     Method {
-        name: "reference: omni-offaxis + tess error:0.05, depth 10".into(),
+        name: format!("reference: omni-offaxis + tess error:0.05, depth {max_depth}"),
         mode: RenderMode::OmniOffAxis,
         tess: TessSettings {
             criterion: Some(Criterion::Error(0.05)),
-            max_depth: 10,
-            ..TessSettings::default()
+            max_depth,
+            ..base
         },
         sky: None,
         shading: Shading::Pbr,

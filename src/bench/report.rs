@@ -290,7 +290,8 @@ pub(super) fn write_outputs(
         );
     }
     let summary = summarise(rows);
-    write_accuracy_sections(&mut md, &summary);
+    let reference = super::methods::reference_method(tess).name;
+    write_accuracy_sections(&mut md, &summary, &reference);
     let scaling = scaling_points(&summary);
     // Both eyes of every wall.
     write_scaling_section(&mut md, &summary, 2 * config.cave.walls.len());
@@ -642,7 +643,7 @@ impl MethodSummary {
     }
 }
 
-fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
+fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary], reference: &str) {
     for s in summary {
         let points = chart_points(s);
         let front = chart::pareto_front(&points);
@@ -653,8 +654,7 @@ fn write_accuracy_sections(md: &mut String, summary: &[SceneSummary]) {
              omnistereo ideal puts them (each point seen from its own eye), sampled every 4 px \
              along every drawn edge of every wall and eye (CPU twin); p99 and max are the worst \
              over the viewpoints and head positions. Pixels off: share of eye-image pixels differing by more \
-             than {VISIBLE_DIFFERENCE}/255 from the reference render (omni-offaxis + \
-             error:0.05 at depth 10), worst over the heads. Seam: the largest jump, along the \
+             than {VISIBLE_DIFFERENCE}/255 from the {reference}, worst over the heads. Seam: the largest jump, along the \
              shared edge, of a scene edge crossing from one wall's image to the next (same \
              eye), worst over them. Time: median over them.\n",
             s.scene, s.cases

@@ -29,14 +29,16 @@ pub struct BenchReport {
 }
 
 /// The methods a scene of `triangles` triangles is measured with: uniform subdivision is left
-/// out where its output (4^n triangles per source triangle) would not fit the tessellator's
+/// out where its output (4^n triangles per source triangle, n capped at the method's maximum
+/// depth) would not fit the tessellator's
 /// budget of [`DEFAULT_CAPACITY`] per view: it would be drawn less refined than its name says.
 pub fn methods_within_budget(methods: &[Method], triangles: usize) -> Vec<Method> {
     methods
         .iter()
         .filter(|m| match m.tess.criterion {
             Some(Criterion::Uniform(n)) => {
-                let out = (triangles as u64).saturating_mul(1u64 << (2 * n.min(16)));
+                let levels = n.min(m.tess.max_depth).min(16);
+                let out = (triangles as u64).saturating_mul(1u64 << (2 * levels));
                 let fits = out <= u64::from(DEFAULT_CAPACITY);
                 if !fits {
                     tracing::info!(

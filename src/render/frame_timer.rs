@@ -12,7 +12,7 @@
 pub enum ViewStage {
     /// cs_init: back-face and frustum culling, seeding the live list.
     TessCull,
-    /// The split rounds (prepare + split, `max_depth` / `SPLIT_LEVELS` times).
+    /// The split rounds (prepare + split, `max_depth` / `SPLIT_LEVELS` times, rounded up).
     TessSplit,
     /// Sorting the output by draw and writing the indirect draws.
     TessSort,
