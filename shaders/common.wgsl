@@ -38,7 +38,9 @@ struct FrameUniforms {
     light_count: u32,
     // 0: physically based (shaders/pbr.wgsl); 1: the simple Blinn-Phong model.
     shading: u32,
-    frame_pad: vec2<u32>,
+    // Shadow-map range tiles per side (shaders/shadow.wgsl); 0: the filter always gathers.
+    shadow_tiles: u32,
+    frame_pad: u32,
     // x: normal offset of shadow look-ups, texels; y: 1 for 3×3 filtering; z: 1 / map size;
     // w: 1 when shadows are on.
     shadow_params: vec4<f32>,

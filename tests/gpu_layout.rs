@@ -83,6 +83,7 @@ fn cases() -> Vec<(shaders::Feature, &'static str, RustLayout)> {
                 "omni" => omni,
                 "light_count" => light_count,
                 "shading" => shading,
+                "shadow_tiles" => shadow_tiles,
                 "frame_pad" => frame_pad,
                 "shadow_params" => shadow_params,
                 "sky_params" => sky_params,

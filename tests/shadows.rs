@@ -223,3 +223,103 @@ fn a_shadow_falls_where_the_lights_geometry_says_in_every_render_mode() {
         );
     }
 }
+
+/// Every pixel of `a` within `tolerance` levels of `b`'s; returns how many differ at all.
+fn differing(name: &str, a: &image::RgbaImage, b: &image::RgbaImage, tolerance: u8) -> usize {
+    assert_eq!(a.dimensions(), b.dimensions(), "{name}");
+    let mut count = 0;
+    for (x, y, p) in a.enumerate_pixels() {
+        let q = b.get_pixel(x, y);
+        let worst = (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap_or(0);
+        assert!(
+            worst <= tolerance,
+            "{name}: pixel ({x}, {y}) {p:?} with the range test, {q:?} without"
+        );
+        count += usize::from(worst > 0);
+    }
+    count
+}
+
+#[test]
+fn the_filters_range_test_leaves_the_picture_as_it_was() {
+    // The sun from above, the point light above the cube, and the point light off to the
+    // side and ahead, so that the cube's shadow falls across two of its cube map's faces
+    // (between −Y and −Z, 45° down): every render mode's picture with the range test equals
+    // the one that always filters. 1 level: where the filter's nine weights sum to 9 it
+    // answers 1 or 0 up to float rounding, and the shortcut answers 1 or 0 exactly.
+    let oblique = Lighting {
+        point_position: CUBE + Vec3::new(0.3, 0.7, 0.7),
+        ..lighting(true)
+    };
+    for (what, light) in [
+        ("sun", lighting(false)),
+        ("point light above", lighting(true)),
+        ("point light at 45°", oblique),
+    ] {
+        let with = images(light, ShadowSettings::default());
+        let without = images(
+            light,
+            ShadowSettings {
+                pcf_range_test: false,
+                ..ShadowSettings::default()
+            },
+        );
+        let shadowless = images(
+            light,
+            ShadowSettings {
+                enabled: false,
+                ..ShadowSettings::default()
+            },
+        );
+        for (((name, a, _), (_, b, _)), (_, c, _)) in with.iter().zip(&without).zip(&shadowless) {
+            let name = format!("{what}, {name}");
+            let changed = differing(&name, a, b, 1);
+            // The picture has a shadow for the test to keep: it differs from no shadows.
+            let shadowed = a.pixels().zip(c.pixels()).filter(|(p, q)| p != q).count();
+            println!("{name}: {changed} pixels off by 1 level; {shadowed} pixels in shadow");
+            assert!(shadowed > 100, "{name}: no shadow in the picture");
+        }
+    }
+}
+
+#[test]
+fn the_range_tiles_hold_every_depth_the_filter_can_read() {
+    // The point light's six layers and the sun's one, read back after a frame: the GPU's
+    // tiles equal the CPU twin's (min and max of the same floats: exact), and they are not
+    // trivial (the cube's silhouette makes ranges that are not a single depth).
+    use omnicave::render::shadow_pass::tile_ranges;
+    for (point, layers) in [(true, 6), (false, 1)] {
+        let cave = cave_at(160, 140);
+        let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+        renderer.set_scene(&scene()).expect("scene upload");
+        let mut frame = test_frame(
+            &cave,
+            Head::at(HEAD),
+            RenderMode::Mono,
+            OmniSettings::default(),
+            TessSettings::default(),
+        );
+        frame.lighting = lighting(point);
+        frame.shadows = ShadowSettings {
+            map_size: 200,
+            ..ShadowSettings::default()
+        };
+        renderer.render(&frame).expect("render");
+        let maps = renderer.read_shadow_maps(layers).expect("read back");
+        assert_eq!(maps.depths.len(), layers);
+        let mut spread = 0;
+        for (layer, (depths, ranges)) in maps.depths.iter().zip(&maps.ranges).enumerate() {
+            let twin = tile_ranges(depths, maps.map_size);
+            assert_eq!(
+                ranges.len(),
+                50 * 50,
+                "layer {layer}: 200 texels in tiles of 4"
+            );
+            for (i, (gpu, cpu)) in ranges.iter().zip(&twin).enumerate() {
+                assert_eq!(gpu, cpu, "layer {layer}, tile {i}");
+            }
+            spread += ranges.iter().filter(|r| r[0] < r[1]).count();
+        }
+        assert!(spread > 0, "every tile one depth: the test shows nothing");
+    }
+}

@@ -316,6 +316,11 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             shadows.enabled,
             egui::Checkbox::new(&mut shadows.pcf, "soft edges"),
         );
+        ui.add_enabled(
+            shadows.enabled && shadows.pcf,
+            egui::Checkbox::new(&mut shadows.pcf_range_test, "range test"),
+        )
+        .on_hover_text("filter only where the shadow map's depths around the point differ");
     });
     ui.add_enabled_ui(shadows.enabled, |ui| {
         let range = model_range(SHADOW_OFFSET);

@@ -6,7 +6,7 @@ use std::time::Instant;
 use super::accuracy::{self, Accuracy};
 use super::cases::Case;
 use super::error::BenchError;
-use super::methods::{Method, Timer, reference_method};
+use super::methods::{Method, MethodShadows, Timer, reference_method};
 use crate::cave::Head;
 use crate::config::Config;
 use crate::render::frame_timer::STAGES_PER_VIEW;
@@ -138,7 +138,11 @@ pub(super) fn measure(
         p.tess = m.tess;
         p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
         p.shading = m.shading;
-        p.shadows.enabled &= m.shadows;
+        match m.shadows {
+            MethodShadows::Config => {}
+            MethodShadows::Off => p.shadows.enabled = false,
+            MethodShadows::FilterEverywhere => p.shadows.pcf_range_test = false,
+        }
         p
     };
     // One warm-up frame per method (first-use costs), then round-robin so that any drift of the

@@ -18,8 +18,18 @@ pub struct Method {
     /// `None`: no sky.
     pub sky: Option<SkyMode>,
     pub shading: Shading,
-    /// Shadow maps on (as the config says) or off.
-    pub shadows: bool,
+    pub shadows: MethodShadows,
+}
+
+/// How a method draws the config's shadows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MethodShadows {
+    /// As the config says.
+    Config,
+    /// Not at all.
+    Off,
+    /// As the config says, but the 3×3 filter gathers at every point (no range test).
+    FilterEverywhere,
 }
 
 /// Parameters of each tessellation criterion the bench sweeps (a full run; `--quick` takes
@@ -61,7 +71,7 @@ pub fn methods(quick: bool, base: TessSettings) -> Vec<Method> {
             tess,
             sky,
             shading: Shading::Pbr,
-            shadows: true,
+            shadows: MethodShadows::Config,
         }
     };
     let none = TessSettings {
@@ -81,13 +91,20 @@ pub fn methods(quick: bool, base: TessSettings) -> Vec<Method> {
     // And what the shadows cost (where the config's lights cast any).
     let unshadowed = Method {
         name: "stereo + shadows off".into(),
-        shadows: false,
+        shadows: MethodShadows::Off,
+        ..m(RenderMode::Stereo, none, None)
+    };
+    // And what the filter's range test saves (where they are filtered).
+    let filtered = Method {
+        name: "stereo + shadow range test off".into(),
+        shadows: MethodShadows::FilterEverywhere,
         ..m(RenderMode::Stereo, none, None)
     };
     let mut out = vec![
         m(RenderMode::Stereo, none, None),
         simple,
         unshadowed,
+        filtered,
         // And what triangles cost the rasteriser: stereo's picture, through the tessellator
         // with every triangle cut in four and no warp (see [`TRIANGLE_CONTROL`]).
         m(RenderMode::Stereo, with(Criterion::Uniform(1)), None),
@@ -159,14 +176,14 @@ fn parse_method(name: &str, base: TessSettings) -> Option<Method> {
         },
         sky: None,
         shading: Shading::Pbr,
-        shadows: true,
+        shadows: MethodShadows::Config,
     })
 }
 
 /// The methods' family for the chart: render mode and criterion kind (a series whose points
 /// are the criterion's parameters).
 pub fn family(m: &Method) -> String {
-    if m.shading != Shading::Pbr || !m.shadows {
+    if m.shading != Shading::Pbr || m.shadows != MethodShadows::Config {
         return m.name.clone();
     }
     match m.tess.criterion {
@@ -195,7 +212,7 @@ pub fn reference_method(base: TessSettings) -> Method {
         },
         sky: None,
         shading: Shading::Pbr,
-        shadows: true,
+        shadows: MethodShadows::Config,
     }
 }
 
@@ -238,7 +255,7 @@ mod tests {
                 .expect("the triangle control");
             assert_eq!(control.mode, RenderMode::Stereo);
             assert_eq!(control.tess.criterion, Some(Criterion::Uniform(1)));
-            assert!(control.sky.is_none() && control.shadows);
+            assert!(control.sky.is_none() && control.shadows == MethodShadows::Config);
             assert_eq!(control.shading, Shading::Pbr);
             let mut names: Vec<&str> = all.iter().map(|x| x.name.as_str()).collect();
             names.sort_unstable();

@@ -8,7 +8,7 @@ use super::accuracy::Accuracy;
 use super::chart;
 use super::error::BenchError;
 use super::measure::{Row, STAGE_COLUMNS, VISIBLE_DIFFERENCE, percentile, stage_names};
-use super::methods::{Method, family};
+use super::methods::{Method, MethodShadows, family};
 use super::options::BenchOptions;
 use crate::cave::RenderMode;
 use crate::config::Config;
@@ -79,7 +79,7 @@ pub(super) fn write_outputs(
                 && m.sky.is_none()
                 && m.tess.criterion.is_none()
                 && m.shading == Shading::Pbr
-                && m.shadows
+                && m.shadows == MethodShadows::Config
         })
         .filter(|o| o.input_triangles > 0)
     };
@@ -518,7 +518,7 @@ fn scaling_methods(s: &SceneSummary) -> [Option<&MethodSummary>; 3] {
         m.method.sky.is_none()
             && m.method.tess.criterion.is_none()
             && m.method.shading == Shading::Pbr
-            && m.method.shadows
+            && m.method.shadows == MethodShadows::Config
     };
     [
         s.methods

@@ -103,6 +103,7 @@ impl ConfigFile {
             map_size: s.map_size,
             normal_offset_texels: s.normal_offset_texels,
             pcf: s.pcf,
+            pcf_range_test: s.pcf_range_test,
             distance_m: s.distance_m,
         }
     }

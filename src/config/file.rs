@@ -718,7 +718,8 @@ impl Default for PlacementSection {
 #[serde(default, deny_unknown_fields)]
 pub struct ShadowsSection {
     pub enabled: bool,
-    /// Side of each shadow map, texels (memory: side² × 4 bytes × 8 layers).
+    /// Side of each shadow map, texels (memory: side² × 4 bytes × 8 layers, and side² × 4
+    /// bytes for the filter's range tiles).
     #[schemars(range(min = 64, max = 4096))]
     pub map_size: u32,
     /// Look-ups move this many map texels along the surface normal (against shadow acne;
@@ -727,6 +728,10 @@ pub struct ShadowsSection {
     pub normal_offset_texels: f32,
     /// 3×3 percentage-closer filtering: soft edges a texel or two wide.
     pub pcf: bool,
+    /// The filter reads each 4×4-texel tile's depth range first and filters only where the
+    /// point's depth lies within it: the same picture, a fraction of the look-ups (false:
+    /// always filter).
+    pub pcf_range_test: bool,
     /// Directional lights shadow this far around the CAVE, metres (a scene smaller than this
     /// is covered whole).
     #[schemars(range(min = 1.0, max = 10000.0))]
@@ -741,6 +746,7 @@ impl Default for ShadowsSection {
             map_size: d.map_size,
             normal_offset_texels: d.normal_offset_texels,
             pcf: d.pcf,
+            pcf_range_test: d.pcf_range_test,
             distance_m: d.distance_m,
         }
     }

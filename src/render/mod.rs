@@ -558,9 +558,13 @@ impl Renderer {
         let centre = frame.world_from_cave.transform_point3(glam::Vec3::ZERO);
         let bounds = self.scene.as_ref().and_then(|s| s.bounds);
         let plan = shadow_pass::plan_shadows(&lights.all(), bounds, centre, &frame.shadows);
-        self.scene_pass
-            .shadows
-            .prepare(&self.device, &self.queue, &plan, frame.shadows.map_size);
+        self.scene_pass.shadows.prepare(
+            &self.device,
+            &self.queue,
+            &plan,
+            frame.shadows.map_size,
+            frame.shadows.range_test(),
+        );
         if let Some(scene) = &self.scene {
             self.scene_pass.shadows.encode(encoder, scene);
         }
@@ -1145,6 +1149,17 @@ impl Renderer {
         let (left, right) = (left.clone(), right.clone());
         self.present
             .compose_to_image(&self.device, &self.queue, &left, &right, params)
+    }
+
+    /// The shadow maps' first `layers` layers and their range tiles as last drawn (blocking;
+    /// tests).
+    pub fn read_shadow_maps(
+        &self,
+        layers: usize,
+    ) -> Result<shadow_pass::ShadowMapsRead, RenderError> {
+        self.scene_pass
+            .shadows
+            .read_maps(&self.device, &self.queue, layers)
     }
 
     /// Reads every wall's left and right image back to the CPU (headless output and tests).

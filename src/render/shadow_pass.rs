@@ -1,11 +1,12 @@
 //! Shadow maps (shaders/shadow.wgsl): which layers each shadow-casting light gets and where they
-//! look from, the depth texture array they are drawn into, and drawing them again only when
-//! a light, the scene or the shadowed region changes.
+//! look from, the depth texture array they are drawn into with each tile's depth range, and
+//! drawing them again only when a light, the scene or the shadowed region changes.
 
 use bytemuck::{Pod, Zeroable};
 use glam::camera::rh::{proj, view};
 use glam::{Mat4, Vec3};
 
+use super::error::RenderError;
 use super::scene_pass::{GpuVertex, SceneGpu};
 use super::shaders;
 use super::uniforms::UNIFORM_STRIDE;
@@ -18,6 +19,21 @@ pub const MAX_SHADOW_LAYERS: usize = 8;
 /// Depth format of the shadow maps.
 const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
+/// Side of a range tile, texels: the 3×3 filter reads the least and greatest depth it could
+/// gather from a point in the tile, and gathers only where the point's depth lies between
+/// them. Keep in sync with `SHADOW_TILE` in shaders/shadow.wgsl and shaders/scene.wgsl.
+pub const SHADOW_TILE: u32 = 4;
+
+/// Range tiles per side of a map of `map_size` texels.
+pub fn range_tiles(map_size: u32) -> u32 {
+    map_size.div_ceil(SHADOW_TILE)
+}
+
+/// The tiles' depth ranges for every layer: `range_tiles² × MAX_SHADOW_LAYERS` pairs of f32.
+fn ranges_size(map_size: u32) -> u64 {
+    u64::from(range_tiles(map_size)).pow(2) * MAX_SHADOW_LAYERS as u64 * 8
+}
+
 /// How shadows are drawn (the config's `[shadows]`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShadowSettings {
@@ -28,8 +44,18 @@ pub struct ShadowSettings {
     pub normal_offset_texels: f32,
     /// 3×3 percentage-closer filtering (soft edges), else one comparison.
     pub pcf: bool,
+    /// The filter first reads its tile's depth range and gathers only where the point's
+    /// depth lies within it (the same picture; false: it always gathers).
+    pub pcf_range_test: bool,
     /// Directional lights shadow this far around the CAVE (metres, scene space).
     pub distance_m: f32,
+}
+
+impl ShadowSettings {
+    /// Whether the filter reads the range tiles (shadows on, filtered, range test on).
+    pub fn range_test(&self) -> bool {
+        self.enabled && self.pcf && self.pcf_range_test
+    }
 }
 
 impl Default for ShadowSettings {
@@ -39,6 +65,7 @@ impl Default for ShadowSettings {
             map_size: 1024,
             normal_offset_texels: 1.5,
             pcf: true,
+            pcf_range_test: true,
             distance_m: 25.0,
         }
     }
@@ -201,10 +228,19 @@ pub struct ShadowPass {
     pipeline: wgpu::RenderPipeline,
     layer_buffer: wgpu::Buffer,
     layer_group: wgpu::BindGroup,
+    /// Each tile's depth range per layer, written by `ranges_pipeline` after the maps are drawn.
+    ranges: wgpu::Buffer,
+    ranges_layout: wgpu::BindGroupLayout,
+    ranges_group: wgpu::BindGroup,
+    ranges_pipeline: wgpu::ComputePipeline,
     /// The layers' matrices the maps hold (`None`: to be drawn).
     drawn: Option<Vec<Mat4>>,
     /// The layers to draw at the next [`ShadowPass::encode`].
     pending: Option<Vec<Mat4>>,
+    /// `ranges` holds the drawn maps' tiles.
+    ranges_valid: bool,
+    /// The next [`ShadowPass::encode`] computes the tiles (the filter's range test is on).
+    ranges_pending: bool,
 }
 
 impl ShadowPass {
@@ -226,6 +262,16 @@ impl ShadowPass {
                     binding: 1,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
                     count: None,
                 },
             ],
@@ -309,28 +355,75 @@ impl ShadowPass {
             multiview_mask: None,
             cache: None,
         });
-        let (texture, layer_views, bind_group) = Self::maps(device, &layout, &sampler, map_size);
+        let ranges_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ShadowPass::ranges_layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let ranges_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("ShadowPass::ranges_pipeline"),
+            layout: Some(
+                &device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("ShadowPass::ranges_pipeline_layout"),
+                    bind_group_layouts: &[Some(&ranges_layout)],
+                    immediate_size: 0,
+                }),
+            ),
+            module: &module,
+            entry_point: Some("cs_ranges"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let maps = Self::maps(device, &layout, &ranges_layout, &sampler, map_size);
         Self {
             layout,
-            bind_group,
+            bind_group: maps.bind_group,
             sampler,
-            texture,
-            layer_views,
+            texture: maps.texture,
+            layer_views: maps.layer_views,
             map_size,
             pipeline,
             layer_buffer,
             layer_group,
+            ranges: maps.ranges,
+            ranges_layout,
+            ranges_group: maps.ranges_group,
+            ranges_pipeline,
             drawn: None,
             pending: None,
+            ranges_valid: false,
+            ranges_pending: false,
         }
     }
 
+    /// The maps of `map_size` texels a side, their range tiles and the bind groups of both.
     fn maps(
         device: &wgpu::Device,
         layout: &wgpu::BindGroupLayout,
+        ranges_layout: &wgpu::BindGroupLayout,
         sampler: &wgpu::Sampler,
         map_size: u32,
-    ) -> (wgpu::Texture, Vec<wgpu::TextureView>, wgpu::BindGroup) {
+    ) -> Maps {
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("ShadowPass::maps"),
             size: wgpu::Extent3d {
@@ -342,7 +435,10 @@ impl ShadowPass {
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: SHADOW_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            // COPY_SRC: the tests read the maps back.
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
         let layer_views = (0..MAX_SHADOW_LAYERS as u32)
@@ -361,6 +457,12 @@ impl ShadowPass {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
         });
+        let ranges = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ShadowPass::ranges"),
+            size: ranges_size(map_size),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ShadowPass::bind_group"),
             layout,
@@ -373,9 +475,33 @@ impl ShadowPass {
                     binding: 1,
                     resource: wgpu::BindingResource::Sampler(sampler),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: ranges.as_entire_binding(),
+                },
             ],
         });
-        (texture, layer_views, bind_group)
+        let ranges_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ShadowPass::ranges_group"),
+            layout: ranges_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&array_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: ranges.as_entire_binding(),
+                },
+            ],
+        });
+        Maps {
+            texture,
+            layer_views,
+            bind_group,
+            ranges,
+            ranges_group,
+        }
     }
 
     /// The layout of group 3 of the scene pipelines.
@@ -399,20 +525,30 @@ impl ShadowPass {
     }
 
     /// Asks for the layers of `plan` (a frame's shadows): drawn at the next
-    /// [`ShadowPass::encode`] unless the maps already hold them. A new map size recreates the
-    /// maps (a settings change, never per frame).
+    /// [`ShadowPass::encode`] unless the maps already hold them, and their range tiles when
+    /// `ranges` (the filter's range test is on) unless they hold those too. A new map size
+    /// recreates the maps (a settings change, never per frame).
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         plan: &[Option<LightShadow>],
         map_size: u32,
+        ranges: bool,
     ) {
         if map_size != self.map_size {
-            let (texture, views, group) = Self::maps(device, &self.layout, &self.sampler, map_size);
-            self.texture = texture;
-            self.layer_views = views;
-            self.bind_group = group;
+            let maps = Self::maps(
+                device,
+                &self.layout,
+                &self.ranges_layout,
+                &self.sampler,
+                map_size,
+            );
+            self.texture = maps.texture;
+            self.layer_views = maps.layer_views;
+            self.bind_group = maps.bind_group;
+            self.ranges = maps.ranges;
+            self.ranges_group = maps.ranges_group;
             self.map_size = map_size;
             self.drawn = None;
         }
@@ -423,8 +559,11 @@ impl ShadowPass {
             .collect();
         if self.drawn.as_ref() == Some(&layers) || layers.is_empty() {
             self.pending = None;
+            self.ranges_pending = ranges && !self.ranges_valid && !layers.is_empty();
             return;
         }
+        self.ranges_valid = false;
+        self.ranges_pending = ranges;
         let mut bytes = vec![0u8; UNIFORM_STRIDE as usize * MAX_SHADOW_LAYERS];
         for (i, m) in layers.iter().enumerate().take(MAX_SHADOW_LAYERS) {
             let u = ShadowLayerUniforms {
@@ -441,9 +580,17 @@ impl ShadowPass {
     /// Draws the pending layers: the scene's opaque and masked triangles (blended ones cast
     /// no shadow), depth only.
     pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, scene: &SceneGpu) {
-        let Some(layers) = self.pending.take() else {
-            return;
-        };
+        if let Some(layers) = self.pending.take() {
+            self.draw_layers(encoder, scene, &layers);
+            self.drawn = Some(layers);
+        }
+        if std::mem::take(&mut self.ranges_pending) {
+            self.encode_ranges(encoder);
+        }
+    }
+
+    /// The maps of `layers`, depth only.
+    fn draw_layers(&self, encoder: &mut wgpu::CommandEncoder, scene: &SceneGpu, layers: &[Mat4]) {
         for (i, view) in self.layer_views.iter().enumerate().take(layers.len()) {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("ShadowPass::layer pass"),
@@ -464,6 +611,207 @@ impl ShadowPass {
             pass.set_bind_group(0, &self.layer_group, &[(i as u64 * UNIFORM_STRIDE) as u32]);
             scene.draw_casters(&mut pass);
         }
-        self.drawn = Some(layers);
+    }
+
+    /// The drawn layers' range tiles, for the filter's shortcut.
+    fn encode_ranges(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        let layers = self
+            .drawn
+            .as_ref()
+            .map_or(0, Vec::len)
+            .min(MAX_SHADOW_LAYERS) as u32;
+        if layers == 0 {
+            return;
+        }
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("ShadowPass::ranges pass"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.ranges_pipeline);
+        pass.set_bind_group(0, &self.ranges_group, &[]);
+        let groups = range_tiles(self.map_size).div_ceil(8);
+        pass.dispatch_workgroups(groups, groups, layers);
+        drop(pass);
+        self.ranges_valid = true;
+    }
+
+    /// The first `layers` layers of the maps (row by row) and their range tiles, as the GPU
+    /// holds them (blocking; for tests, never in the render path).
+    pub fn read_maps(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        layers: usize,
+    ) -> Result<ShadowMapsRead, RenderError> {
+        let layers = layers.min(MAX_SHADOW_LAYERS);
+        let size = self.map_size;
+        let padded = (size * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ShadowPass::read_maps"),
+            size: u64::from(padded) * u64::from(size) * layers.max(1) as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("ShadowPass::read_maps"),
+        });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::DepthOnly,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(size),
+                },
+            },
+            wgpu::Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: layers as u32,
+            },
+        );
+        queue.submit([encoder.finish()]);
+        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let data = staging
+            .get_mapped_range(..)
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let depths = (0..layers)
+            .map(|layer| {
+                let image = layer * padded as usize * size as usize;
+                (0..size as usize)
+                    .flat_map(|row| {
+                        let at = image + row * padded as usize;
+                        data[at..at + size as usize * 4]
+                            .chunks_exact(4)
+                            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    })
+                    .collect()
+            })
+            .collect();
+        drop(data);
+        staging.unmap();
+        let tiles = range_tiles(size) as usize;
+        let bytes = super::targets::read_buffer(
+            device,
+            queue,
+            &self.ranges,
+            (tiles * tiles * layers * 8) as u64,
+            "ShadowPass::read_ranges",
+        )?;
+        let ranges = bytes
+            .chunks_exact(8)
+            .take(tiles * tiles * layers)
+            .map(|b| {
+                [
+                    f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                    f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+                ]
+            })
+            .collect::<Vec<_>>()
+            .chunks(tiles * tiles)
+            .map(<[[f32; 2]]>::to_vec)
+            .collect();
+        Ok(ShadowMapsRead {
+            map_size: size,
+            depths,
+            ranges,
+        })
+    }
+}
+
+/// Shadow maps read back: per layer, the depths (row by row) and the range tiles.
+#[derive(Debug, Clone)]
+pub struct ShadowMapsRead {
+    pub map_size: u32,
+    pub depths: Vec<Vec<f32>>,
+    pub ranges: Vec<Vec<[f32; 2]>>,
+}
+
+/// CPU twin of `cs_ranges` (shaders/shadow.wgsl): one layer's range tiles from its depths
+/// (`map_size²`, row by row). Each tile holds the least and greatest depth of its texels and
+/// one more row and column before them and two after, clamped to the map: all a 3×3 filter
+/// gathers from a corner in the tile.
+pub fn tile_ranges(depths: &[f32], map_size: u32) -> Vec<[f32; 2]> {
+    let tiles = range_tiles(map_size);
+    let last = map_size.saturating_sub(1) as i64;
+    let mut out = Vec::with_capacity((tiles * tiles) as usize);
+    for ty in 0..tiles {
+        for tx in 0..tiles {
+            let first = [i64::from(tx * SHADOW_TILE), i64::from(ty * SHADOW_TILE)];
+            let mut range = [f32::MAX, f32::MIN];
+            for y in (first[1] - 1).max(0)..=(first[1] + i64::from(SHADOW_TILE) + 1).min(last) {
+                for x in (first[0] - 1).max(0)..=(first[0] + i64::from(SHADOW_TILE) + 1).min(last) {
+                    let d = depths
+                        .get((y * (last + 1) + x) as usize)
+                        .copied()
+                        .unwrap_or(1.0);
+                    range = [range[0].min(d), range[1].max(d)];
+                }
+            }
+            out.push(range);
+        }
+    }
+    out
+}
+
+/// What [`ShadowPass::maps`] creates for one map size.
+struct Maps {
+    texture: wgpu::Texture,
+    layer_views: Vec<wgpu::TextureView>,
+    bind_group: wgpu::BindGroup,
+    ranges: wgpu::Buffer,
+    ranges_group: wgpu::BindGroup,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `pcf_3x3` (shaders/scene.wgsl) takes the tile of its corner, clamped to the map; every
+    /// texel its four gathers read (corner − 1 ..= corner + 2 on each axis, clamped as the
+    /// sampler clamps) must lie in that tile's window as `cs_ranges` and [`tile_ranges`] take it.
+    #[test]
+    fn every_texel_the_filter_gathers_lies_in_its_tiles_window() {
+        for size in [64u32, 100, 203, 1024] {
+            let last = i64::from(size) - 1;
+            // Every corner the filter can have: uv in [0, 1] gives st in [-0.5, size - 0.5].
+            for corner in -1..=last {
+                let tile = corner.clamp(0, last) / i64::from(SHADOW_TILE);
+                let first = tile * i64::from(SHADOW_TILE);
+                let window = (
+                    (first - 1).max(0),
+                    (first + i64::from(SHADOW_TILE) + 1).min(last),
+                );
+                for texel in corner - 1..=corner + 2 {
+                    let read = texel.clamp(0, last);
+                    assert!(
+                        (window.0..=window.1).contains(&read),
+                        "size {size}, corner {corner}: texel {read} outside {window:?}"
+                    );
+                }
+                assert!(tile < i64::from(range_tiles(size)));
+            }
+        }
+    }
+
+    #[test]
+    fn tile_ranges_take_the_least_and_greatest_depth_of_the_window() {
+        // An 8×8 map, depth = x + 10 y (distinct everywhere): tile (1, 0) covers x 3..=7,
+        // y 0..=5 (one before, two after, clamped at 7).
+        let depths: Vec<f32> = (0..64).map(|i| (i % 8 + 10 * (i / 8)) as f32).collect();
+        let ranges = tile_ranges(&depths, 8);
+        assert_eq!(ranges.len(), 4);
+        assert_eq!(ranges[1], [3.0, 57.0]);
+        assert_eq!(ranges[0], [0.0, 55.0]);
+        assert_eq!(ranges[3], [33.0, 77.0]);
     }
 }

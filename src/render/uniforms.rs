@@ -82,7 +82,10 @@ pub struct FrameUniforms {
     pub light_count: u32,
     /// 0 physically based, 1 simple.
     pub shading: u32,
-    pub frame_pad: [u32; 2],
+    /// Shadow-map range tiles per side ([`super::shadow_pass::range_tiles`]); 0: the 3×3
+    /// filter always gathers.
+    pub shadow_tiles: u32,
+    pub frame_pad: u32,
     /// x: normal offset of look-ups, texels; y: 1 for 3×3 filtering; z: 1 / map size; w: 1
     /// when shadows are on.
     pub shadow_params: [f32; 4],
@@ -201,7 +204,13 @@ impl FrameUniforms {
                 Shading::Pbr => 0,
                 Shading::Simple => 1,
             },
-            frame_pad: [0; 2],
+            shadow_tiles: match shadows {
+                Some(f) if f.settings.range_test() => {
+                    super::shadow_pass::range_tiles(f.settings.map_size)
+                }
+                _ => 0,
+            },
+            frame_pad: 0,
             shadow_params: match shadows {
                 Some(f) if f.settings.enabled => [
                     f.settings.normal_offset_texels,
