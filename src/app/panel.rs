@@ -320,7 +320,10 @@ fn render_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             shadows.enabled && shadows.pcf,
             egui::Checkbox::new(&mut shadows.pcf_range_test, "range test"),
         )
-        .on_hover_text("filter only where the shadow map's depths around the point differ");
+        .on_hover_text(
+            "filter only where the point's depth lies within its shadow-map tile's depth range \
+             (the same picture, faster)",
+        );
     });
     ui.add_enabled_ui(shadows.enabled, |ui| {
         let range = model_range(SHADOW_OFFSET);

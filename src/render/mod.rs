@@ -585,6 +585,21 @@ impl Renderer {
 
     /// Renders every view of the frame and submits the work (no CPU read-back).
     pub fn render(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
+        let result = self.render_walls(frame);
+        self.forget_unsubmitted(result)
+    }
+
+    /// A frame that failed dropped its encoder: the shadow maps it drew (and their range
+    /// tiles) never reached the GPU, so they are drawn again at the next frame.
+    fn forget_unsubmitted<T>(&mut self, result: Result<T, RenderError>) -> Result<T, RenderError> {
+        if result.is_err() {
+            self.scene_pass.shadows.invalidate();
+        }
+        result
+    }
+
+    /// [`Renderer::render`]'s frame.
+    fn render_walls(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
         self.sync_walls(frame.cave);
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
@@ -878,6 +893,16 @@ impl Renderer {
     /// omnistereo settings) into the panorama's own eye targets and submits the work (no CPU
     /// read-back). Independent of the walls: call it after `render` in the same frame.
     pub fn render_panorama(
+        &mut self,
+        frame: &FrameParams<'_>,
+        pano: &PanoSettings,
+    ) -> Result<(), RenderError> {
+        let result = self.render_panorama_frame(frame, pano);
+        self.forget_unsubmitted(result)
+    }
+
+    /// [`Renderer::render_panorama`]'s frame.
+    fn render_panorama_frame(
         &mut self,
         frame: &FrameParams<'_>,
         pano: &PanoSettings,

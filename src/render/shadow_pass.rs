@@ -522,6 +522,7 @@ impl ShadowPass {
     /// The maps must be drawn again (a new scene).
     pub fn invalidate(&mut self) {
         self.drawn = None;
+        self.ranges_valid = false;
     }
 
     /// Asks for the layers of `plan` (a frame's shadows): drawn at the next
@@ -551,6 +552,7 @@ impl ShadowPass {
             self.ranges_group = maps.ranges_group;
             self.map_size = map_size;
             self.drawn = None;
+            self.ranges_valid = false;
         }
         let layers: Vec<Mat4> = plan
             .iter()
@@ -635,20 +637,20 @@ impl ShadowPass {
         self.ranges_valid = true;
     }
 
-    /// The first `layers` layers of the maps (row by row) and their range tiles, as the GPU
-    /// holds them (blocking; for tests, never in the render path).
+    /// The first `layers` layers of the maps (row by row; at least one) and their range tiles,
+    /// as the GPU holds them (blocking; for tests, never in the render path).
     pub fn read_maps(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         layers: usize,
     ) -> Result<ShadowMapsRead, RenderError> {
-        let layers = layers.min(MAX_SHADOW_LAYERS);
+        let layers = layers.clamp(1, MAX_SHADOW_LAYERS);
         let size = self.map_size;
         let padded = (size * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ShadowPass::read_maps"),
-            size: u64::from(padded) * u64::from(size) * layers.max(1) as u64,
+            size: u64::from(padded) * u64::from(size) * layers as u64,
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
