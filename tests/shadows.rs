@@ -289,6 +289,19 @@ fn the_filters_range_test_leaves_the_picture_as_it_was() {
     }
 }
 
+/// A mono frame from `HEAD` under `lighting`, the default shadows.
+fn mono_frame(cave: &omnicave::cave::Cave, lighting: Lighting) -> FrameParams<'_> {
+    let mut frame = test_frame(
+        cave,
+        Head::at(HEAD),
+        RenderMode::Mono,
+        OmniSettings::default(),
+        TessSettings::default(),
+    );
+    frame.lighting = lighting;
+    frame
+}
+
 #[test]
 fn the_range_tiles_hold_every_depth_the_filter_can_read() {
     // The point light's six layers and the sun's one, read back after a frame: the GPU's
@@ -299,14 +312,7 @@ fn the_range_tiles_hold_every_depth_the_filter_can_read() {
         let cave = cave_at(160, 140);
         let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
         renderer.set_scene(&scene()).expect("scene upload");
-        let mut frame = test_frame(
-            &cave,
-            Head::at(HEAD),
-            RenderMode::Mono,
-            OmniSettings::default(),
-            TessSettings::default(),
-        );
-        frame.lighting = lighting(point);
+        let mut frame = mono_frame(&cave, lighting(point));
         // 203 texels: rows padded to 1024 bytes in the copy, and a last tile of 3 texels.
         frame.shadows = ShadowSettings {
             map_size: 203,
@@ -342,14 +348,7 @@ fn the_range_tiles_follow_the_settings_and_the_map_size() {
     let cave = cave_at(160, 140);
     let front = cave.wall_index("front").unwrap();
     let picture = |renderer: &mut Renderer, shadows: ShadowSettings| {
-        let mut frame = test_frame(
-            &cave,
-            Head::at(HEAD),
-            RenderMode::Mono,
-            OmniSettings::default(),
-            TessSettings::default(),
-        );
-        frame.lighting = lighting(true);
+        let mut frame = mono_frame(&cave, lighting(true));
         frame.shadows = shadows;
         renderer.render(&frame).expect("render");
         renderer.read_images().expect("read back")[front]

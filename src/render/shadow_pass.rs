@@ -9,6 +9,7 @@ use glam::{Mat4, Vec3};
 use super::error::RenderError;
 use super::scene_pass::{GpuVertex, SceneGpu};
 use super::shaders;
+use super::tessellator::storage_entry;
 use super::uniforms::UNIFORM_STRIDE;
 use crate::scene::{Light, LightKind};
 
@@ -27,6 +28,20 @@ pub const SHADOW_TILE: u32 = 4;
 /// Range tiles per side of a map of `map_size` texels.
 pub fn range_tiles(map_size: u32) -> u32 {
     map_size.div_ceil(SHADOW_TILE)
+}
+
+/// A layout entry for the maps as a depth texture array.
+fn maps_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Depth,
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
+        },
+        count: None,
+    }
 }
 
 /// The tiles' depth ranges for every layer: `range_tiles² × MAX_SHADOW_LAYERS` pairs of f32.
@@ -248,32 +263,14 @@ impl ShadowPass {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("ShadowPass::layout"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                maps_entry(0, wgpu::ShaderStages::FRAGMENT),
                 wgpu::BindGroupLayoutEntry {
                     binding: 1,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_entry(2, true, wgpu::ShaderStages::FRAGMENT),
             ],
         });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
@@ -358,26 +355,8 @@ impl ShadowPass {
         let ranges_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("ShadowPass::ranges_layout"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                maps_entry(1, wgpu::ShaderStages::COMPUTE),
+                storage_entry(2, false, wgpu::ShaderStages::COMPUTE),
             ],
         });
         let ranges_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -679,13 +658,7 @@ impl ShadowPass {
             },
         );
         queue.submit([encoder.finish()]);
-        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
-        let data = staging
-            .get_mapped_range(..)
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let data = super::targets::read_staging(device, &staging)?;
         let depths = (0..layers)
             .map(|layer| {
                 let image = layer * padded as usize * size as usize;
@@ -699,8 +672,6 @@ impl ShadowPass {
                     .collect()
             })
             .collect();
-        drop(data);
-        staging.unmap();
         let tiles = range_tiles(size) as usize;
         let bytes = super::targets::read_buffer(
             device,

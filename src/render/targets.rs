@@ -105,6 +105,12 @@ pub fn read_buffer(
         device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
     encoder.copy_buffer_to_buffer(source, 0, &staging, 0, size);
     queue.submit([encoder.finish()]);
+    read_staging(device, &staging)
+}
+
+/// Waits for the work submitted so far and copies a `MAP_READ` staging buffer's whole
+/// contents to the CPU (blocking; for the headless CLI and tests).
+pub fn read_staging(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
     staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
     device
         .poll(wgpu::PollType::wait_indefinitely())

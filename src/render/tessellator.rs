@@ -238,7 +238,8 @@ pub struct TessBuffers {
     needy_staging: Vec<[u32; 2]>,
 }
 
-fn storage_entry(
+/// A layout entry for a storage buffer.
+pub(super) fn storage_entry(
     binding: u32,
     read_only: bool,
     visibility: wgpu::ShaderStages,
