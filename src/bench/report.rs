@@ -855,9 +855,9 @@ mod tests {
                 summary("stereo + shadows off", 90.0, 0.9, 9.0, 12.0),
                 summary("omni-offaxis", 101.0, 1.01, 1.0, 50.0),
                 // Not exact: too large a maximum, however cheap.
-                summary("omni-offaxis + tess error:4", 105.0, 1.05, 0.3, 1.6),
+                summary("omni-offaxis + tess error:8", 105.0, 1.05, 0.3, 1.6),
                 // Exact, faster by median time but dearer by the paired ratio.
-                summary("omni-offaxis + tess sphere:64", 120.0, 1.25, 0.2, 0.9),
+                summary("omni-offaxis + tess sphere:128", 120.0, 1.25, 0.2, 0.9),
                 summary("omni-offaxis + tess edge:64", 125.0, 1.20, 0.1, 0.5),
             ],
         };
