@@ -1,10 +1,11 @@
 // Adaptive tessellation before the warp, in compute: conforming edge bisection.
 // Paired with src/render/tessellator.rs; the CPU twin is src/tess/ (keep the three in step).
 //
-// Per view: cs_init culls source triangles and seeds the live list; each round cs_prepare sizes
-// the next indirect dispatch and cs_split splits every live triangle's edges by the criterion,
-// SPLIT_LEVELS levels deep (what is left to split to the other live list, finished triangles
-// and those at the maximum depth to the output, so the last round leaves nothing); cs_prefix and
+// Per view: cs_init culls source triangles and splits each one it keeps SPLIT_LEVELS levels
+// deep; beyond that depth, each round cs_prepare sizes the next indirect dispatch and cs_split
+// splits every live triangle's edges by the criterion, SPLIT_LEVELS levels deep (what is left
+// to split to the other live list, finished triangles and those at the maximum depth to the
+// output, so the last round leaves nothing); cs_prefix and
 // cs_scatter sort the output by draw (material) and write one indirect draw per draw. No CPU read-back anywhere.
 
 // Keep in sync with `TessUniforms` in src/render/tessellator.rs (tests/gpu_layout.rs checks).
@@ -41,7 +42,8 @@ struct TessUniforms {
     cluster_mode: u32,
     needy_offset: u32,
     needy_count: u32,
-    cluster_pad: u32,
+    // Source triangles cs_init may keep: splits leave an output slot for each of them.
+    root_bound: u32,
 }
 
 const WORKGROUP: u32 = 64u;
@@ -51,10 +53,11 @@ const C_OUT: u32 = 0u;
 const C_BACK: u32 = 1u;
 const C_FRUSTUM: u32 = 2u;
 const C_OVERFLOW: u32 = 3u;
-// Triangles in flight (finished + live): a split happens only if all of them still fit the
-// output, so running out of budget means "less refined", never "missing" (though a triangle
-// left unrefined next to a refined neighbour can show a T-junction: conformity holds only
-// within the budget).
+// Triangles added by splits: a split happens only if they and every source triangle cs_init
+// may keep (tess.root_bound, reserved up front since cs_init splits before all are kept) still
+// fit the output, so running out of budget means "less refined", never "missing" (though a
+// triangle left unrefined next to a refined neighbour can show a T-junction: conformity holds
+// only within the budget).
 const C_BUDGET: u32 = 4u;
 const C_DRAWS: u32 = 5u; // per-draw counts from here
 
@@ -364,23 +367,14 @@ fn cs_init(
             return;
         }
     }
-    if atomicAdd(&counters[C_BUDGET], 1u) >= tess.output_capacity {
-        // Not even the unrefined scene fits the output: this triangle is not drawn.
-        atomicStore(&counters[C_OVERFLOW], 1u);
-        return;
-    }
     let e = make_entry(t, 0u, v0, v1, v2);
     if tess.criterion == 0u || tess.rounds == 0u {
         emit(e);
         return;
     }
-    let slot = atomicAdd(&count_out, 1u);
-    if slot < tess.live_capacity {
-        live_out[slot] = e;
-    } else {
-        atomicStore(&counters[C_OVERFLOW], 1u);
-        emit(e);
-    }
+    // Split here, SPLIT_LEVELS levels deep, rather than in a dispatch of its own: what is
+    // left goes to the live list (list A) for the split dispatches beyond that depth.
+    split_tree(e);
 }
 
 // One thread: size the split dispatch (args 0..3) from the live count, and reset the next
@@ -395,11 +389,13 @@ fn cs_prepare() {
     atomicStore(&count_out, 0u);
 }
 
-// Levels one cs_split invocation splits: its triangle's children are tested and split again in
-// the same invocation, down to this many levels, so `rounds` levels take
-// ceil(rounds / SPLIT_LEVELS) split dispatches (each dispatch and its preparation cost a fixed
-// time, about 50 µs on a software rasteriser). Keep in sync with src/render/tessellator.rs.
-const SPLIT_LEVELS: u32 = 5u;
+// Levels one invocation splits (cs_init for each source triangle it keeps, then cs_split for
+// each live triangle): its triangle's children are tested and split again in the same
+// invocation, down to this many levels, so `rounds` levels take cs_init and then
+// ceil(rounds / SPLIT_LEVELS) - 1 split dispatches: none at the default depth of 10 (each
+// dispatch and its preparation cost a fixed time, about 50 µs on a software rasteriser).
+// Keep in sync with src/render/tessellator.rs.
+const SPLIT_LEVELS: u32 = 10u;
 // Depth-first, each triangle popped pushes at most 4: 3 more entries per level.
 const SPLIT_STACK: u32 = 3u * SPLIT_LEVELS + 1u;
 
@@ -459,7 +455,8 @@ fn split_once(e: TessEntry) -> u32 {
         }
     }
     let extra = count - 1u;
-    if atomicAdd(&counters[C_BUDGET], extra) + extra > tess.output_capacity {
+    let room = tess.output_capacity - min(tess.root_bound, tess.output_capacity);
+    if atomicAdd(&counters[C_BUDGET], extra) + extra > room {
         // Budget: draw this triangle unrefined and report it.
         atomicSub(&counters[C_BUDGET], extra);
         atomicStore(&counters[C_OVERFLOW], 1u);
@@ -487,7 +484,12 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= n {
         return;
     }
-    let root = live_in[id.x];
+    split_tree(live_in[id.x]);
+}
+
+// Splits `root` and its descendants SPLIT_LEVELS levels down: finished triangles and those at
+// the maximum depth to the output, the rest to the live list for the next split dispatch.
+fn split_tree(root: TessEntry) {
     // Depth first over the triangle's descendants, SPLIT_LEVELS levels down.
     var stack: array<TessEntry, SPLIT_STACK>;
     var level: array<u32, SPLIT_STACK>;

@@ -186,7 +186,7 @@ fn cases() -> Vec<(shaders::Feature, &'static str, RustLayout)> {
                 "cluster_mode" => cluster_mode,
                 "needy_offset" => needy_offset,
                 "needy_count" => needy_count,
-                "cluster_pad" => cluster_pad,
+                "root_bound" => root_bound,
             ),
         ),
         (

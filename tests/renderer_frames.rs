@@ -129,7 +129,7 @@ fn the_readback_ring_returns_each_frames_time_and_tessellation_counts_without_wa
                 + b.stage_ms(ViewStage::TessSort);
             // Writing a timestamp itself takes microseconds, so an empty stage is not 0: a
             // plain frame's three tessellation stages per view stay within 5 % of its time
-            // (measured here: 0.8 %), a tessellated frame's, with their 7 dispatches or more
+            // (measured here: 0.8 %), a tessellated frame's, with their 3 dispatches or more
             // per view, well above (measured: 15-25 % with 25 dispatches a view).
             if tessellated {
                 assert!(tess_ms > 0.05 * b.total_ms, "frame {expected_frame}: {b:?}");

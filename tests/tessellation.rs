@@ -106,17 +106,20 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
     let mut cave = cave_at(640, 360);
     cave.walls.truncate(2); // left and front walls
     let head = Vec3::new(-0.4, 1.5, 0.3);
-    let scene = box_room();
-    // (criterion, max depth): uniform:3 capped at depth 2 and uniform:7 capped at depth 6 reach
-    // the maximum depth inside the first and the second split dispatch (SPLIT_LEVELS = 5),
-    // where the split that reaches it emits the triangle.
-    for (criterion, max_depth) in [
-        (Criterion::Uniform(3), 6),
-        (Criterion::Uniform(3), 2),
-        (Criterion::Uniform(7), 6),
-        (Criterion::Edge(40.0), 6),
-        (Criterion::Sphere(60.0), 6),
-        (Criterion::Error(1.0), 6),
+    let room = box_room();
+    let city = city();
+    // (criterion, max depth, scene): uniform:3 capped at depth 2 reaches the maximum depth
+    // inside the culling dispatch, which splits SPLIT_LEVELS = 10 levels itself and emits the
+    // triangles that reach it; on the city at depth 14, error:1 splits the ground near the
+    // viewer beyond 10 levels, in a split dispatch of its own (asserted below).
+    for (criterion, max_depth, scene) in [
+        (Criterion::Uniform(3), 6, &room),
+        (Criterion::Uniform(3), 2, &room),
+        (Criterion::Uniform(5), 6, &room),
+        (Criterion::Edge(40.0), 6, &room),
+        (Criterion::Sphere(60.0), 6, &room),
+        (Criterion::Error(1.0), 6, &room),
+        (Criterion::Error(1.0), 14, &city),
     ] {
         let tess = TessSettings {
             max_depth,
@@ -126,11 +129,11 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
             &cave,
             Head::at(head),
             RenderMode::OmniOnAxis,
-            &scene,
+            scene,
             tess,
             None,
         );
-        let cpu = cpu_views(&cave, head, RenderMode::OmniOnAxis, &scene, &tess);
+        let cpu = cpu_views(&cave, head, RenderMode::OmniOnAxis, scene, &tess);
         let (_, last) = cpu.last().unwrap();
         let mut gpu: Vec<TessTriangle> = entries
             .iter()
@@ -167,10 +170,17 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
             "{criterion}: triangle counts differ"
         );
         assert!(gpu == expected, "{criterion}: GPU and CPU triangles differ");
-        assert!(
-            gpu.len() > 2 * scene.triangle_count(),
-            "{criterion}: nothing was split"
-        );
+        // More output triangles than the source triangles they come from: something split.
+        let sources: std::collections::HashSet<u32> = gpu.iter().map(|t| t.source).collect();
+        assert!(gpu.len() > sources.len(), "{criterion}: nothing was split");
+        if max_depth > omnicave::render::tessellator::SPLIT_LEVELS {
+            // The split dispatches after the culling dispatch's own levels did run.
+            let deepest = entries.iter().map(|e| e.depth).max().unwrap_or(0);
+            assert!(
+                deepest > omnicave::render::tessellator::SPLIT_LEVELS,
+                "{criterion} depth {max_depth}: deepest output triangle at depth {deepest}"
+            );
+        }
         // Every view's statistics add up.
         for s in &stats {
             assert!(s.culled_backface + s.culled_frustum <= s.input);

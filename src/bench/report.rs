@@ -781,9 +781,11 @@ fn write_stage_table(md: &mut String, s: &SceneSummary) {
         md,
         "\nWhere the time goes ({}; GPU timestamps between stages, ms per frame summed over \
          the views, median over the cases; `resolve` is the end of each view's render pass, \
-         MSAA resolve and stores; `refined` counts the source triangles that entered the \
-         tessellator, all views):\n\n| method | total | {} | dispatches | refined | drawn triangles |\n|---|---:|{}---:|---:|---:|",
+         MSAA resolve and stores; `tess cull` is the culling dispatch, which also splits the \
+         first {} levels, `tess split` the split dispatches beyond them; `refined` counts the \
+         source triangles that entered the tessellator, all views):\n\n| method | total | {} | dispatches | refined | drawn triangles |\n|---|---:|{}---:|---:|---:|",
         s.scene,
+        crate::render::tessellator::SPLIT_LEVELS,
         names.join(" | "),
         "---:|".repeat(names.len())
     );

@@ -146,7 +146,7 @@ pub struct Renderer {
     /// Per view of the walls: the clusters drawn directly and those refined (reused).
     cluster_splits: Vec<ClusterSplit>,
     /// Per view: where its refined clusters lie in the tessellator's list (reused).
-    needy_ranges: Vec<(u32, u32)>,
+    needy_ranges: Vec<(u32, u32, u32)>,
     /// Frames rendered so far (the read-back ring tags results with it).
     frame_number: u64,
     /// Timestamps and tessellation counts of each frame, read back without waiting.
@@ -667,11 +667,12 @@ impl Renderer {
             buffers.write_uniforms(
                 &self.queue,
                 views.iter().enumerate().map(|(i, v)| {
-                    let (offset, count) = ranges.get(i).copied().unwrap_or((0, 0));
+                    let (offset, count, triangles) = ranges.get(i).copied().unwrap_or((0, 0, 0));
                     TessUniforms {
                         cluster_mode: u32::from(cluster_mode),
                         needy_offset: offset,
                         needy_count: count,
+                        root_bound: triangles,
                         ..TessUniforms::new(
                             v,
                             &frame.cave.walls[v.wall],

@@ -62,7 +62,11 @@ pub struct TessUniforms {
     pub cluster_mode: u32,
     pub needy_offset: u32,
     pub needy_count: u32,
-    pub cluster_pad: u32,
+    /// Source triangles cs_init may keep (every source triangle, or those of the view's needy
+    /// clusters): splitting, which starts in cs_init before every triangle is kept, leaves an
+    /// output slot for each of them, so an exhausted budget refines less but drops nothing.
+    /// Set by `TessBuffers::write_uniforms` outside cluster mode, by the renderer in it.
+    pub root_bound: u32,
 }
 
 impl TessUniforms {
@@ -138,21 +142,26 @@ pub fn stats_from_bytes(bytes: &[u8], input: u32, capacity: u32, out: &mut Vec<T
     }
 }
 
-/// Levels of splitting one split dispatch does (keep in sync with `SPLIT_LEVELS` in
-/// shaders/tessellate.wgsl): each invocation splits its triangle and then its children and
-/// grandchildren, so fewer dispatches cover the same depth. Measured on lavapipe (living room,
-/// `edge:64`, `bench --quick`): each dispatch and its preparation cost a fixed time whatever
-/// they hold, and one level per dispatch spent most of the tessellation stages on that.
-pub const SPLIT_LEVELS: u32 = 5;
+/// Levels of splitting one invocation does (keep in sync with `SPLIT_LEVELS` in
+/// shaders/tessellate.wgsl): the culling dispatch splits each triangle it keeps, and its
+/// children and grandchildren, this many levels deep, and each split dispatch as many again,
+/// so few dispatches cover the same depth: at the default maximum depth of 10, none beyond
+/// culling. Measured on lavapipe (living room and city, `error:32` and `edge:64`, `bench
+/// --quick`): each dispatch and its preparation cost a fixed time whatever they hold (about
+/// 50 µs), and one level per dispatch spent most of the tessellation stages on that; 10 levels
+/// per dispatch instead of 5 took the split stage from 3.4–7.8 to 2.7–5.4 ms a frame, and
+/// splitting in the culling dispatch saves one prepare and one split dispatch more per view.
+pub const SPLIT_LEVELS: u32 = 10;
 
-/// Split dispatches that reach `rounds` levels.
+/// Split dispatches that reach `rounds` levels after the culling dispatch's own.
 pub fn split_dispatches(rounds: u32) -> u32 {
-    rounds.div_ceil(SPLIT_LEVELS)
+    rounds.div_ceil(SPLIT_LEVELS).saturating_sub(1)
 }
 
-/// Compute dispatches [`TessBuffers::encode`] records for one view: culling, a prepare and a
-/// split per split dispatch, then prefix and scatter (the last split dispatch finishes every
-/// triangle at the maximum depth itself: no flush dispatch).
+/// Compute dispatches [`TessBuffers::encode`] records for one view: culling (with the first
+/// `SPLIT_LEVELS` levels of splitting), a prepare and a split per further split dispatch, then
+/// prefix and scatter (the last split finishes every triangle at the maximum depth itself: no
+/// flush dispatch).
 pub fn dispatches_per_view(rounds: u32) -> usize {
     1 + 2 * split_dispatches(rounds) as usize + 2
 }
@@ -562,6 +571,11 @@ impl TessBuffers {
         self.staging.clear();
         for u in views.take(self.uniform_capacity) {
             let u = TessUniforms {
+                root_bound: if u.cluster_mode == 0 {
+                    self.source_triangles
+                } else {
+                    u.root_bound
+                },
                 source_triangles: self.source_triangles,
                 live_capacity: self.capacity,
                 output_capacity: self.capacity,
@@ -670,12 +684,12 @@ impl TessBuffers {
 
     /// Uploads every view's clusters to refine, one after the other (one write per frame;
     /// the staging copy never grows past all clusters of all views), and returns each view's
-    /// (offset, count) for its uniforms.
+    /// (offset, clusters, source triangles in them) for its uniforms.
     pub fn write_needy<'a>(
         &mut self,
         queue: &wgpu::Queue,
         views: impl Iterator<Item = &'a [[u32; 2]]>,
-        out: &mut Vec<(u32, u32)>,
+        out: &mut Vec<(u32, u32, u32)>,
     ) {
         self.needy_staging.clear();
         out.clear();
@@ -684,7 +698,8 @@ impl TessBuffers {
             let offset = self.needy_staging.len();
             let n = list.len().min(capacity.saturating_sub(offset));
             self.needy_staging.extend_from_slice(&list[..n]);
-            out.push((offset as u32, n as u32));
+            let triangles = list[..n].iter().map(|c| c[1]).sum();
+            out.push((offset as u32, n as u32, triangles));
         }
         if !self.needy_staging.is_empty() {
             queue.write_buffer(&self.needy, 0, bytemuck::cast_slice(&self.needy_staging));

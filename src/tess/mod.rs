@@ -295,12 +295,21 @@ pub fn tessellate(
     };
     let root = [Bary::V0, Bary::V1, Bary::V2];
     let mut live: Vec<TessTriangle> = Vec::new();
-    // Triangles in flight (finished + live); splitting keeps it within `capacity`, so every
-    // triangle gets an output slot and an exhausted budget means less refinement, not missing
-    // triangles (a triangle left unrefined beside a refined neighbour can show a T-junction:
-    // conformity holds only within the budget).
-    let mut budget = 0usize;
     let verdicts = cluster_verdicts(scene, tv, settings);
+    // Triangles added by splitting; a split happens only if they and every source triangle
+    // that may be kept (reserved up front, as cs_init splits before every triangle is kept:
+    // the GPU's `root_bound`, there every source triangle outside cluster mode) fit
+    // `capacity`, so every triangle gets an output slot and an exhausted budget means less
+    // refinement, not missing triangles (a triangle left unrefined beside a refined neighbour
+    // can show a T-junction: conformity holds only within the budget).
+    let root_bound = (0..tri_count)
+        .filter(|&t| {
+            matches!(double_sided.get(t), Some(Some(_)))
+                && verdicts.get(t) == Some(&clusters::Verdict::Needy)
+        })
+        .count();
+    let room = capacity.saturating_sub(root_bound);
+    let mut added = 0usize;
     for t in 0..tri_count {
         // Triangles without a (valid) draw are never drawn (mirrors cs_init).
         let Some(&Some(double_sided_t)) = double_sided.get(t) else {
@@ -340,12 +349,6 @@ pub fn tessellate(
             out.stats.culled_frustum += 1;
             continue;
         }
-        // Every kept triangle will be drawn at least once: it takes budget now.
-        if budget >= capacity {
-            out.stats.overflowed = true;
-            continue;
-        }
-        budget += 1;
         let tri = TessTriangle {
             source: t as u32,
             corners: root,
@@ -382,13 +385,13 @@ pub fn tessellate(
             }
             let kids = children(c, split);
             let extra = kids.len() - 1;
-            if budget + extra > capacity {
+            if added + extra > room {
                 // Budget: stop refining this triangle and draw it as it is.
                 out.stats.overflowed = true;
                 emit(&mut out, tri, capacity);
                 continue;
             }
-            budget += extra;
+            added += extra;
             next.extend(kids.into_iter().map(|corners| TessTriangle {
                 source: tri.source,
                 corners,
