@@ -317,7 +317,12 @@ pub fn begin_scene_pass<'e>(
             resolve_target: resolve,
             ops: wgpu::Operations {
                 load: wgpu::LoadOp::Clear(clear),
-                store: wgpu::StoreOp::Store,
+                // The samples are cleared by every pass and read by none after its resolve.
+                store: if resolve.is_some() {
+                    wgpu::StoreOp::Discard
+                } else {
+                    wgpu::StoreOp::Store
+                },
             },
         })],
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
