@@ -747,27 +747,62 @@ fn light_visibility(k: u32, p: vec3<f32>, n: vec3<f32>) -> f32 {
     let lifted = p + n * frame.shadow_params.x * texel;
     let first = u32(light.shadow.x);
     let count = u32(light.shadow.y);
+    let h = vec4<f32>(lifted, 1.0);
+    if count == 6u && u32(light.direction.w + 0.5) == 1u {
+        // A point light's cube: only the face whose axis the direction from the light is
+        // nearest can hold the point, so one projection instead of searching up to six.
+        // That face has the largest clip w (the distance along its axis); the faces come in
+        // the order +X, -X, +Y, -Y, +Z, -Z of `plan_shadows` (src/render/shadow_pass.rs;
+        // keep in sync: its test `a_point_lights_largest_w_names_the_face_that_holds_the_point`
+        // checks this rule), so -X's w is +X's negated, and three w's decide. Each face spans
+        // a hair over 90°, so it holds every point nearest its axis. (Searching the six costs
+        // lavapipe about 5 % of the desktop preview's scene pass.)
+        let mx = frame.shadow_from_cave[first];
+        let my = frame.shadow_from_cave[first + 2u];
+        let mz = frame.shadow_from_cave[first + 4u];
+        let w = vec3<f32>(
+            dot(vec4<f32>(mx[0].w, mx[1].w, mx[2].w, mx[3].w), h),
+            dot(vec4<f32>(my[0].w, my[1].w, my[2].w, my[3].w), h),
+            dot(vec4<f32>(mz[0].w, mz[1].w, mz[2].w, mz[3].w), h),
+        );
+        let a = abs(w);
+        var face = select(0u, 1u, w.x < 0.0);
+        if a.y > a.x && a.y >= a.z {
+            face = select(2u, 3u, w.y < 0.0);
+        } else if a.z > a.x && a.z > a.y {
+            face = select(4u, 5u, w.z < 0.0);
+        }
+        let v = shadow_in_layer(first + face, frame.shadow_from_cave[first + face] * h);
+        return select(1.0, v, v >= 0.0);
+    }
     for (var i = 0u; i < count; i++) {
-        let layer = first + i;
-        let clip = frame.shadow_from_cave[layer] * vec4<f32>(lifted, 1.0);
-        if clip.w <= 0.0 {
-            continue;
+        let v = shadow_in_layer(first + i, frame.shadow_from_cave[first + i] * h);
+        if v >= 0.0 {
+            return v;
         }
-        let ndc = clip.xyz / clip.w;
-        if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 || ndc.z < 0.0 {
-            continue;
-        }
-        if ndc.z > 1.0 {
-            // Beyond the map's far plane: nothing there casts onto it.
-            return 1.0;
-        }
-        let uv = vec2<f32>(0.5 * ndc.x + 0.5, 0.5 - 0.5 * ndc.y);
-        if frame.shadow_params.y < 0.5 {
-            return textureSampleCompareLevel(shadow_maps, shadow_sampler, uv, layer, ndc.z);
-        }
-        return pcf_3x3(uv, layer, ndc.z);
     }
     return 1.0;
+}
+
+// How much light reaches a point at `clip` in shadow map `layer` (0 to 1), or -1 where the
+// point lies outside that map's frustum (another layer may hold it).
+fn shadow_in_layer(layer: u32, clip: vec4<f32>) -> f32 {
+    if clip.w <= 0.0 {
+        return -1.0;
+    }
+    let ndc = clip.xyz / clip.w;
+    if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 || ndc.z < 0.0 {
+        return -1.0;
+    }
+    if ndc.z > 1.0 {
+        // Beyond the map's far plane: nothing there casts onto it.
+        return 1.0;
+    }
+    let uv = vec2<f32>(0.5 * ndc.x + 0.5, 0.5 - 0.5 * ndc.y);
+    if frame.shadow_params.y < 0.5 {
+        return textureSampleCompareLevel(shadow_maps, shadow_sampler, uv, layer, ndc.z);
+    }
+    return pcf_3x3(uv, layer, ndc.z);
 }
 
 // The lit colour of a surface point seen from `eye`; alpha < 0 where the material's alpha

@@ -748,6 +748,83 @@ struct Maps {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::{Light, LightKind};
+
+    /// `light_visibility` (shaders/scene.wgsl) picks a point light's face from three clip
+    /// w's: it takes the faces as +X, -X, +Y, -Y, +Z, -Z, each negative face's w as its
+    /// positive one's negated, and the face with the largest w as one whose map holds the
+    /// point. Checked on the planned matrices, turned and moved as `shadow_from_cave` is.
+    #[test]
+    fn a_point_lights_largest_w_names_the_face_that_holds_the_point() {
+        let light = Light {
+            name: "lamp".into(),
+            kind: LightKind::Point,
+            position: Vec3::new(0.3, 2.1, -0.8),
+            direction: Vec3::NEG_Y,
+            color: Vec3::ONE,
+            range: Some(9.0),
+            casts_shadows: true,
+        };
+        let plan = plan_shadows(
+            std::slice::from_ref(&light),
+            Some((Vec3::splat(-5.0), Vec3::splat(5.0))),
+            Vec3::ZERO,
+            &ShadowSettings::default(),
+        );
+        let faces = &plan[0]
+            .as_ref()
+            .expect("a point light's shadow")
+            .shadow_from_world;
+        assert_eq!(faces.len(), 6);
+        let world_from_cave = Mat4::from_scale_rotation_translation(
+            Vec3::splat(1.3),
+            glam::Quat::from_rotation_y(0.52),
+            Vec3::new(0.4, 0.0, -0.7),
+        );
+        let from_cave: Vec<Mat4> = faces.iter().map(|m| *m * world_from_cave).collect();
+        let w = |face: usize, p: Vec3| from_cave[face].row(3).dot(p.extend(1.0));
+        let cave_light = world_from_cave.inverse().transform_point3(light.position);
+        let mut seed = 0x2545_f491_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32 * 2.0 - 1.0
+        };
+        for i in 0..2000 {
+            let p = cave_light + Vec3::new(next(), next(), next()) * 4.0;
+            let ws = [w(0, p), w(2, p), w(4, p)];
+            for axis in 0..3 {
+                let (pos, neg) = (w(2 * axis, p), w(2 * axis + 1, p));
+                assert!(
+                    (pos + neg).abs() <= 1e-4 * pos.abs().max(1.0),
+                    "{i}: {pos} {neg}"
+                );
+            }
+            // The shader's choice, ties as it breaks them.
+            let a = ws.map(f32::abs);
+            let face = if a[1] > a[0] && a[1] >= a[2] {
+                2 + usize::from(ws[1] < 0.0)
+            } else if a[2] > a[0] && a[2] > a[1] {
+                4 + usize::from(ws[2] < 0.0)
+            } else {
+                usize::from(ws[0] < 0.0)
+            };
+            let clip = from_cave[face] * p.extend(1.0);
+            let ndc = clip.truncate() / clip.w;
+            assert!(
+                clip.w > 0.0 && ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0,
+                "{i}: {p} in face {face} at {ndc}"
+            );
+            // And along the scene's axis that face looks down.
+            let d = world_from_cave.transform_point3(p) - light.position;
+            let sign = if face % 2 == 0 { 1.0 } else { -1.0 };
+            assert!(
+                sign * d[face / 2] >= d.abs().max_element() * 0.999,
+                "{i}: {d} face {face}"
+            );
+        }
+    }
 
     /// `pcf_3x3` (shaders/scene.wgsl) takes the tile of its corner, clamped to the map; every
     /// texel its four gathers read (corner − 1 ..= corner + 2 on each axis, clamped as the
