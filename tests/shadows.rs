@@ -25,13 +25,18 @@ const FLOOR_Y: f32 = 0.6;
 /// The cube: 0.3 m, its centre 0.6 m above the floor, 1.2 m ahead.
 const CUBE: Vec3 = Vec3::new(0.0, 1.2, -1.2);
 
-fn scene() -> Scene {
-    let mut scene = Scene::default();
-    let grey = scene.add_material(Material {
+/// The matte grey every surface of these scenes has (the CPU twin shades it alike).
+fn add_grey(scene: &mut Scene) -> usize {
+    scene.add_material(Material {
         base_color: [0.8, 0.8, 0.8, 1.0],
         roughness: 1.0,
         ..Material::default()
-    });
+    })
+}
+
+fn scene() -> Scene {
+    let mut scene = Scene::default();
+    let grey = add_grey(&mut scene);
     let floor = grid(
         Vec3::new(-2.0, FLOOR_Y, 1.0),
         Vec3::X * 4.0,
@@ -69,8 +74,13 @@ fn lighting(point: bool) -> Lighting {
 
 /// The floor at `p` as the CPU twin shades it, the light reaching it (`lit`) or not.
 fn twin(lighting: &Lighting, p: Vec3, lit: bool) -> [u8; 3] {
+    placed_twin(Mat4::IDENTITY, lighting, p, lit)
+}
+
+/// [`twin`] with the scene placed at `world_from_cave` (`p` in CAVE space).
+fn placed_twin(world_from_cave: Mat4, lighting: &Lighting, p: Vec3, lit: bool) -> [u8; 3] {
     let frame = FrameUniforms::new(
-        Mat4::IDENTITY,
+        world_from_cave,
         FrameLights {
             config: lighting,
             scene: &[],
@@ -427,11 +437,7 @@ fn a_point_lights_shadows_fall_right_through_every_face_of_its_cube() {
         })
         .collect();
     let mut scene = Scene::default();
-    let grey = scene.add_material(Material {
-        base_color: [0.8, 0.8, 0.8, 1.0],
-        roughness: 1.0,
-        ..Material::default()
-    });
+    let grey = add_grey(&mut scene);
     let floor = grid(
         Vec3::new(-4.0, 0.0, 0.0),
         Vec3::X * 8.0,
@@ -460,31 +466,7 @@ fn a_point_lights_shadows_fall_right_through_every_face_of_its_cube() {
     let image = renderer.read_images().expect("read back")[front]
         .left
         .clone();
-    let twin_frame = FrameUniforms::new(
-        world_from_cave,
-        FrameLights {
-            config: &light,
-            scene: &[],
-            shading: Shading::Pbr,
-        },
-        None,
-        None,
-        None,
-    );
-    let shade = |p: Vec3, lit: bool| {
-        let visibility = [if lit { 1.0 } else { 0.0 }; MAX_LIGHTS];
-        let surface = SurfacePoint {
-            position: p,
-            normal: Vec3::Y,
-            base_color: Vec3::splat(0.8),
-            metallic: 0.0,
-            roughness: 1.0,
-            occlusion: 1.0,
-        };
-        shade_pbr(&twin_frame, &surface, HEAD, &visibility)
-            .to_array()
-            .map(omnicave::sky::cubemap::linear_to_srgb)
-    };
+    let shade = |p: Vec3, lit: bool| placed_twin(world_from_cave, &light, p, lit);
     let shadowed = |p: Vec3| {
         boxes
             .iter()
