@@ -11,6 +11,7 @@ use common::*;
 use glam::{Mat4, Vec2, Vec3};
 use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Head, RenderMode};
+use omnicave::pano::raycast::RayCaster;
 use omnicave::pano::{PanoRoute, Projection};
 use omnicave::render::pbr::{SurfacePoint, shade_pbr};
 use omnicave::render::shadow_pass::ShadowSettings;
@@ -398,32 +399,13 @@ fn the_range_tiles_follow_the_settings_and_the_map_size() {
     }
 }
 
-/// Whether the segment from `a` to `b` passes through the axis-aligned box `centre ± half`.
-fn segment_hits_box(a: Vec3, b: Vec3, centre: Vec3, half: Vec3) -> bool {
-    let (lo, hi) = (centre - half, centre + half);
-    let d = b - a;
-    let (mut t0, mut t1) = (0.0f32, 1.0f32);
-    for k in 0..3 {
-        if d[k].abs() < 1e-9 {
-            if a[k] < lo[k] || a[k] > hi[k] {
-                return false;
-            }
-            continue;
-        }
-        let (u, v) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
-        t0 = t0.max(u.min(v));
-        t1 = t1.min(u.max(v));
-    }
-    t0 <= t1
-}
-
 #[test]
 fn a_point_lights_shadows_fall_right_through_five_faces_of_its_cube() {
     // A point light 0.5 m above a floor beyond the front wall, with boxes around it in eight
     // directions (the four side faces' axes and the diagonals between them, where two faces
     // meet and overlap) and one under it (the bottom face): every floor pixel of the front
-    // wall away from a shadow's edge is as dark or as lit as the CPU twin says the segment to
-    // the light allows. A wrongly chosen face reads as lit, so the shadowed pixels are what
+    // wall away from a shadow's edge is as dark or as lit as the CPU twin says, as the segment
+    // to the light meets the scene's triangles or not (the panorama's CPU ray caster). A wrongly chosen face reads as lit, so the shadowed pixels are what
     // check the choice. The scene is turned 30° against the CAVE and moved, so the cube map's
     // faces (the scene's axes) are not the CAVE's: the shader picks the face from the maps'
     // own matrices. (The floor lies below the light: its top face lights nothing here.)
@@ -471,10 +453,12 @@ fn a_point_lights_shadows_fall_right_through_five_faces_of_its_cube() {
         .left
         .clone();
     let shade = |p: Vec3, lit: bool| placed_twin(world_from_cave, &light, p, lit);
+    // The scene's own triangles in CAVE space, for what the light and the eye see.
+    let caster = RayCaster::new(&scene, world_from_cave.inverse());
     let shadowed = |p: Vec3| {
-        boxes
-            .iter()
-            .any(|&c| segment_hits_box(p, light_cave, c, half))
+        let to_light = light_cave - p;
+        let length = to_light.length();
+        caster.cast(p, to_light / length, 1e-4, length).is_some()
     };
     let wall = &cave.walls[front];
     let size = wall.size_m();
@@ -498,9 +482,10 @@ fn a_point_lights_shadows_fall_right_through_five_faces_of_its_cube() {
             // Within 2 m of the light (further out the light grazes the floor and the
             // slope-scaled bias decides), seen past the boxes, and 3 cm from any shadow's edge
             // (the filter and the normal offset reach a few millimetres there).
-            if from_light.length() > 2.0
-                || boxes.iter().any(|&c| segment_hits_box(HEAD, p, c, half))
-            {
+            let seen = caster
+                .cast(HEAD, dir.normalize(), 0.0, f32::MAX)
+                .is_some_and(|hit| (hit.distance - (p - HEAD).length()).abs() < 1e-3);
+            if from_light.length() > 2.0 || !seen {
                 continue;
             }
             let lit = !shadowed(p);
