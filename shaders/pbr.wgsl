@@ -138,21 +138,40 @@ fn ambient_radiance(n: vec3<f32>) -> vec3<f32> {
     return l;
 }
 
+// What light k adds at a surface point seen along unit direction `v` (towards the eye): the
+// BRDF times its radiance, shadowed only where it would add something (facing it, within its
+// range).
+fn pbr_light(k: u32, s: SurfacePoint, v: vec3<f32>, facing_normal: vec3<f32>) -> vec3<f32> {
+    let inc = light_incoming(frame.lights[k], s.position);
+    let lit = brdf_cos(s, v, inc.direction) * inc.radiance;
+    if any(lit > vec3<f32>(0.0)) {
+        return lit * light_visibility(k, s.position, facing_normal);
+    }
+    return vec3<f32>(0.0);
+}
+
 // The lit colour of a surface point seen from `eye` (emission is added by the caller). Light
 // k reaches it as far as `light_visibility(k, s.position, facing_normal)` says (shadows: 0 to
 // 1), where `facing_normal` is the interpolated unit normal on the viewer's side (not bent by
 // a normal map) that shadow look-ups lift the point along.
+//
+// The lights are summed by constant index, not in a loop over a counter: with the counter,
+// lavapipe spent 5–10 % more of the desktop preview's frame (the same picture; see the
+// README's preview figures), apparently fetching each light's uniforms pixel by pixel.
+// `light_count` is uniform, so the guards cost nothing where a light is absent. The CPU twin
+// (src/render/pbr.rs) loops: the same sum in the same order.
 fn shade_pbr(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> vec3<f32> {
     let v = normalize(eye - s.position);
+    let n = min(frame.light_count, MAX_LIGHTS);
     var color = vec3<f32>(0.0);
-    for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
-        let inc = light_incoming(frame.lights[k], s.position);
-        let lit = brdf_cos(s, v, inc.direction) * inc.radiance;
-        // Shadows only where the light would add something (facing it, within its range).
-        if any(lit > vec3<f32>(0.0)) {
-            color += lit * light_visibility(k, s.position, facing_normal);
-        }
-    }
+    if n > 0u { color += pbr_light(0u, s, v, facing_normal); }
+    if n > 1u { color += pbr_light(1u, s, v, facing_normal); }
+    if n > 2u { color += pbr_light(2u, s, v, facing_normal); }
+    if n > 3u { color += pbr_light(3u, s, v, facing_normal); }
+    if n > 4u { color += pbr_light(4u, s, v, facing_normal); }
+    if n > 5u { color += pbr_light(5u, s, v, facing_normal); }
+    if n > 6u { color += pbr_light(6u, s, v, facing_normal); }
+    if n > 7u { color += pbr_light(7u, s, v, facing_normal); }
     // Ambient light: diffuse c_diff·L(n), specular the environment BRDF times the light
     // around the mirror direction (the sky's irradiance there: exact for rough surfaces, a
     // blur of the sky for glossy ones), both occluded.
@@ -173,21 +192,48 @@ fn shade_simple(s: SurfacePoint, eye: vec3<f32>, facing_normal: vec3<f32>) -> ve
     let a = roughness * roughness;
     let shininess = clamp(2.0 / (a * a) - 2.0, 1.0, 512.0);
     let strength = 0.04 + 0.5 * (1.0 - roughness) + 0.4 * s.metallic;
-    var diffuse = ambient_radiance(s.normal);
-    var specular = vec3<f32>(0.0);
-    for (var k = 0u; k < min(frame.light_count, MAX_LIGHTS); k++) {
-        let inc = light_incoming(frame.lights[k], s.position);
-        let n_dot_l = dot(s.normal, inc.direction);
-        if n_dot_l > 0.0 && any(inc.radiance > vec3<f32>(0.0)) {
-            // Light colours carry π (a white matte surface facing a light of intensity 1 is
-            // white in the physically based model): the simple model takes it out.
-            let e = inc.radiance * INV_PI * light_visibility(k, s.position, facing_normal);
-            diffuse += n_dot_l * e;
-            let h = normalize(inc.direction + v);
-            specular += pow(max(dot(s.normal, h), 0.0), shininess) * e;
-        }
+    // By constant index, as in `shade_pbr`.
+    let n = min(frame.light_count, MAX_LIGHTS);
+    var sum: SimpleLight;
+    sum.diffuse = ambient_radiance(s.normal);
+    if n > 0u { sum = add_simple_light(sum, 0u, s, v, facing_normal, shininess); }
+    if n > 1u { sum = add_simple_light(sum, 1u, s, v, facing_normal, shininess); }
+    if n > 2u { sum = add_simple_light(sum, 2u, s, v, facing_normal, shininess); }
+    if n > 3u { sum = add_simple_light(sum, 3u, s, v, facing_normal, shininess); }
+    if n > 4u { sum = add_simple_light(sum, 4u, s, v, facing_normal, shininess); }
+    if n > 5u { sum = add_simple_light(sum, 5u, s, v, facing_normal, shininess); }
+    if n > 6u { sum = add_simple_light(sum, 6u, s, v, facing_normal, shininess); }
+    if n > 7u { sum = add_simple_light(sum, 7u, s, v, facing_normal, shininess); }
+    return s.base_color * sum.diffuse + strength * sum.specular;
+}
+
+// The simple model's diffuse and specular light, summed over the lights.
+struct SimpleLight {
+    diffuse: vec3<f32>,
+    specular: vec3<f32>,
+}
+
+// `sum` with light k's diffuse and specular added.
+fn add_simple_light(
+    sum: SimpleLight,
+    k: u32,
+    s: SurfacePoint,
+    v: vec3<f32>,
+    facing_normal: vec3<f32>,
+    shininess: f32,
+) -> SimpleLight {
+    var out = sum;
+    let inc = light_incoming(frame.lights[k], s.position);
+    let n_dot_l = dot(s.normal, inc.direction);
+    if n_dot_l > 0.0 && any(inc.radiance > vec3<f32>(0.0)) {
+        // Light colours carry π (a white matte surface facing a light of intensity 1 is
+        // white in the physically based model): the simple model takes it out.
+        let e = inc.radiance * INV_PI * light_visibility(k, s.position, facing_normal);
+        out.diffuse += n_dot_l * e;
+        let h = normalize(inc.direction + v);
+        out.specular += pow(max(dot(s.normal, h), 0.0), shininess) * e;
     }
-    return s.base_color * diffuse + strength * specular;
+    return out;
 }
 
 // The lit colour in the frame's shading model.

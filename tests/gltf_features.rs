@@ -17,7 +17,7 @@ use omnicave::cave::{Cave, Head, RenderMode};
 use omnicave::pano::{PanoRoute, PanoSettings, Projection};
 use omnicave::render::Renderer;
 use omnicave::render::pbr::{LIT, SurfacePoint, shade_pbr};
-use omnicave::render::uniforms::{FrameLights, FrameUniforms};
+use omnicave::render::uniforms::{FrameLights, FrameUniforms, MAX_LIGHTS};
 use omnicave::scene::build::{MeshData, grid, uv_sphere};
 use omnicave::scene::glb_writer::{
     AttributeEncoding, GlbWriter, LightDesc, MaterialDesc, MaterialMaps, MeshOptions, NodeDesc,
@@ -450,6 +450,45 @@ fn file_spot_light() -> PathBuf {
     write("spot-light", &w, &[floor_node, l])
 }
 
+/// A matte floor (at 0.8 m) under a row of `count` narrow spot lights from the file, 0.175 m
+/// apart along x at z = −1.3 (all in the panorama route's view), each pointing straight down
+/// from 2 m above it: light k's spot (7 cm across at full strength, 14 cm at its 2° outer
+/// cone) lies at [`spot_row_x`]`(k)`.
+fn file_spot_row(count: usize) -> PathBuf {
+    let mut w = GlbWriter::new();
+    let mat = w.add_material(&MaterialDesc::plain("floor", [0.8; 3], 1.0));
+    let floor = grid(
+        Vec3::new(-2.0, 0.8, 1.0),
+        Vec3::X * 4.0,
+        Vec3::NEG_Z * 4.0,
+        8,
+        8,
+        0.5,
+    );
+    let m = w.add_mesh("floor", &[(&floor, mat)]);
+    let mut roots = vec![w.add_node(NodeDesc::new("floor").with_mesh(m))];
+    for k in 0..count {
+        let spot = w.add_light(&LightDesc {
+            name: format!("spot {k}"),
+            kind: "spot",
+            color: [1.0, 1.0, 1.0],
+            intensity: 4.0,
+            range: None,
+            cone: Some((1f32.to_radians(), 2f32.to_radians())),
+        });
+        let mut node = NodeDesc::new(&format!("spot {k}"))
+            .with_light(spot)
+            .at(Vec3::new(spot_row_x(k), 2.8, -1.3));
+        node.rotation = glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+        roots.push(w.add_node(node));
+    }
+    write(&format!("spot-row-{count}"), &w, &roots)
+}
+
+fn spot_row_x(k: usize) -> f32 {
+    -0.5 + 0.175 * k as f32
+}
+
 // ---- the tests ----
 
 #[test]
@@ -729,6 +768,69 @@ fn a_spot_light_from_the_file_lights_its_cone_only() {
 }
 
 #[test]
+fn every_light_up_to_the_limit_lights_its_spot_and_the_one_past_it_none() {
+    // One more light than a frame holds: the shader sums the lights by constant index (see
+    // shade_pbr in shaders/pbr.wgsl), so each index must be seen to light its own spot.
+    let count = MAX_LIGHTS + 1;
+    let scene = load_gltf(&file_spot_row(count)).unwrap();
+    assert_eq!(scene.lights.len(), count);
+    let cave = cave();
+    let front = cave.wall_index("front").unwrap();
+    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+    renderer.set_scene(&scene).expect("scene upload");
+    // The physically based model on every route, and the simple model on the walls.
+    let mut images = routes(&scene, dark());
+    let mut frame = test_frame(
+        &cave,
+        Head::at(HEAD),
+        RenderMode::Mono,
+        OmniSettings::default(),
+        TessSettings::default(),
+    );
+    frame.lighting = dark();
+    frame.shading = Shading::Simple;
+    renderer.render(&frame).expect("render");
+    images.push(Route {
+        name: "walls, simple shading",
+        image: renderer.read_images().expect("read back")[front]
+            .left
+            .clone(),
+        pano: None,
+    });
+    for route in &images {
+        let spots: Vec<[u8; 3]> = (0..count)
+            .map(|k| route.at(&cave, Vec3::new(spot_row_x(k), 0.8, -1.3)))
+            .collect();
+        // Halfway between two spots: 8.75 cm from each axis, outside both 2° cones (7 cm).
+        let between: Vec<[u8; 3]> = (0..count - 1)
+            .map(|k| route.at(&cave, Vec3::new(spot_row_x(k) + 0.0875, 0.8, -1.3)))
+            .collect();
+        println!("{}: spots {spots:?}, between {between:?}", route.name);
+        for (k, got) in spots.iter().enumerate() {
+            if k < MAX_LIGHTS {
+                // Lit as brightly as the single spot of the test above (> 100 of 255).
+                assert!(got[0] > 100, "{}: light {k}'s spot {got:?}", route.name);
+            } else {
+                // Left out: black (2 levels for filtering at the image's edge).
+                assert!(
+                    got[0] <= 2,
+                    "{}: light {k} past the limit {got:?}",
+                    route.name
+                );
+            }
+        }
+        for (k, got) in between.iter().enumerate() {
+            assert!(
+                got[0] <= 2,
+                "{}: between {k} and {}: {got:?}",
+                route.name,
+                k + 1
+            );
+        }
+    }
+}
+
+#[test]
 fn unknown_required_extensions_and_broken_draco_are_refused_by_name() {
     let dir = out_dir();
     // A Draco primitive whose bitstream is not Draco (its magic overwritten): the error
@@ -777,6 +879,7 @@ fn every_generated_file_passes_the_khronos_validator() {
         file_emissive_map(),
         file_blend(),
         file_spot_light(),
+        file_spot_row(MAX_LIGHTS + 1),
     ];
     let tool = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/gltf-validator");
     if !tool.join("node_modules/gltf-validator").is_dir() {
