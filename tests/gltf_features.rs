@@ -112,6 +112,11 @@ impl Route {
 /// tessellated omnistereo path (left eye), and the panorama's geometric route (perspective,
 /// ahead).
 fn routes(scene: &Scene, lighting: Lighting) -> Vec<Route> {
+    routes_shaded(scene, lighting, Shading::Pbr)
+}
+
+/// [`routes`] in the shading model `shading`.
+fn routes_shaded(scene: &Scene, lighting: Lighting, shading: Shading) -> Vec<Route> {
     let cave = cave();
     let front = cave.wall_index("front").unwrap();
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
@@ -130,6 +135,7 @@ fn routes(scene: &Scene, lighting: Lighting) -> Vec<Route> {
     ] {
         let mut frame = test_frame(&cave, Head::at(HEAD), mode, OmniSettings::default(), tess);
         frame.lighting = lighting;
+        frame.shading = shading;
         renderer.render(&frame).expect("render");
         let images = renderer.read_images().expect("read back");
         out.push(Route {
@@ -148,6 +154,7 @@ fn routes(scene: &Scene, lighting: Lighting) -> Vec<Route> {
         TessSettings::default(),
     );
     frame.lighting = lighting;
+    frame.shading = shading;
     renderer.render_panorama(&frame, &pano).expect("panorama");
     let [image, _] = renderer.read_panorama().expect("read back");
     out.push(Route {
@@ -418,43 +425,10 @@ fn file_blend() -> PathBuf {
     write("blend", &w, &[a, b])
 }
 
-/// A matte floor (at 0.8 m, so that the front wall sees it) under a spot light from the file,
-/// pointing straight down at (0, 0.8, −1.3) from 2 m, with a 20° cone.
-fn file_spot_light() -> PathBuf {
-    let mut w = GlbWriter::new();
-    let mat = w.add_material(&MaterialDesc::plain("floor", [0.8; 3], 1.0));
-    let floor = grid(
-        Vec3::new(-2.0, 0.8, 1.0),
-        Vec3::X * 4.0,
-        Vec3::NEG_Z * 4.0,
-        8,
-        8,
-        0.5,
-    );
-    let m = w.add_mesh("floor", &[(&floor, mat)]);
-    let spot = w.add_light(&LightDesc {
-        name: "spot".into(),
-        kind: "spot",
-        color: [1.0, 1.0, 1.0],
-        intensity: 4.0,
-        range: None,
-        cone: Some((15f32.to_radians(), 20f32.to_radians())),
-    });
-    let floor_node = w.add_node(NodeDesc::new("floor").with_mesh(m));
-    // The light shines along its node's −z: turned to point down.
-    let mut light_node = NodeDesc::new("spot")
-        .with_light(spot)
-        .at(Vec3::new(0.0, 2.8, -1.3));
-    light_node.rotation = glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
-    let l = w.add_node(light_node);
-    write("spot-light", &w, &[floor_node, l])
-}
-
-/// A matte floor (at 0.8 m) under a row of `count` narrow spot lights from the file, 0.175 m
-/// apart along x at z = −1.3 (all in the panorama route's view), each pointing straight down
-/// from 2 m above it: light k's spot (7 cm across at full strength, 14 cm at its 2° outer
-/// cone) lies at [`spot_row_x`]`(k)`.
-fn file_spot_row(count: usize) -> PathBuf {
+/// A matte floor (at 0.8 m, so that the front wall sees it) under spot lights from the file,
+/// each pointing straight down from 2 m above the floor at x along z = −1.3: one per
+/// `(x, outer cone half-angle)`, the inner cone 5° narrower (or 1° for a narrower one).
+fn file_spots_over_floor(name: &str, spots: &[(f32, f32)]) -> PathBuf {
     let mut w = GlbWriter::new();
     let mat = w.add_material(&MaterialDesc::plain("floor", [0.8; 3], 1.0));
     let floor = grid(
@@ -467,22 +441,41 @@ fn file_spot_row(count: usize) -> PathBuf {
     );
     let m = w.add_mesh("floor", &[(&floor, mat)]);
     let mut roots = vec![w.add_node(NodeDesc::new("floor").with_mesh(m))];
-    for k in 0..count {
+    for (k, &(x, outer_degrees)) in spots.iter().enumerate() {
+        let inner_degrees = if outer_degrees > 5.0 {
+            outer_degrees - 5.0
+        } else {
+            outer_degrees.min(1.0)
+        };
         let spot = w.add_light(&LightDesc {
             name: format!("spot {k}"),
             kind: "spot",
             color: [1.0, 1.0, 1.0],
             intensity: 4.0,
             range: None,
-            cone: Some((1f32.to_radians(), 2f32.to_radians())),
+            cone: Some((inner_degrees.to_radians(), outer_degrees.to_radians())),
         });
+        // The light shines along its node's −z: turned to point down.
         let mut node = NodeDesc::new(&format!("spot {k}"))
             .with_light(spot)
-            .at(Vec3::new(spot_row_x(k), 2.8, -1.3));
+            .at(Vec3::new(x, 2.8, -1.3));
         node.rotation = glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
         roots.push(w.add_node(node));
     }
-    write(&format!("spot-row-{count}"), &w, &roots)
+    write(name, &w, &roots)
+}
+
+/// The floor under one spot light at (0, 0.8, −1.3), with a 20° cone.
+fn file_spot_light() -> PathBuf {
+    file_spots_over_floor("spot-light", &[(0.0, 20.0)])
+}
+
+/// The floor under a row of `count` narrow spot lights 0.175 m apart (all in the panorama
+/// route's view): light k's spot (7 cm across at full strength, 14 cm at its 2° outer cone)
+/// lies at [`spot_row_x`]`(k)`.
+fn file_spot_row(count: usize) -> PathBuf {
+    let spots: Vec<(f32, f32)> = (0..count).map(|k| (spot_row_x(k), 2.0)).collect();
+    file_spots_over_floor(&format!("spot-row-{count}"), &spots)
 }
 
 fn spot_row_x(k: usize) -> f32 {
@@ -775,29 +768,15 @@ fn every_light_up_to_the_limit_lights_its_spot_and_the_one_past_it_none() {
     let scene = load_gltf(&file_spot_row(count)).unwrap();
     assert_eq!(scene.lights.len(), count);
     let cave = cave();
-    let front = cave.wall_index("front").unwrap();
-    let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-    renderer.set_scene(&scene).expect("scene upload");
-    // The physically based model on every route, and the simple model on the walls.
-    let mut images = routes(&scene, dark());
-    let mut frame = test_frame(
-        &cave,
-        Head::at(HEAD),
-        RenderMode::Mono,
-        OmniSettings::default(),
-        TessSettings::default(),
-    );
-    frame.lighting = dark();
-    frame.shading = Shading::Simple;
-    renderer.render(&frame).expect("render");
-    images.push(Route {
-        name: "walls, simple shading",
-        image: renderer.read_images().expect("read back")[front]
-            .left
-            .clone(),
-        pano: None,
-    });
-    for route in &images {
+    for (shading, route) in [Shading::Pbr, Shading::Simple]
+        .into_iter()
+        .flat_map(|shading| {
+            routes_shaded(&scene, dark(), shading)
+                .into_iter()
+                .map(move |route| (shading, route))
+        })
+    {
+        let name = format!("{} ({shading:?})", route.name);
         let spots: Vec<[u8; 3]> = (0..count)
             .map(|k| route.at(&cave, Vec3::new(spot_row_x(k), 0.8, -1.3)))
             .collect();
@@ -805,27 +784,18 @@ fn every_light_up_to_the_limit_lights_its_spot_and_the_one_past_it_none() {
         let between: Vec<[u8; 3]> = (0..count - 1)
             .map(|k| route.at(&cave, Vec3::new(spot_row_x(k) + 0.0875, 0.8, -1.3)))
             .collect();
-        println!("{}: spots {spots:?}, between {between:?}", route.name);
+        println!("{name}: spots {spots:?}, between {between:?}");
         for (k, got) in spots.iter().enumerate() {
             if k < MAX_LIGHTS {
                 // Lit as brightly as the single spot of the test above (> 100 of 255).
-                assert!(got[0] > 100, "{}: light {k}'s spot {got:?}", route.name);
+                assert!(got[0] > 100, "{}: light {k}'s spot {got:?}", name);
             } else {
                 // Left out: black (2 levels for filtering at the image's edge).
-                assert!(
-                    got[0] <= 2,
-                    "{}: light {k} past the limit {got:?}",
-                    route.name
-                );
+                assert!(got[0] <= 2, "{}: light {k} past the limit {got:?}", name);
             }
         }
         for (k, got) in between.iter().enumerate() {
-            assert!(
-                got[0] <= 2,
-                "{}: between {k} and {}: {got:?}",
-                route.name,
-                k + 1
-            );
+            assert!(got[0] <= 2, "{}: between {k} and {}: {got:?}", name, k + 1);
         }
     }
 }
