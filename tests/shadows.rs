@@ -405,10 +405,11 @@ fn a_point_lights_shadows_fall_right_through_five_faces_of_its_cube() {
     // directions (the four side faces' axes and the diagonals between them, where two faces
     // meet and overlap) and one under it (the bottom face): every floor pixel of the front
     // wall away from a shadow's edge is as dark or as lit as the CPU twin says, as the segment
-    // to the light meets the scene's triangles or not (the panorama's CPU ray caster). A wrongly chosen face reads as lit, so the shadowed pixels are what
-    // check the choice. The scene is turned 30° against the CAVE and moved, so the cube map's
-    // faces (the scene's axes) are not the CAVE's: the shader picks the face from the maps'
-    // own matrices. (The floor lies below the light: its top face lights nothing here.)
+    // to the light meets the scene's triangles or not (the panorama's CPU ray caster). A
+    // wrongly chosen face reads as lit, so the shadowed pixels are what check the choice. The
+    // scene is turned 30° against the CAVE and moved, so the cube map's faces (the scene's
+    // axes) are not the CAVE's: the shader picks the face from the maps' own matrices. (The
+    // floor lies below the light: its top face lights nothing here.)
     let world_from_cave =
         Mat4::from_translation(Vec3::new(0.4, 0.0, -0.7)) * Mat4::from_rotation_y(0.52);
     let light_cave = Vec3::new(0.1, 0.5, -3.3);
