@@ -401,6 +401,20 @@ const SPLIT_STACK: u32 = 3u * SPLIT_LEVELS + 1u;
 
 var<private> kids: array<TessEntry, 4>;
 
+// How much shorter (squared) the quadrilateral's other diagonal must be to be cut instead:
+// far above rounding, so that GPU and CPU agree on ties. Keep in sync with
+// tess::DIAGONAL_MARGIN.
+const DIAGONAL_MARGIN: f32 = 1.0 / 1024.0;
+
+// Whether a two-edge split's quadrilateral a, m0, m1, cc is cut along a–m1 rather than m0–cc:
+// the shorter in the scene, so that the children stay well shaped (mirrors
+// tess::cut_from_corner).
+fn cut_from_corner(p: array<vec3<f32>, 3>, a: vec2<u32>, m0: vec2<u32>, m1: vec2<u32>, cc: vec2<u32>) -> bool {
+    let corner = point_position(p, a) - point_position(p, m1);
+    let default_cut = point_position(p, m0) - point_position(p, cc);
+    return dot(corner, corner) < dot(default_cut, default_cut) * (1.0 - DIAGONAL_MARGIN);
+}
+
 // Splits `e` once by the criterion into `kids` and returns how many there are: 0 when no
 // edge splits or the budget refuses (then `e` is finished as it is and the overflow flagged).
 fn split_once(e: TessEntry) -> u32 {
@@ -447,6 +461,11 @@ fn split_once(e: TessEntry) -> u32 {
             kids[0] = make_entry(e.source, d, a, m0, cc);
             kids[1] = make_entry(e.source, d, m0, b, cc);
             count = 2u;
+        } else if cut_from_corner(p, a, m0, m1, cc) {
+            kids[0] = make_entry(e.source, d, a, m0, m1);
+            kids[1] = make_entry(e.source, d, m0, b, m1);
+            kids[2] = make_entry(e.source, d, a, m1, cc);
+            count = 3u;
         } else {
             kids[0] = make_entry(e.source, d, a, m0, cc);
             kids[1] = make_entry(e.source, d, m0, b, m1);

@@ -334,4 +334,17 @@ fn shared_constants_match_their_wgsl_twins() {
     );
     // The checker itself reads constants: one that is not there is not found.
     assert_eq!(wgsl_u32_constant(&source, "NO_SUCH_CONSTANT"), None);
+    // The margin by which a two-edge split's other diagonal must be shorter: the GPU and the
+    // CPU twin must cut every quadrilateral alike.
+    let module = naga::front::wgsl::parse_str(&source).expect("WGSL parses");
+    let (_, margin) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some("DIAGONAL_MARGIN"))
+        .expect("DIAGONAL_MARGIN in shaders/tessellate.wgsl");
+    assert_eq!(
+        module.global_expressions[margin.init],
+        naga::Expression::Literal(naga::Literal::F32(omnicave::tess::DIAGONAL_MARGIN)),
+        "diagonal margin: shaders/tessellate.wgsl and src/tess/mod.rs"
+    );
 }

@@ -383,7 +383,7 @@ pub fn tessellate(
                 emit(&mut out, tri, capacity);
                 continue;
             }
-            let kids = children(c, split);
+            let kids = children(c, split, p);
             let extra = kids.len() - 1;
             if added + extra > room {
                 // Budget: stop refining this triangle and draw it as it is.
@@ -415,9 +415,23 @@ fn emit(out: &mut TessOutput, tri: TessTriangle, capacity: usize) {
     }
 }
 
-/// Children of a triangle with corners `c` whose edges k (c[k]→c[k+1]) are split as given.
-/// The same table is in shaders/tessellate.wgsl.
-pub fn children(c: [Bary; 3], split: [bool; 3]) -> Vec<[Bary; 3]> {
+/// How much shorter (as a fraction of its squared length) the other diagonal of a two-edge
+/// split's quadrilateral must be to be drawn instead of the default one: a margin far above
+/// float rounding, so that the GPU and the CPU twin never choose differently on a tie (a
+/// square's two diagonals, say). Keep in sync with shaders/tessellate.wgsl.
+pub const DIAGONAL_MARGIN: f32 = 1.0 / 1024.0;
+
+/// Children of a triangle with corners `c` (in the source triangle with scene-space corners
+/// `p`) whose edges k (c[k]→c[k+1]) are split as given. The same table is in
+/// shaders/tessellate.wgsl.
+///
+/// Two split edges leave a corner triangle and a quadrilateral, which is cut along its shorter
+/// diagonal in the scene: the children stay well shaped, where always cutting from the
+/// unsplit corner fans out long slivers. Every edge the rasteriser draws then costs fragment
+/// work on both sides (the pixels it crosses are shaded for each triangle), so the shorter
+/// cut means less work for the same picture; the source edges' subdivision, which the
+/// criteria decide edge by edge, is the same either way.
+pub fn children(c: [Bary; 3], split: [bool; 3], p: [Vec3; 3]) -> Vec<[Bary; 3]> {
     let m = [0, 1, 2].map(|k| c[k].midpoint(c[(k + 1) % 3]));
     match split {
         [false, false, false] => vec![c],
@@ -443,11 +457,23 @@ pub fn children(c: [Bary; 3], split: [bool; 3]) -> Vec<[Bary; 3]> {
             let (m0, m1) = (m[r], m[(r + 1) % 3]);
             if n == 1 {
                 vec![[a, m0, cc], [m0, b, cc]]
+            } else if cut_from_corner(p, a, m0, m1, cc) {
+                vec![[a, m0, m1], [m0, b, m1], [a, m1, cc]]
             } else {
                 vec![[a, m0, cc], [m0, b, m1], [m0, m1, cc]]
             }
         }
     }
+}
+
+/// Whether the quadrilateral a, m0, m1, cc is cut along a–m1 rather than m0–cc: only where
+/// a–m1 is shorter in the scene by more than [`DIAGONAL_MARGIN`].
+fn cut_from_corner(p: [Vec3; 3], a: Bary, m0: Bary, m1: Bary, cc: Bary) -> bool {
+    let length2 = |u: Bary, v: Bary| {
+        let d = point_position(p, u) - point_position(p, v);
+        d.dot(d)
+    };
+    length2(a, m1) < length2(m0, cc) * (1.0 - DIAGONAL_MARGIN)
 }
 
 /// One view's context from the usual renderer inputs (the near plane is the view's).
@@ -497,15 +523,88 @@ mod tests {
             let p = t.map(|b| glam::DVec2::new(f64::from(b.b1), f64::from(b.b2)));
             (p[1] - p[0]).perp_dot(p[2] - p[0])
         };
-        for mask in 0..8u8 {
-            let split = [mask & 1 != 0, mask & 2 != 0, mask & 4 != 0];
-            let kids = children(c, split);
-            let n = split.iter().filter(|&&s| s).count();
-            assert_eq!(kids.len(), [1, 2, 3, 4][n], "{split:?}");
-            let total: f64 = kids.iter().map(|&k| area(k)).sum();
-            assert_eq!(total, area(c), "{split:?} children do not tile the parent");
-            for k in &kids {
-                assert!(area(*k) > 0.0, "{split:?}: child {k:?} is flipped or empty");
+        // A right triangle, a long sliver and one stretched the other way: between them every
+        // two-edge split is cut along each of its diagonals somewhere.
+        let shapes = [
+            [Vec3::ZERO, Vec3::X, Vec3::Y],
+            [
+                Vec3::ZERO,
+                Vec3::new(8.0, 0.0, 0.0),
+                Vec3::new(8.0, 0.5, 0.0),
+            ],
+            [
+                Vec3::ZERO,
+                Vec3::new(0.5, 0.0, 0.0),
+                Vec3::new(0.0, 8.0, 0.0),
+            ],
+        ];
+        let mut cuts = std::collections::HashSet::new();
+        for p in shapes {
+            for mask in 0..8u8 {
+                let split = [mask & 1 != 0, mask & 2 != 0, mask & 4 != 0];
+                let kids = children(c, split, p);
+                let n = split.iter().filter(|&&s| s).count();
+                assert_eq!(kids.len(), [1, 2, 3, 4][n], "{split:?}");
+                let total: f64 = kids.iter().map(|&k| area(k)).sum();
+                assert_eq!(total, area(c), "{split:?} children do not tile the parent");
+                for k in &kids {
+                    assert!(area(*k) > 0.0, "{split:?}: child {k:?} is flipped or empty");
+                }
+                if n == 2 {
+                    // Which diagonal: does a child join the first split edge's start to the
+                    // second split edge's midpoint?
+                    cuts.insert(kids[0][2] != kids[2][2]);
+                }
+            }
+        }
+        assert_eq!(cuts.len(), 2, "both diagonals must occur");
+    }
+
+    #[test]
+    fn a_two_edge_split_is_cut_along_the_shorter_diagonal() {
+        let c = [Bary::V0, Bary::V1, Bary::V2];
+        let diagonal = |p: [Vec3; 3], kids: &[[Bary; 3]]| -> f32 {
+            // The edge the two non-corner children share.
+            let shared: Vec<Bary> = kids[0]
+                .iter()
+                .copied()
+                .filter(|b| kids[2].contains(b))
+                .collect();
+            assert_eq!(shared.len(), 2, "{kids:?}");
+            point_position(p, shared[0]).distance(point_position(p, shared[1]))
+        };
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut random = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 40) as f32 / (1u64 << 24) as f32 * 10.0 - 5.0
+        };
+        for _ in 0..500 {
+            let p = [0; 3].map(|_| Vec3::new(random(), random(), random()));
+            for split in [
+                [true, true, false],
+                [false, true, true],
+                [true, false, true],
+            ] {
+                let kids = children(c, split, p);
+                // kids[1] is the corner triangle; kids[0] and kids[2] tile the quadrilateral
+                // and share the diagonal drawn. The other joins the two corners they do not share.
+                let drawn = diagonal(p, &kids);
+                let all: std::collections::BTreeSet<Bary> =
+                    kids[0].iter().chain(&kids[2]).copied().collect();
+                let others: Vec<Bary> = all
+                    .iter()
+                    .copied()
+                    .filter(|b| !(kids[0].contains(b) && kids[2].contains(b)))
+                    .collect();
+                assert_eq!(others.len(), 2);
+                let other = point_position(p, others[0]).distance(point_position(p, others[1]));
+                // The default cut stays within the margin of a tie.
+                assert!(
+                    drawn * drawn * (1.0 - DIAGONAL_MARGIN) <= other * other,
+                    "{split:?}: cut {drawn} where {other} was shorter"
+                );
             }
         }
     }
