@@ -117,11 +117,16 @@ fn project(world: vec3<f32>) -> Projected {
     }
     var out: Projected;
     out.clip = view.clip_from_cave * vec4<f32>(warped, 1.0);
-    out.pixel = vec2<f32>(
-        (out.clip.x / out.clip.w * 0.5 + 0.5) * tess.target_width,
-        (0.5 - out.clip.y / out.clip.w * 0.5) * tess.target_height,
-    );
+    out.pixel = clip_to_pixel(out.clip);
     return out;
+}
+
+// Pixel coordinates (x right, y down) of a clip-space point (mirrors tess::clip_to_pixel).
+fn clip_to_pixel(c: vec4<f32>) -> vec2<f32> {
+    return vec2<f32>(
+        (c.x / c.w * 0.5 + 0.5) * tess.target_width,
+        (0.5 - c.y / c.w * 0.5) * tess.target_height,
+    );
 }
 
 fn midpoint(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
@@ -239,7 +244,37 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
     if mid.clip.w <= near {
         return true;
     }
-    return length(mid.pixel - 0.5 * (ja.pixel + jb.pixel)) > value;
+    // The midpoint against the chord's middle (what the cluster bound proves small), then
+    // where points are drawn against where their eyes see them (mirrors the CPU twin).
+    if length(mid.pixel - 0.5 * (ja.pixel + jb.pixel)) <= value {
+        return false;
+    }
+    return drawn_off_by_more_than(pa, pb, ja.clip, jb.clip, value);
+}
+
+// Whether a point of the edge a quarter, half or three quarters of the way along the drawn
+// edge on screen is drawn (clip-space interpolation at s = σ·w0 / ((1 − σ)·w1 + σ·w0)) more
+// than `value` pixels from where its eye sees the scene point at s; from the endpoint that
+// sorts first, so both triangles sharing the edge agree bit for bit (mirrors
+// tess::criteria::drawn_off_by_more_than; keep the fractions in sync with ERROR_SAMPLES).
+fn drawn_off_by_more_than(pa: vec3<f32>, pb: vec3<f32>, ca: vec4<f32>, cb: vec4<f32>, value: f32) -> bool {
+    let swap = sorts_before(pb, pa);
+    let p0 = select(pa, pb, swap);
+    let p1 = select(pb, pa, swap);
+    let c0 = select(ca, cb, swap);
+    let c1 = select(cb, ca, swap);
+    for (var k = 1u; k <= 3u; k++) {
+        let sigma = 0.25 * f32(k);
+        let s = sigma * c0.w / ((1.0 - sigma) * c1.w + sigma * c0.w);
+        let seen = project(p0 + s * (p1 - p0));
+        if seen.clip.w <= tess.near {
+            return true;
+        }
+        if length(seen.pixel - clip_to_pixel(c0 + s * (c1 - c0))) > value {
+            return true;
+        }
+    }
+    return false;
 }
 
 // Three points all behind the viewpoint or all beyond one frustum side (mirrors

@@ -109,9 +109,9 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
     let room = box_room();
     let city = city();
     // (criterion, max depth, scene): uniform:3 capped at depth 2 reaches the maximum depth
-    // inside the culling dispatch, which splits SPLIT_LEVELS = 10 levels itself and emits the
-    // triangles that reach it; on the city at depth 14, error:1 splits the ground near the
-    // viewer beyond 10 levels, in a split dispatch of its own (asserted below).
+    // inside the culling dispatch, which splits SPLIT_LEVELS = 12 levels itself and emits the
+    // triangles that reach it; on the city at depth 14, error:0.05 splits the ground near the
+    // viewer beyond 12 levels, in a split dispatch of its own (asserted below).
     for (criterion, max_depth, scene) in [
         (Criterion::Uniform(3), 6, &room),
         (Criterion::Uniform(3), 2, &room),
@@ -119,7 +119,7 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
         (Criterion::Edge(40.0), 6, &room),
         (Criterion::Sphere(60.0), 6, &room),
         (Criterion::Error(1.0), 6, &room),
-        (Criterion::Error(1.0), 14, &city),
+        (Criterion::Error(0.05), 14, &city),
     ] {
         let tess = TessSettings {
             max_depth,

@@ -12,7 +12,9 @@
 //! edge X(t) = A + t·d, |d| ≤ L, |n·d| ≤ N, the curve f(t) = Π(X(t)) is what an exact renderer
 //! draws and the chord is what the rasteriser draws; the split criteria measure, at depth 0:
 //!
-//! - `error`: |f(½) − (f(0) + f(1))/2| ≤ max|f''| / 8;
+//! - `error`: |f(½) − (f(0) + f(1))/2| ≤ max|f''| / 8 (the criterion's first test; its second,
+//!   where points are drawn against where they are seen, only spares edges the first would
+//!   split, so an edge this bound clears is never split);
 //! - `edge`: |f(1) − f(0)| ≤ max|f'|;
 //! - `sphere`: L · s_C / w · k, w the warped midpoint's clip w ≥ s_C · u / s_E.
 //!
