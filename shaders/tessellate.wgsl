@@ -427,10 +427,10 @@ fn cs_prepare() {
 // Levels one invocation splits (cs_init for each source triangle it keeps, then cs_split for
 // each live triangle): its triangle's children are tested and split again in the same
 // invocation, down to this many levels, so `rounds` levels take cs_init and then
-// ceil(rounds / SPLIT_LEVELS) - 1 split dispatches: none at the default depth of 10 (each
+// ceil(rounds / SPLIT_LEVELS) - 1 split dispatches: none at the default depth of 12 (each
 // dispatch and its preparation cost a fixed time, about 50 µs on a software rasteriser).
 // Keep in sync with src/render/tessellator.rs.
-const SPLIT_LEVELS: u32 = 10u;
+const SPLIT_LEVELS: u32 = 12u;
 // Depth-first, each triangle popped pushes at most 4: 3 more entries per level.
 const SPLIT_STACK: u32 = 3u * SPLIT_LEVELS + 1u;
 

@@ -211,10 +211,10 @@ pub fn family(m: &Method) -> String {
 
 /// The reference render for the image comparison: the off-axis warp tessellated until the
 /// geometric error is below 0.05 px (DESIGN.md's reference) with the config's `base`
-/// settings, at least 10 levels deep (deep enough for the city's ground quad) and never
-/// shallower than the methods it judges.
+/// settings, at least 12 levels deep (deep enough for the city's ground quad near the
+/// viewer) and never shallower than the methods it judges.
 pub fn reference_method(base: TessSettings) -> Method {
-    let max_depth = base.max_depth.max(10);
+    let max_depth = base.max_depth.max(12);
     Method {
         name: format!("reference: omni-offaxis + tess error:0.05, depth {max_depth}"),
         mode: RenderMode::OmniOffAxis,

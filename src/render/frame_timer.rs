@@ -10,11 +10,11 @@
 /// What a stage of one view is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ViewStage {
-    /// cs_init: back-face and frustum culling, and the first `SPLIT_LEVELS` (10) levels of
+    /// cs_init: back-face and frustum culling, and the first `SPLIT_LEVELS` (12) levels of
     /// splitting, which it does itself.
     TessCull,
     /// The split rounds beyond those levels (prepare + split, `max_depth` / `SPLIT_LEVELS`
-    /// times, rounded up, less one): none at the default maximum depth of 10.
+    /// times, rounded up, less one): none at the default maximum depth of 12.
     TessSplit,
     /// Sorting the output by draw and writing the indirect draws.
     TessSort,

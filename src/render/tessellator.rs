@@ -145,13 +145,14 @@ pub fn stats_from_bytes(bytes: &[u8], input: u32, capacity: u32, out: &mut Vec<T
 /// Levels of splitting one invocation does (keep in sync with `SPLIT_LEVELS` in
 /// shaders/tessellate.wgsl): the culling dispatch splits each triangle it keeps, and its
 /// children and grandchildren, this many levels deep, and each split dispatch as many again,
-/// so few dispatches cover the same depth: at the default maximum depth of 10, none beyond
+/// so few dispatches cover the same depth: at the default maximum depth of 12, none beyond
 /// culling. Measured on lavapipe (living room and city, `error:32` and `edge:64`, `bench
 /// --quick`): each dispatch and its preparation cost a fixed time whatever they hold (about
 /// 50 µs), and one level per dispatch spent most of the tessellation stages on that; 10 levels
 /// per dispatch instead of 5 took the split stage from 3.4–7.8 to 2.7–5.4 ms a frame, and
 /// splitting in the culling dispatch saves one prepare and one split dispatch more per view.
-pub const SPLIT_LEVELS: u32 = 10;
+/// 12 since the default depth went from 10 to 12, so that it still needs no split dispatch.
+pub const SPLIT_LEVELS: u32 = 12;
 
 /// Split dispatches that reach `rounds` levels after the culling dispatch's own.
 pub fn split_dispatches(rounds: u32) -> u32 {

@@ -90,9 +90,13 @@ pub fn parse_criterion(s: &str) -> Result<Option<Criterion>, String> {
 pub struct TessSettings {
     /// `None`: no tessellation (the plain warp).
     pub criterion: Option<Criterion>,
-    /// Deepest subdivision: 10 gives up to 1024 segments per edge. Hardware tessellators stop
+    /// Deepest subdivision: 12 gives up to 4096 segments per edge. Hardware tessellators stop
     /// at 64 (depth 6), which leaves a large quad (the city's 640 m ground) visibly bent near
-    /// the viewer; the criteria stop far earlier wherever the picture allows.
+    /// the viewer; the criteria stop far earlier wherever the picture allows. An edge that
+    /// runs behind the viewer is split towards where it leaves the view whatever the
+    /// criterion, down to this depth: at 10 (segments of 0.6 m on the city's ground) the
+    /// last one still misses the exact curve by 2.5 px at 480×270 with the head near a
+    /// corner, at 12 by 0.55 px.
     pub max_depth: u32,
     pub backface_cull: bool,
     pub frustum_cull: bool,
@@ -105,7 +109,7 @@ impl Default for TessSettings {
     fn default() -> Self {
         Self {
             criterion: None,
-            max_depth: 10,
+            max_depth: 12,
             backface_cull: true,
             frustum_cull: true,
             skip_fine: true,
