@@ -216,6 +216,14 @@ fn quick_bench_writes_complete_and_sane_results() {
             value(s, h, control, "drawn_triangles"),
             "{s}, {h}: CPU twin against GPU"
         );
+        // Cutting every triangle in four doubles the length of the edges drawn: the three
+        // inner edges are half the parent's, each drawn for two children. Clipping at the
+        // image's border and at the near plane keeps it from being exactly 2 (1.5–2.5).
+        let edges = value(s, h, control, "cpu_edge_px") / value(s, h, "stereo", "cpu_edge_px");
+        assert!(
+            (1.5..2.5).contains(&edges),
+            "{s}, {h}: edge length × {edges}"
+        );
     }
 
     // Seams: off-axis stereo projects both walls from one eye, so an edge meets itself exactly

@@ -2,14 +2,16 @@
 //! against the exact omnistereo image (every point seen from its own eye), and the triangles it
 //! draws after culling and tessellation.
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
 use super::methods::Method;
 use crate::cave::{Head, RenderMode, view_setups};
 use crate::config::Config;
 use crate::scene::Scene;
-use crate::tess::error::{ErrorStats, border_crossings, edge_error_samples};
-use crate::tess::{double_sided_flags, tess_view, tessellate};
+use crate::tess::error::{ErrorStats, border_crossings, edge_error_samples, source_positions};
+use crate::tess::{
+    TessOutput, TessView, double_sided_flags, point_position, project, tess_view, tessellate,
+};
 
 /// Output budget of the CPU twin per view (the GPU's default is 1 M; the CPU twin needs no
 /// more than the largest setting the bench uses).
@@ -30,6 +32,12 @@ pub struct Accuracy {
     pub culled: u64,
     /// Triangles drawn over all views.
     pub emitted: u64,
+    /// Length on screen of the drawn triangles' edges over all views, pixels, each edge once
+    /// for every triangle that has it (triangles reaching behind the near plane left out):
+    /// along every edge the rasteriser shades the pixels it crosses for the triangles on
+    /// both sides, so on a software rasteriser, which shades whole blocks there, the scene
+    /// pass grows with this length more than with the triangles' count.
+    pub edge_px: f64,
 }
 
 /// The accuracy of `method` for `scene` seen from `head`, every wall and eye of the config.
@@ -66,6 +74,7 @@ pub fn accuracy(
         result.culled += u64::from(out.stats.culled_backface + out.stats.culled_frustum);
         // Drawn: what the tessellator emits and the clusters drawn directly.
         result.emitted += u64::from(out.stats.emitted) + out.fine.len() as u64;
+        result.edge_px += drawn_edge_length(scene, &drawn, &out);
         for ideal in ideal_views
             .iter()
             .filter(|i| i.wall == view.wall && (view.eye.is_none() || i.eye == view.eye))
@@ -124,4 +133,72 @@ pub fn accuracy(
     }
     result.seam = ErrorStats::from_samples(jumps);
     result
+}
+
+/// Length of the segment `a`–`b` inside the rectangle 0..`w` × 0..`h` (Liang–Barsky).
+fn length_inside(a: Vec2, b: Vec2, w: f32, h: f32) -> f32 {
+    let d = b - a;
+    let (mut enter, mut leave) = (0.0f32, 1.0f32);
+    for (p, q) in [(-d.x, a.x), (d.x, w - a.x), (-d.y, a.y), (d.y, h - a.y)] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return 0.0;
+            }
+            continue;
+        }
+        let r = q / p;
+        if p < 0.0 {
+            enter = enter.max(r);
+        } else {
+            leave = leave.min(r);
+        }
+    }
+    (leave - enter).max(0.0) * d.length()
+}
+
+/// Length on screen of the edges of every triangle drawn in view `tv` (see
+/// [`Accuracy::edge_px`]).
+fn drawn_edge_length(scene: &Scene, tv: &TessView<'_>, out: &TessOutput) -> f64 {
+    let [w, h] = tv.wall.resolution.map(|v| v as f32);
+    let mut total = 0.0f64;
+    for tri in out.drawn() {
+        let corners = source_positions(scene, tri.source);
+        let drawn = tri.corners.map(|c| project(tv, point_position(corners, c)));
+        if drawn.iter().any(|d| d.clip.w <= tv.near) {
+            continue;
+        }
+        for k in 0..3 {
+            let length = length_inside(drawn[k].pixel, drawn[(k + 1) % 3].pixel, w, h);
+            if length.is_finite() {
+                total += f64::from(length);
+            }
+        }
+    }
+    total
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_part_of_an_edge_inside_the_image_counts() {
+        let (w, h) = (100.0, 50.0);
+        let inside = length_inside(Vec2::new(10.0, 10.0), Vec2::new(40.0, 50.0), w, h);
+        assert!((inside - 50.0).abs() < 1e-4, "{inside}");
+        // Half in: from x = −50 to 50 along y = 25.
+        let half = length_inside(Vec2::new(-50.0, 25.0), Vec2::new(50.0, 25.0), w, h);
+        assert!((half - 50.0).abs() < 1e-4, "{half}");
+        // Across the whole image, corner to corner beyond it.
+        let across = length_inside(Vec2::new(-100.0, -50.0), Vec2::new(200.0, 100.0), w, h);
+        assert!((across - 100.0f32.hypot(50.0)).abs() < 1e-3, "{across}");
+        assert_eq!(
+            length_inside(Vec2::new(-10.0, -10.0), Vec2::new(-1.0, 60.0), w, h),
+            0.0
+        );
+        assert_eq!(
+            length_inside(Vec2::new(120.0, 10.0), Vec2::new(150.0, 20.0), w, h),
+            0.0
+        );
+    }
 }

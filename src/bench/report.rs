@@ -119,6 +119,7 @@ pub(super) fn write_outputs(
         "cpu_input_triangles",
         "cpu_culled_triangles",
         "cpu_drawn_triangles",
+        "cpu_edge_px",
         "image_diff_pct",
         "seam_max_px",
         "seam_p99_px",
@@ -172,8 +173,9 @@ pub(super) fn write_outputs(
                 a.input.to_string(),
                 a.culled.to_string(),
                 a.emitted.to_string(),
+                format!("{:.0}", a.edge_px),
             ]),
-            None => cells.extend(std::iter::repeat_n(String::new(), 6)),
+            None => cells.extend(std::iter::repeat_n(String::new(), 7)),
         }
         cells.push(
             r.image_diff_pct

@@ -59,7 +59,9 @@ fn drawn_segment(a: Projected, b: Projected, tv: &TessView<'_>) -> Option<(Vec2,
     }
 }
 
-fn source_positions(scene: &Scene, t: u32) -> [Vec3; 3] {
+/// The scene-space corners of source triangle `t` (of a loaded scene, whose indices are in
+/// range).
+pub fn source_positions(scene: &Scene, t: u32) -> [Vec3; 3] {
     [0, 1, 2]
         .map(|k| Vec3::from(scene.vertices[scene.indices[3 * t as usize + k] as usize].position))
 }
