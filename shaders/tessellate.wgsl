@@ -252,19 +252,24 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
     return drawn_off_by_more_than(pa, pb, ja.clip, jb.clip, value);
 }
 
+// Fractions of the drawn edge on screen where the error criterion compares the drawn point with
+// the seen one. Keep in sync with tess::criteria::ERROR_SAMPLES (tests/gpu_layout.rs checks).
+const ERROR_SAMPLES = array<f32, 3>(0.25, 0.5, 0.75);
+
 // Whether a point of the edge a quarter, half or three quarters of the way along the drawn
 // edge on screen is drawn (clip-space interpolation at s = σ·w0 / ((1 − σ)·w1 + σ·w0)) more
 // than `value` pixels from where its eye sees the scene point at s; from the endpoint that
 // sorts first, so both triangles sharing the edge agree bit for bit (mirrors
-// tess::criteria::drawn_off_by_more_than; keep the fractions in sync with ERROR_SAMPLES).
+// tess::criteria::drawn_off_by_more_than).
 fn drawn_off_by_more_than(pa: vec3<f32>, pb: vec3<f32>, ca: vec4<f32>, cb: vec4<f32>, value: f32) -> bool {
     let swap = sorts_before(pb, pa);
     let p0 = select(pa, pb, swap);
     let p1 = select(pb, pa, swap);
     let c0 = select(ca, cb, swap);
     let c1 = select(cb, ca, swap);
-    for (var k = 1u; k <= 3u; k++) {
-        let sigma = 0.25 * f32(k);
+    var samples = ERROR_SAMPLES;
+    for (var k = 0u; k < 3u; k++) {
+        let sigma = samples[k];
         let s = sigma * c0.w / ((1.0 - sigma) * c1.w + sigma * c0.w);
         let seen = project(p0 + s * (p1 - p0));
         if seen.clip.w <= tess.near {

@@ -369,7 +369,7 @@ struct RenderArgs {
     /// Adaptive tessellation before the warp: none, uniform:N, edge:PX, sphere:PX or error:PX.
     #[arg(long, value_parser = parse_tess)]
     tess: Option<TessArg>,
-    /// Deepest subdivision, 0–16 (default: the config's, normally 10 = up to 1024 segments
+    /// Deepest subdivision, 0–16 (default: the config's, normally 12 = up to 4096 segments
     /// per edge; hardware tessellators stop at 6 = 64).
     #[arg(long, value_parser = parse_depth)]
     tess_max_depth: Option<u32>,

@@ -347,4 +347,26 @@ fn shared_constants_match_their_wgsl_twins() {
         naga::Expression::Literal(naga::Literal::F32(omnicave::tess::DIAGONAL_MARGIN)),
         "diagonal margin: shaders/tessellate.wgsl and src/tess/mod.rs"
     );
+    // Where the error criterion samples an edge: the same fractions on both sides.
+    let (_, samples) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some("ERROR_SAMPLES"))
+        .expect("ERROR_SAMPLES in shaders/tessellate.wgsl");
+    let naga::Expression::Compose { ref components, .. } = module.global_expressions[samples.init]
+    else {
+        panic!("ERROR_SAMPLES is not an array");
+    };
+    let wgsl: Vec<naga::Expression> = components
+        .iter()
+        .map(|&c| module.global_expressions[c].clone())
+        .collect();
+    let rust: Vec<naga::Expression> = omnicave::tess::criteria::ERROR_SAMPLES
+        .iter()
+        .map(|&f| naga::Expression::Literal(naga::Literal::F32(f)))
+        .collect();
+    assert_eq!(
+        wgsl, rust,
+        "error samples: shaders/tessellate.wgsl and src/tess/criteria.rs"
+    );
 }

@@ -274,8 +274,9 @@ fn the_error_criterion_bounds_the_geometric_error() {
                  ({nd} triangles, {} edges)",
                 plain.max, plain.p99, d6.max, d6.p99, dd.max, dd.p99, dd.samples
             );
-            // At the default depth the criterion bounds what the viewer sees: its threshold at the
-            // edge midpoints, and at most twice that anywhere along an edge.
+            // At the default depth the criterion bounds what the viewer sees: its threshold at
+            // three points along each edge that fails the chord test, and at most about twice
+            // that anywhere along an edge.
             assert!(dd.p99 <= 0.5, "{name} {head}: p99 {}", dd.p99);
             assert!(dd.max <= 1.0, "{name} {head}: max {}", dd.max);
             // The plain warp is visibly wrong everywhere; most of all in the living room, whose

@@ -16,8 +16,11 @@ pub enum Criterion {
     /// Split while the projected diameter of the edge's bounding sphere exceeds this many
     /// pixels (Cantlay).
     Sphere(f32),
-    /// Split while a point of the edge is drawn more than this many pixels from where its
-    /// eye sees it: bounds the error the viewer sees. See [`split_edge`].
+    /// Split while the projected midpoint lies more than this many pixels from the middle of
+    /// the projected endpoints and a point of the edge (of three tested) is drawn more than
+    /// this many pixels from where its eye sees it: bounds the error the viewer sees. See
+    /// [`split_edge`]. The panorama (its own projection, `pano_split_edge` in the shader)
+    /// applies the first test alone, in its pixels.
     Error(f32),
 }
 
@@ -227,7 +230,7 @@ pub fn split_edge(
 /// bundled scenes at 480×270, every bench case: the midpoint alone leaves 3.1 px in the
 /// living room at `error:1`; a quarter, half and three quarters of the scene's length leave
 /// 1.2 px on the city at `error:2` (depth 12); these, 0.55 px. Keep in sync with
-/// shaders/tessellate.wgsl.
+/// shaders/tessellate.wgsl (tests/gpu_layout.rs checks).
 pub const ERROR_SAMPLES: [f32; 3] = [0.25, 0.5, 0.75];
 
 /// Whether a point of the edge `pa`–`pb` (drawn at clip `ca`, `cb`, both in front of the
