@@ -38,11 +38,6 @@ fn eye_texel(right: bool, p: vec2<i32>) -> vec3<f32> {
     return textureLoad(left_eye, q, 0).rgb;
 }
 
-fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
-    let v = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
-    return select(1.055 * pow(v, vec3<f32>(1.0 / 2.4)) - 0.055, v * 12.92, v <= vec3<f32>(0.0031308));
-}
-
 fn composed(p: vec2<i32>) -> vec3<f32> {
     let w = i32(present.size.x);
     let h = i32(present.size.y);

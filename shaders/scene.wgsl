@@ -859,10 +859,10 @@ fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @loca
     if color.a < 0.0 {
         discard;
     }
-    return color;
+    return target_color(color);
 }
 
 @fragment
 fn fs_wireframe() -> @location(0) vec4<f32> {
-    return frame.wire_color;
+    return target_color(frame.wire_color);
 }

@@ -82,13 +82,13 @@ fn vs_fullscreen(@builtin(vertex_index) index: u32) -> FullScreenOutput {
 // offaxis: the direction from the view's one eye.
 @fragment
 fn fs_offaxis(in: FullScreenOutput) -> @location(0) vec4<f32> {
-    return shade(in.wall_point - sky.eye.xyz);
+    return target_color(shade(in.wall_point - sky.eye.xyz));
 }
 
 // omni-exact: the omnistereo eye solved per pixel.
 @fragment
 fn fs_exact(in: FullScreenOutput) -> @location(0) vec4<f32> {
-    return shade(in.wall_point - omni_sky_eye(in.wall_point));
+    return target_color(shade(in.wall_point - omni_sky_eye(in.wall_point)));
 }
 
 struct QuadOutput {
@@ -109,5 +109,5 @@ fn vs_quad(@location(0) uv: vec2<f32>) -> QuadOutput {
 
 @fragment
 fn fs_quad(in: QuadOutput) -> @location(0) vec4<f32> {
-    return shade(in.lookup);
+    return target_color(shade(in.lookup));
 }

@@ -7,6 +7,7 @@ pub mod panorama;
 pub mod pbr;
 pub mod present;
 pub mod readback;
+pub mod resolve;
 pub mod scene_chunks;
 pub mod scene_pass;
 pub mod shaders;
@@ -121,6 +122,13 @@ pub struct Renderer {
     /// The largest buffer a scene is uploaded in (`None`: the device's limit).
     scene_buffer_limit: Option<u64>,
     sky_pass: SkyPass,
+    /// Resolves the walls' shader-encoded samples (`resolve` says why).
+    resolve_pass: resolve::ResolvePass,
+    /// Whether the walls draw shader-encoded samples when they can (MSAA on, nothing
+    /// blended); off only to compare with the hardware resolve.
+    encoded_samples: bool,
+    /// Whether the last frame's walls drew shader-encoded samples.
+    drew_encoded: bool,
     /// `None` when the device cannot run it (too few storage buffers per stage).
     tessellator: Option<Tessellator>,
     /// Output budget of the tessellator, triangles per view.
@@ -239,6 +247,9 @@ impl Renderer {
             scene: None,
             scene_buffer_limit: None,
             sky_pass,
+            resolve_pass: resolve::ResolvePass::new(&gpu.device, settings.msaa),
+            encoded_samples: true,
+            drew_encoded: false,
             tessellator,
             tess_capacity: tessellator::DEFAULT_CAPACITY,
             walls,
@@ -363,6 +374,7 @@ impl Renderer {
     pub fn pipelines_built(&self) -> u64 {
         self.scene_pass.pipelines_built
             + self.sky_pass.pipelines_built
+            + self.resolve_pass.pipelines_built()
             + self.present.pipelines_built()
             + self.pano.pipelines_built
             + if self.tessellator.is_some() {
@@ -492,6 +504,8 @@ impl Renderer {
         if msaa_changed {
             self.scene_pass.build_pipelines(&self.device, settings.msaa);
             self.sky_pass.build_pipelines(&self.device, settings.msaa);
+            self.resolve_pass
+                .build_pipeline(&self.device, settings.msaa);
             self.pano.set_msaa(&self.device, settings.msaa);
             self.targets.clear();
             self.sync_walls(cave);
@@ -501,6 +515,19 @@ impl Renderer {
 
     pub fn settings(&self) -> RenderSettings {
         self.settings
+    }
+
+    /// Whether the walls, with MSAA and nothing blended, store shader-encoded samples and
+    /// resolve them in a pass of their own (the default), or let the rasteriser encode every
+    /// sample and resolve the sRGB attachment itself (`false`: to compare the two).
+    pub fn set_encoded_samples(&mut self, on: bool) {
+        self.encoded_samples = on;
+    }
+
+    /// Whether the last frame's walls drew shader-encoded samples (see
+    /// [`Renderer::set_encoded_samples`]).
+    pub fn drew_encoded_samples(&self) -> bool {
+        self.drew_encoded
     }
 
     /// Makes the targets match the walls' names and pixel sizes (only changed walls are rebuilt).
@@ -525,7 +552,13 @@ impl Renderer {
                 continue;
             }
             self.targets_generation += 1;
-            let targets = WallTargets::new(&self.device, &wall.name, size, self.settings.msaa);
+            let targets = WallTargets::new(
+                &self.device,
+                &wall.name,
+                size,
+                self.settings.msaa,
+                Some(&self.resolve_pass),
+            );
             if i < self.targets.len() {
                 self.targets[i] = targets;
                 self.wall_names[i] = wall.name.clone();
@@ -720,6 +753,21 @@ impl Renderer {
         let rounds = tessellator::rounds(&frame.tess);
         let clear = srgb_to_linear_color(frame.background);
         let wireframe = self.settings.wireframe && self.wireframe_supported;
+        // With MSAA, the shaders encode each fragment's colour once and `resolve_pass`
+        // averages the samples in linear light, instead of the rasteriser encoding every
+        // sample (see `resolve`); blending needs linear colour in the target.
+        let encoded = self.encoded_samples
+            && self.settings.msaa > 1
+            && !self.scene.as_ref().is_some_and(SceneGpu::has_blended_draws)
+            && !(frame.wand_ray.is_some() && self.wand.has_blended_draws());
+        // The background as bytes in the encoded samples: already sRGB.
+        let encoded_clear = wgpu::Color {
+            r: f64::from(frame.background[0]),
+            g: f64::from(frame.background[1]),
+            b: f64::from(frame.background[2]),
+            a: clear.a,
+        };
+        self.drew_encoded = encoded;
         self.walls
             .set_tessellated_views(if tessellate { views.len() } else { 0 });
         for (index, view) in views.iter().enumerate() {
@@ -751,14 +799,30 @@ impl Renderer {
             };
             let fine = split.map_or(&[][..], |s| s.fine.as_slice());
             let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
-            let mut pass = targets::begin_scene_pass(
-                &mut encoder,
-                "Renderer::scene_pass",
-                &target.color_view,
-                target.msaa_view.as_ref(),
-                &target.depth_view,
-                clear,
-            );
+            let samples = target
+                .encoded_samples
+                .as_ref()
+                .and_then(|(view, group)| Some((view, group.as_ref()?)))
+                .filter(|_| encoded);
+            let encoded = samples.is_some();
+            let mut pass = match samples {
+                Some((view, _)) => targets::begin_scene_pass(
+                    &mut encoder,
+                    "Renderer::scene_pass",
+                    view,
+                    None,
+                    &target.depth_view,
+                    encoded_clear,
+                ),
+                None => targets::begin_scene_pass(
+                    &mut encoder,
+                    "Renderer::scene_pass",
+                    &target.color_view,
+                    target.msaa_view.as_ref(),
+                    &target.depth_view,
+                    clear,
+                ),
+            };
             match (&self.scene, tess) {
                 (Some(scene), Some(buffers)) => {
                     self.scene_pass.draw_split(
@@ -770,6 +834,7 @@ impl Renderer {
                         fine,
                         index,
                         wireframe,
+                        encoded,
                     );
                 }
                 (Some(scene), None) if direct => self.scene_pass.draw_split(
@@ -781,6 +846,7 @@ impl Renderer {
                     fine,
                     index,
                     wireframe,
+                    encoded,
                 ),
                 (Some(scene), None) => self.scene_pass.draw(
                     &mut pass,
@@ -788,20 +854,31 @@ impl Renderer {
                     self.walls.bind_group(),
                     index,
                     wireframe,
+                    encoded,
                 ),
                 (None, _) => {}
             }
             if frame.wand_ray.is_some() {
                 // Never tessellated: its segments are short enough for the per-vertex warp.
-                self.scene_pass
-                    .draw(&mut pass, &self.wand, self.walls.bind_group(), index, false);
+                self.scene_pass.draw(
+                    &mut pass,
+                    &self.wand,
+                    self.walls.bind_group(),
+                    index,
+                    false,
+                    encoded,
+                );
             }
             let in_pass = timer.is_some_and(|t| t.mark_in_pass(&mut pass, index, ViewStage::Scene));
-            self.sky_pass.draw(&mut pass, index, view.wall);
+            self.sky_pass.draw(&mut pass, index, view.wall, encoded);
             if in_pass && let Some(t) = timer {
                 t.mark_in_pass(&mut pass, index, ViewStage::Sky);
             }
             drop(pass);
+            if let Some((_, group)) = samples {
+                self.resolve_pass
+                    .encode(&mut encoder, group, &target.encoded_view);
+            }
             if let Some(t) = timer {
                 if !in_pass {
                     t.mark(&mut encoder, index, ViewStage::Scene);
@@ -972,7 +1049,7 @@ impl Renderer {
                 self.pano
                     .encode_faces(&mut encoder, face_clear, |pass, face| {
                         if let Some(scene) = scene {
-                            scene_pass.draw(pass, scene, faces, face, false);
+                            scene_pass.draw(pass, scene, faces, face, false, false);
                         }
                     });
                 let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);

@@ -323,7 +323,7 @@ impl PanoPass {
             .as_ref()
             .is_some_and(|(t, m)| t.size == size && *m == msaa);
         if !current {
-            self.targets = Some((WallTargets::new(device, "panorama", size, msaa), msaa));
+            self.targets = Some((WallTargets::new(device, "panorama", size, msaa, None), msaa));
             self.generation += 1;
         }
     }

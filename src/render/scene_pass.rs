@@ -9,7 +9,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::shaders;
 use super::shadow_pass::{ShadowPass, ShadowSettings};
-use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
+use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, ENCODED_FORMAT};
 use super::uniforms::{MaterialUniforms, UNIFORM_STRIDE};
 use crate::scene::{
     AlphaMode, ColorSpace, Light, Scene, TEXTURE_SLOTS, Texture, TextureRef, Vertex, Wrap,
@@ -59,17 +59,21 @@ struct PipelineKey {
     panorama: bool,
     /// Alpha-blended over what is drawn (no depth writes; never wireframe).
     blend: bool,
+    /// Colour stored as sRGB bytes the shader encodes (`ENCODED_FORMAT` samples, resolved by
+    /// `ResolvePass`) instead of through an sRGB target; never blended, never the panorama.
+    encoded: bool,
 }
 
 impl PipelineKey {
     /// The variant `draw` needs in the shaded layer or the wireframe overlay (`wire`).
-    fn of(draw: &GpuDraw, wire: bool, tessellated: bool, panorama: bool) -> Self {
+    fn of(draw: &GpuDraw, wire: bool, tessellated: bool, panorama: bool, encoded: bool) -> Self {
         Self {
             double_sided: draw.double_sided,
             wireframe: wire,
             tessellated,
             panorama,
             blend: draw.blend && !wire,
+            encoded,
         }
     }
 }
@@ -207,6 +211,12 @@ impl SceneGpu {
     }
 
     /// Number of draws (materials runs) the scene is drawn with.
+    /// Whether any draw is alpha-blended (blending needs linear colour in the target, so
+    /// such a scene is not drawn into shader-encoded samples).
+    pub fn has_blended_draws(&self) -> bool {
+        self.opaque_count < self.order.len()
+    }
+
     pub fn draw_count(&self) -> usize {
         self.draws.len()
     }
@@ -313,7 +323,8 @@ impl ScenePass {
         pass
     }
 
-    /// Builds every pipeline variant for a sample count (at start-up and when MSAA changes).
+    /// Builds every pipeline variant for a sample count (at start-up and when MSAA changes);
+    /// the variants for shader-encoded samples only with MSAA.
     pub fn build_pipelines(&mut self, device: &wgpu::Device, msaa: u32) {
         self.msaa = msaa;
         self.pipelines.clear();
@@ -323,21 +334,25 @@ impl ScenePass {
         for double_sided in [false, true] {
             for (wireframe, blend) in [(false, false), (true, false), (false, true)] {
                 for (tessellated, panorama) in [(false, false), (true, false), (true, true)] {
-                    if (wireframe && (panorama || !wireframe_supported))
-                        || (tessellated && self.tess_pipeline_layout.is_none())
-                    {
-                        continue;
+                    for encoded in [false, true] {
+                        if (wireframe && (panorama || !wireframe_supported))
+                            || (tessellated && self.tess_pipeline_layout.is_none())
+                            || (encoded && (msaa < 2 || blend || panorama))
+                        {
+                            continue;
+                        }
+                        let key = PipelineKey {
+                            double_sided,
+                            wireframe,
+                            tessellated,
+                            panorama,
+                            blend,
+                            encoded,
+                        };
+                        let pipeline = self.build_pipeline(device, key);
+                        self.pipelines.insert(key, pipeline);
+                        self.pipelines_built += 1;
                     }
-                    let key = PipelineKey {
-                        double_sided,
-                        wireframe,
-                        tessellated,
-                        panorama,
-                        blend,
-                    };
-                    let pipeline = self.build_pipeline(device, key);
-                    self.pipelines.insert(key, pipeline);
-                    self.pipelines_built += 1;
                 }
             }
         }
@@ -345,7 +360,7 @@ impl ScenePass {
 
     fn build_pipeline(&self, device: &wgpu::Device, key: PipelineKey) -> wgpu::RenderPipeline {
         let label = format!(
-            "ScenePass::pipeline{}{}{}{}{}",
+            "ScenePass::pipeline{}{}{}{}{}{}",
             if key.double_sided {
                 " double-sided"
             } else {
@@ -354,11 +369,15 @@ impl ScenePass {
             if key.wireframe { " wireframe" } else { "" },
             if key.tessellated { " tessellated" } else { "" },
             if key.panorama { " panorama" } else { "" },
-            if key.blend { " blended" } else { "" }
+            if key.blend { " blended" } else { "" },
+            if key.encoded { " encoded" } else { "" }
         );
-        let cull_back = [("PANO_CULL_BACK", if key.double_sided { 0.0 } else { 1.0 })];
+        let constants = [
+            ("PANO_CULL_BACK", if key.double_sided { 0.0 } else { 1.0 }),
+            ("ENCODE_SRGB_OUTPUT", if key.encoded { 1.0 } else { 0.0 }),
+        ];
         let compilation_options = wgpu::PipelineCompilationOptions {
-            constants: &cull_back,
+            constants: &constants,
             ..Default::default()
         };
         let vertex_buffers = [Some(wgpu::VertexBufferLayout {
@@ -435,7 +454,11 @@ impl ScenePass {
                 }),
                 compilation_options,
                 targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
+                    format: if key.encoded {
+                        ENCODED_FORMAT
+                    } else {
+                        COLOR_FORMAT
+                    },
                     blend: key.blend.then_some(wgpu::BlendState::ALPHA_BLENDING),
                     write_mask: wgpu::ColorWrites::ALL,
                 })],
@@ -454,7 +477,8 @@ impl ScenePass {
         &self.frame_layout
     }
 
-    /// Records the draws of `scene` for view slot `view_index` into an open render pass.
+    /// Records the draws of `scene` for view slot `view_index` into an open render pass
+    /// (`encoded`: whose colour attachment takes shader-encoded bytes).
     pub fn draw(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
@@ -462,6 +486,7 @@ impl ScenePass {
         views: &wgpu::BindGroup,
         view_index: usize,
         wireframe: bool,
+        encoded: bool,
     ) {
         let bound = std::cell::Cell::new(None);
         self.draw_materials(
@@ -471,6 +496,7 @@ impl ScenePass {
             view_index,
             wireframe,
             Variant::Plain,
+            encoded,
             |pass, _, draw| {
                 scene.bind_chunk(pass, draw.chunk, &bound);
                 pass.draw_indexed(
@@ -504,7 +530,7 @@ impl ScenePass {
     /// path with the per-vertex warp (`fine`: (draw, first index, index count), sorted by
     /// draw), then its refined part from the tessellator's indirect draw (`tess`; `None` when
     /// the view refines nothing; `refined_draws`: the draws it can have output for, ascending,
-    /// `None` for all).
+    /// `None` for all; `encoded` as for [`ScenePass::draw`]).
     #[allow(clippy::too_many_arguments)]
     pub fn draw_split(
         &self,
@@ -516,6 +542,7 @@ impl ScenePass {
         fine: &[(u32, u32, u32)],
         view_index: usize,
         wireframe: bool,
+        encoded: bool,
     ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
         pass.set_bind_group(0, views, &[view_offset]);
@@ -550,7 +577,7 @@ impl ScenePass {
                     if (tessellated && tess.is_none()) || (!tessellated && ranges.is_empty()) {
                         continue;
                     }
-                    let key = PipelineKey::of(draw, wire, tessellated, false);
+                    let key = PipelineKey::of(draw, wire, tessellated, false, encoded);
                     if !self.bind_pipeline(pass, &mut bound, key) {
                         continue;
                     }
@@ -605,6 +632,7 @@ impl ScenePass {
             view_index,
             wireframe,
             variant,
+            false,
             |pass, d, _| {
                 pass.draw_indirect(
                     &tess.args,
@@ -625,6 +653,7 @@ impl ScenePass {
         view_index: usize,
         wireframe: bool,
         variant: Variant,
+        encoded: bool,
         issue: impl Fn(&mut wgpu::RenderPass<'_>, usize, &GpuDraw),
     ) {
         let view_offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
@@ -636,7 +665,7 @@ impl ScenePass {
             for &d in &scene.order {
                 let draw = &scene.draws[d];
                 let panorama = variant == Variant::Panorama;
-                let key = PipelineKey::of(draw, wire, panorama, panorama);
+                let key = PipelineKey::of(draw, wire, panorama, panorama, encoded);
                 if !self.bind_pipeline(pass, &mut bound, key) {
                     continue;
                 }

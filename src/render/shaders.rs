@@ -1,5 +1,6 @@
 //! WGSL sources: every feature shader is compiled with the shared sources it names
-//! (`common.wgsl`, and `pbr.wgsl` for the scene) prepended.
+//! (`common.wgsl`, `pbr.wgsl` for the scene, `srgb.wgsl` for what writes or reads colour)
+//! prepended.
 
 /// Shared structs and functions (uniforms, omnistereo, tessellation, projections).
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
@@ -8,8 +9,11 @@ pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 /// `frame` uniform, so only the scene shader includes it.
 pub const PBR: &str = include_str!("../../shaders/pbr.wgsl");
 
+/// sRGB encoding and decoding, and the colour a pass's target takes (`target_color`).
+pub const SRGB: &str = include_str!("../../shaders/srgb.wgsl");
+
 /// The shared sources by file stem.
-pub const SHARED: &[(&str, &str)] = &[("common", COMMON), ("pbr", PBR)];
+pub const SHARED: &[(&str, &str)] = &[("common", COMMON), ("pbr", PBR), ("srgb", SRGB)];
 
 /// A feature shader: its file stem, its own source and the shared sources compiled before it.
 #[derive(Clone, Copy, Debug)]
@@ -26,7 +30,7 @@ pub struct Feature {
 pub const SCENE: Feature = Feature {
     stem: "scene",
     source: include_str!("../../shaders/scene.wgsl"),
-    shared: &[COMMON, PBR],
+    shared: &[COMMON, PBR, SRGB],
 };
 
 /// Shadow maps' depth pass (paired with `src/render/shadow_pass.rs`).
@@ -47,14 +51,14 @@ pub const TESSELLATE: Feature = Feature {
 pub const SKY: Feature = Feature {
     stem: "sky",
     source: include_str!("../../shaders/sky.wgsl"),
-    shared: &[COMMON],
+    shared: &[COMMON, SRGB],
 };
 
 /// Stereo output formats (paired with `src/render/present.rs`).
 pub const PRESENT: Feature = Feature {
     stem: "present",
     source: include_str!("../../shaders/present.wgsl"),
-    shared: &[COMMON],
+    shared: &[COMMON, SRGB],
 };
 
 /// The panorama's image route (paired with `src/render/panorama.rs`).
@@ -64,8 +68,15 @@ pub const PANORAMA: Feature = Feature {
     shared: &[COMMON],
 };
 
+/// The resolve of shader-encoded multisampled eye images (paired with `src/render/resolve.rs`).
+pub const RESOLVE: Feature = Feature {
+    stem: "resolve",
+    source: include_str!("../../shaders/resolve.wgsl"),
+    shared: &[SRGB],
+};
+
 /// Every feature shader, for validation.
-pub const FEATURES: &[Feature] = &[SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA];
+pub const FEATURES: &[Feature] = &[SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA, RESOLVE];
 
 /// Full source of a feature shader: its shared sources followed by the feature's own code.
 pub fn compose(feature: Feature) -> String {

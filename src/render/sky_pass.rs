@@ -5,7 +5,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Mat4, Vec3};
 
 use super::shaders;
-use super::targets::{COLOR_FORMAT, DEPTH_FORMAT};
+use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, ENCODED_FORMAT};
 use super::uniforms::UNIFORM_STRIDE;
 use crate::cave::omni::PoleMerge;
 use crate::cave::{Cave, ViewSetup};
@@ -104,6 +104,9 @@ enum Variant {
     Exact = 1,
     Quad = 2,
 }
+
+/// Pipelines per colour encoding.
+const VARIANTS: usize = 3;
 
 /// Pipelines, uniforms, per-wall meshes and the cube texture of the sky.
 #[derive(Debug)]
@@ -227,16 +230,19 @@ impl SkyPass {
         (buffer, bind_group)
     }
 
-    /// Builds the three pipelines for a sample count (at start-up and when MSAA changes).
+    /// Builds the three pipelines for a sample count (at start-up and when MSAA changes), and
+    /// with MSAA their variants for shader-encoded samples (`render::resolve`).
     pub fn build_pipelines(&mut self, device: &wgpu::Device, msaa: u32) {
         let mesh_layout = [Some(wgpu::VertexBufferLayout {
             array_stride: 8,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &wgpu::vertex_attr_array![0 => Float32x2],
         })];
-        let build = |label: &str, vs: &str, fs: &str, mesh: bool| {
+        let build = |label: &str, vs: &str, fs: &str, mesh: bool, encoded: bool| {
+            let constants = [("ENCODE_SRGB_OUTPUT", if encoded { 1.0 } else { 0.0 })];
+            let label = format!("{label}{}", if encoded { " encoded" } else { "" });
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
+                label: Some(&label),
                 layout: Some(&self.pipeline_layout),
                 vertex: wgpu::VertexState {
                     module: &self.shader,
@@ -264,9 +270,16 @@ impl SkyPass {
                 fragment: Some(wgpu::FragmentState {
                     module: &self.shader,
                     entry_point: Some(fs),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
                     targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
+                        format: if encoded {
+                            ENCODED_FORMAT
+                        } else {
+                            COLOR_FORMAT
+                        },
                         blend: None,
                         write_mask: wgpu::ColorWrites::ALL,
                     })],
@@ -275,21 +288,28 @@ impl SkyPass {
                 cache: None,
             })
         };
-        self.pipelines = vec![
-            build(
-                "SkyPass::offaxis_pipeline",
-                "vs_fullscreen",
-                "fs_offaxis",
-                false,
-            ),
-            build(
-                "SkyPass::exact_pipeline",
-                "vs_fullscreen",
-                "fs_exact",
-                false,
-            ),
-            build("SkyPass::quad_pipeline", "vs_quad", "fs_quad", true),
-        ];
+        let encodings: &[bool] = if msaa > 1 { &[false, true] } else { &[false] };
+        self.pipelines = encodings
+            .iter()
+            .flat_map(|&encoded| {
+                [
+                    (
+                        "SkyPass::offaxis_pipeline",
+                        "vs_fullscreen",
+                        "fs_offaxis",
+                        false,
+                    ),
+                    (
+                        "SkyPass::exact_pipeline",
+                        "vs_fullscreen",
+                        "fs_exact",
+                        false,
+                    ),
+                    ("SkyPass::quad_pipeline", "vs_quad", "fs_quad", true),
+                ]
+                .map(|(label, vs, fs, mesh)| build(label, vs, fs, mesh, encoded))
+            })
+            .collect();
         self.pipelines_built += self.pipelines.len() as u64;
     }
 
@@ -433,8 +453,9 @@ impl SkyPass {
         self.active = Some(mode);
     }
 
-    /// Draws the sky of view `index` (a view of wall `wall`) into the open scene pass.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, index: usize, wall: usize) {
+    /// Draws the sky of view `index` (a view of wall `wall`) into the open scene pass
+    /// (`encoded`: whose colour attachment takes shader-encoded bytes).
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, index: usize, wall: usize, encoded: bool) {
         let (Some(mode), Some(cube)) = (self.active, &self.cube) else {
             return;
         };
@@ -443,7 +464,13 @@ impl SkyPass {
             SkyMode::OmniExact => Variant::Exact,
             SkyMode::Offaxis | SkyMode::Auto | SkyMode::Off => Variant::Offaxis,
         };
-        pass.set_pipeline(&self.pipelines[variant as usize]);
+        let Some(pipeline) = self
+            .pipelines
+            .get(variant as usize + if encoded { VARIANTS } else { 0 })
+        else {
+            return;
+        };
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(
             0,
             &self.uniform_bind_group,

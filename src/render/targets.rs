@@ -3,9 +3,14 @@
 use image::RgbaImage;
 
 use super::error::RenderError;
+use super::resolve::ResolvePass;
 
 /// Colour format of every eye image: shading is linear, storage sRGB.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// The multisampled images' format: the same bytes as [`COLOR_FORMAT`], written either
+/// through an sRGB view (the hardware encodes each sample) or as bytes the shaders encoded
+/// (`render::resolve` says when and why).
+pub const ENCODED_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// The colour (+ optional MSAA) and depth attachments of one eye image.
@@ -13,7 +18,13 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub struct EyeTarget {
     pub color: wgpu::Texture,
     pub color_view: wgpu::TextureView,
+    /// The multisampled image through an sRGB view (resolved by the pass).
     pub msaa_view: Option<wgpu::TextureView>,
+    /// The same samples as plain bytes the shaders encode, and their binding for
+    /// `ResolvePass` (when a resolve pass was given).
+    pub encoded_samples: Option<(wgpu::TextureView, Option<wgpu::BindGroup>)>,
+    /// The eye image's bytes, as `ResolvePass` writes them.
+    pub encoded_view: wgpu::TextureView,
     pub depth_view: wgpu::TextureView,
 }
 
@@ -25,8 +36,17 @@ pub struct WallTargets {
 }
 
 impl WallTargets {
-    pub fn new(device: &wgpu::Device, wall_name: &str, size: [u32; 2], msaa: u32) -> Self {
-        let make = |eye: &str| EyeTarget::new(device, &format!("{wall_name}-{eye}"), size, msaa);
+    /// Targets of `size` pixels with `msaa` samples; with `resolve`, the multisampled images
+    /// are bound for it too.
+    pub fn new(
+        device: &wgpu::Device,
+        wall_name: &str,
+        size: [u32; 2],
+        msaa: u32,
+        resolve: Option<&ResolvePass>,
+    ) -> Self {
+        let make =
+            |eye: &str| EyeTarget::new(device, &format!("{wall_name}-{eye}"), size, msaa, resolve);
         Self {
             size,
             eyes: [make("left"), make("right")],
@@ -35,13 +55,19 @@ impl WallTargets {
 }
 
 impl EyeTarget {
-    fn new(device: &wgpu::Device, name: &str, size: [u32; 2], msaa: u32) -> Self {
+    fn new(
+        device: &wgpu::Device,
+        name: &str,
+        size: [u32; 2],
+        msaa: u32,
+        resolve: Option<&ResolvePass>,
+    ) -> Self {
         let extent = wgpu::Extent3d {
             width: size[0],
             height: size[1],
             depth_or_array_layers: 1,
         };
-        let texture = |label: String, format, samples, usage| {
+        let texture = |label: String, format, samples, usage, view_formats| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(&label),
                 size: extent,
@@ -50,7 +76,7 @@ impl EyeTarget {
                 dimension: wgpu::TextureDimension::D2,
                 format,
                 usage,
-                view_formats: &[],
+                view_formats,
             })
         };
         let color = texture(
@@ -60,26 +86,45 @@ impl EyeTarget {
             wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
+            &[ENCODED_FORMAT],
         );
-        let msaa_view = (msaa > 1).then(|| {
+        let samples = (msaa > 1).then(|| {
             texture(
                 format!("EyeTarget::msaa {name}"),
-                COLOR_FORMAT,
+                ENCODED_FORMAT,
                 msaa,
-                wgpu::TextureUsages::RENDER_ATTACHMENT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+                &[COLOR_FORMAT],
             )
-            .create_view(&Default::default())
+        });
+        let view_as = |t: &wgpu::Texture, format, what: &str| {
+            t.create_view(&wgpu::TextureViewDescriptor {
+                label: Some(&format!("EyeTarget::{what} {name}")),
+                format: Some(format),
+                ..Default::default()
+            })
+        };
+        let msaa_view = samples
+            .as_ref()
+            .map(|t| view_as(t, COLOR_FORMAT, "msaa_view"));
+        let encoded_samples = samples.as_ref().map(|t| {
+            let view = view_as(t, ENCODED_FORMAT, "encoded_samples");
+            let group = resolve.map(|r| r.bind(device, &view));
+            (view, group)
         });
         let depth = texture(
             format!("EyeTarget::depth {name}"),
             DEPTH_FORMAT,
             msaa,
             wgpu::TextureUsages::RENDER_ATTACHMENT,
+            &[],
         );
         Self {
             color_view: color.create_view(&Default::default()),
+            encoded_view: view_as(&color, ENCODED_FORMAT, "encoded_view"),
             color,
             msaa_view,
+            encoded_samples,
             depth_view: depth.create_view(&Default::default()),
         }
     }
