@@ -23,12 +23,6 @@ struct PresentUniforms {
 @group(0) @binding(1) var left_eye: texture_2d<f32>;
 @group(0) @binding(2) var right_eye: texture_2d<f32>;
 
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) index: u32) -> @builtin(position) vec4<f32> {
-    let ndc = vec2<f32>(f32((index << 1u) & 2u) * 2.0 - 1.0, f32(index & 2u) * 2.0 - 1.0);
-    return vec4<f32>(ndc, 0.0, 1.0);
-}
-
 // Linear colour of an eye's texel (`right` before the swap), clamped to the image.
 fn eye_texel(right: bool, p: vec2<i32>) -> vec3<f32> {
     let q = clamp(p, vec2<i32>(0), vec2<i32>(present.size.xy) - 1);

@@ -7,12 +7,6 @@ override SAMPLE_COUNT: u32 = 4u;
 
 @group(0) @binding(0) var samples: texture_multisampled_2d<f32>;
 
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) index: u32) -> @builtin(position) vec4<f32> {
-    let ndc = vec2<f32>(f32((index << 1u) & 2u) * 2.0 - 1.0, f32(index & 2u) * 2.0 - 1.0);
-    return vec4<f32>(ndc, 0.0, 1.0);
-}
-
 @fragment
 fn fs_resolve(@builtin(position) position: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(floor(position.xy));

@@ -17,6 +17,7 @@ use crate::config::{Config, MonitorRef};
 use crate::output::formats::StereoFormat;
 use crate::render::Renderer;
 use crate::render::gpu::Gpu;
+use crate::render::overlay::{OverlayImage, OverlayPass};
 use crate::render::present::{Crop, PresentBinding, PresentParams, PresentPass, Tile};
 
 /// What a window shows.
@@ -673,6 +674,9 @@ pub struct EguiFrame {
     jobs: Vec<egui::ClippedPrimitive>,
     /// Textures egui released this frame (freed after painting).
     textures_free: Vec<egui::TextureId>,
+    /// Whether egui set or freed a texture this frame (the font atlas grows, an image
+    /// changes): what the panel shows may change with the same primitives.
+    textures_changed: bool,
     pixels_per_point: f32,
     /// The area left beside the docked panel, in pixels (preview).
     central: Option<[f32; 4]>,
@@ -685,6 +689,70 @@ pub struct EguiHost {
     input: egui_winit::State,
     painter: egui_wgpu::Renderer,
     role: Role,
+    /// Composites the panel's image over each frame.
+    overlay: OverlayPass,
+    /// The panel as last painted, and the primitives it was painted from.
+    panel: Option<(OverlayImage, PaintedPanel)>,
+}
+
+/// What the panel's image was painted from: it is painted again only when this changes.
+#[derive(Debug, Clone, Default)]
+struct PaintedPanel {
+    jobs: Vec<egui::ClippedPrimitive>,
+    pixels_per_point: f32,
+    /// The pixels the image covers (`covered_pixels`).
+    covered: [u32; 4],
+}
+
+impl PaintedPanel {
+    /// Whether `frame` paints the same pixels as this (false for paint callbacks, whose
+    /// output is not known).
+    fn paints_the_same(&self, frame: &EguiFrame) -> bool {
+        !frame.textures_changed
+            && self.pixels_per_point == frame.pixels_per_point
+            && self.jobs.len() == frame.jobs.len()
+            && self.jobs.iter().zip(&frame.jobs).all(|(a, b)| {
+                a.clip_rect == b.clip_rect
+                    && match (&a.primitive, &b.primitive) {
+                        (egui::epaint::Primitive::Mesh(a), egui::epaint::Primitive::Mesh(b)) => {
+                            a == b
+                        }
+                        _ => false,
+                    }
+            })
+    }
+}
+
+/// The pixels (x, y, width, height) the primitives can touch: the union of their meshes'
+/// bounds within their clip rectangles, within the window (the whole window for a paint
+/// callback, whose extent is not known).
+fn covered_pixels(
+    jobs: &[egui::ClippedPrimitive],
+    pixels_per_point: f32,
+    size: [u32; 2],
+) -> [u32; 4] {
+    let union = jobs.iter().fold(egui::Rect::NOTHING, |r, job| {
+        let drawn = match &job.primitive {
+            egui::epaint::Primitive::Mesh(mesh) => mesh.calc_bounds(),
+            egui::epaint::Primitive::Callback(_) => egui::Rect::EVERYTHING,
+        };
+        let visible = drawn.intersect(job.clip_rect);
+        if visible.is_positive() {
+            r.union(visible)
+        } else {
+            r
+        }
+    });
+    if !union.is_positive() {
+        return [0; 4];
+    }
+    // Clamped to the window before converting (a clip rectangle may be infinite).
+    let px = |v: f32, max: u32| (v * pixels_per_point).clamp(0.0, max as f32);
+    let x0 = px(union.min.x, size[0]).floor() as u32;
+    let y0 = px(union.min.y, size[1]).floor() as u32;
+    let x1 = px(union.max.x, size[0]).ceil() as u32;
+    let y1 = px(union.max.y, size[1]).ceil() as u32;
+    [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
 }
 
 impl EguiHost {
@@ -710,6 +778,8 @@ impl EguiHost {
             input,
             painter,
             role: window.role,
+            overlay: OverlayPass::new(&gpu.device, window.format()),
+            panel: None,
         }
     }
 
@@ -768,6 +838,7 @@ impl EguiHost {
         let jobs = self.ctx.tessellate(output.shapes, ppp);
         // Uploaded now, whether or not the window can present this frame.
         let mut textures = output.textures_delta;
+        let textures_changed = !textures.set.is_empty() || !textures.free.is_empty();
         for (id, deltas) in &textures.set {
             for delta in deltas {
                 self.painter
@@ -779,6 +850,7 @@ impl EguiHost {
         EguiFrame {
             jobs,
             textures_free,
+            textures_changed,
             pixels_per_point: ppp,
             central: central.map(|r| {
                 [
@@ -791,8 +863,9 @@ impl EguiHost {
         }
     }
 
-    /// Records the panel over what the window already shows; returns egui's own command
-    /// buffers (submitted before the encoder's).
+    /// Records the panel over what the window already shows: painted into its image when it
+    /// changed, then the image composited over the frame. Returns egui's own command buffers
+    /// (submitted before the encoder's).
     fn paint(
         &mut self,
         gpu: &Gpu,
@@ -801,32 +874,42 @@ impl EguiHost {
         frame: &EguiFrame,
         size: [u32; 2],
     ) -> Vec<wgpu::CommandBuffer> {
-        let screen = egui_wgpu::ScreenDescriptor {
-            size_in_pixels: size,
-            pixels_per_point: frame.pixels_per_point,
-        };
-        let buffers =
-            self.painter
-                .update_buffers(&gpu.device, &gpu.queue, encoder, &frame.jobs, &screen);
-        let mut pass = encoder
-            .begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("EguiHost::pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            })
+        let mut buffers = Vec::new();
+        let fresh = self
+            .panel
+            .as_ref()
+            .is_some_and(|(image, painted)| image.size == size && painted.paints_the_same(frame));
+        if !fresh {
+            let image = match self.panel.take() {
+                Some((image, _)) if image.size == size => image,
+                _ => self.overlay.image(&gpu.device, size),
+            };
+            let screen = egui_wgpu::ScreenDescriptor {
+                size_in_pixels: size,
+                pixels_per_point: frame.pixels_per_point,
+            };
+            buffers =
+                self.painter
+                    .update_buffers(&gpu.device, &gpu.queue, encoder, &frame.jobs, &screen);
+            let mut pass = crate::render::fullscreen::begin_colour_pass(
+                encoder,
+                "EguiHost::panel_pass",
+                &image.view,
+                wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            )
             .forget_lifetime();
-        self.painter.render(&mut pass, &frame.jobs, &screen);
+            self.painter.render(&mut pass, &frame.jobs, &screen);
+            drop(pass);
+            let painted = PaintedPanel {
+                jobs: frame.jobs.clone(),
+                pixels_per_point: frame.pixels_per_point,
+                covered: covered_pixels(&frame.jobs, frame.pixels_per_point, size),
+            };
+            self.panel = Some((image, painted));
+        }
+        if let Some((image, painted)) = &self.panel {
+            self.overlay.encode(encoder, image, view, painted.covered);
+        }
         buffers
     }
 
@@ -841,6 +924,98 @@ impl EguiHost {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn rect_job(min: [f32; 2], max: [f32; 2], clip: egui::Rect) -> egui::ClippedPrimitive {
+        let mut mesh = egui::Mesh::default();
+        mesh.add_colored_rect(
+            egui::Rect::from_min_max(min.into(), max.into()),
+            egui::Color32::from_rgb(40, 40, 40),
+        );
+        egui::ClippedPrimitive {
+            clip_rect: clip,
+            primitive: egui::epaint::Primitive::Mesh(mesh),
+        }
+    }
+
+    fn frame_of(jobs: Vec<egui::ClippedPrimitive>) -> EguiFrame {
+        EguiFrame {
+            jobs,
+            textures_free: Vec::new(),
+            textures_changed: false,
+            pixels_per_point: 1.0,
+            central: None,
+        }
+    }
+
+    #[test]
+    fn the_panel_is_painted_again_exactly_when_what_it_shows_changes() {
+        let panel = rect_job([0.0, 0.0], [340.0, 720.0], egui::Rect::EVERYTHING);
+        let painted = PaintedPanel {
+            jobs: vec![panel.clone()],
+            pixels_per_point: 1.0,
+            covered: [0, 0, 340, 720],
+        };
+        assert!(painted.paints_the_same(&frame_of(vec![panel.clone()])));
+        // A glyph's colour, a vertex moved, a primitive more or less, another clip.
+        let mut recoloured = panel.clone();
+        if let egui::epaint::Primitive::Mesh(m) = &mut recoloured.primitive {
+            m.vertices[2].color = egui::Color32::WHITE;
+        }
+        let mut moved = panel.clone();
+        if let egui::epaint::Primitive::Mesh(m) = &mut moved.primitive {
+            m.vertices[0].pos.x += 0.25;
+        }
+        let clipped = egui::ClippedPrimitive {
+            clip_rect: egui::Rect::from_min_max([0.0, 0.0].into(), [100.0, 100.0].into()),
+            ..panel.clone()
+        };
+        for (what, jobs) in [
+            ("recoloured", vec![recoloured]),
+            ("moved", vec![moved]),
+            ("one more", vec![panel.clone(), panel.clone()]),
+            ("none", vec![]),
+            ("clipped", vec![clipped]),
+        ] {
+            assert!(!painted.paints_the_same(&frame_of(jobs)), "{what}");
+        }
+        // The same primitives with a texture changed (the font atlas grew) or at another
+        // scale paint other pixels.
+        let mut textures = frame_of(vec![panel.clone()]);
+        textures.textures_changed = true;
+        assert!(!painted.paints_the_same(&textures));
+        let mut scaled = frame_of(vec![panel]);
+        scaled.pixels_per_point = 2.0;
+        assert!(!painted.paints_the_same(&scaled));
+    }
+
+    #[test]
+    fn the_panel_is_composited_where_its_meshes_are_drawn() {
+        let everything = egui::Rect::EVERYTHING;
+        let jobs = vec![
+            rect_job([0.0, 0.0], [340.0, 720.0], everything),
+            // A popup reaching past the window, clipped to a rectangle inside it.
+            rect_job(
+                [300.0, 100.5],
+                [2000.0, 200.0],
+                egui::Rect::from_min_max([0.0, 0.0].into(), [500.0, 150.25].into()),
+            ),
+        ];
+        assert_eq!(covered_pixels(&jobs, 1.0, [1280, 720]), [0, 0, 500, 720]);
+        // Points to pixels, rounded outwards, and never past the window.
+        assert_eq!(
+            covered_pixels(&jobs[1..], 2.0, [1280, 720]),
+            [600, 201, 400, 100]
+        );
+        assert_eq!(covered_pixels(&jobs, 2.0, [800, 600]), [0, 0, 800, 600]);
+        assert_eq!(covered_pixels(&[], 1.0, [1280, 720])[2..], [0, 0]);
+        // A mesh entirely outside its clip rectangle covers nothing.
+        let hidden = rect_job(
+            [600.0, 0.0],
+            [700.0, 10.0],
+            egui::Rect::from_min_max([0.0, 0.0].into(), [100.0, 100.0].into()),
+        );
+        assert_eq!(covered_pixels(&[hidden], 1.0, [1280, 720])[2..], [0, 0]);
+    }
 
     #[test]
     fn unfolded_walls_form_one_centred_strip() {

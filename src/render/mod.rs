@@ -2,7 +2,9 @@
 
 pub mod error;
 pub mod frame_timer;
+pub mod fullscreen;
 pub mod gpu;
+pub mod overlay;
 pub mod panorama;
 pub mod pbr;
 pub mod present;

@@ -124,31 +124,18 @@ impl PresentPass {
         if self.pipelines.contains_key(&format) {
             return;
         }
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(&format!("PresentPass::pipeline {format:?}")),
-            layout: Some(&self.pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &self.shader,
-                entry_point: Some("vs_fullscreen"),
-                compilation_options: Default::default(),
-                buffers: &[],
+        let pipeline = super::fullscreen::build(
+            device,
+            &super::fullscreen::FullscreenPipeline {
+                label: &format!("PresentPass::pipeline {format:?}"),
+                layout: &self.pipeline_layout,
+                shader: &self.shader,
+                fragment: "fs_present",
+                constants: &[],
+                format,
+                blend: None,
             },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &self.shader,
-                entry_point: Some("fs_present"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
         self.pipelines.insert(format, pipeline);
         self.pipelines_built += 1;
     }
@@ -278,22 +265,8 @@ impl PresentPass {
             };
             queue.write_buffer(&tile.binding.uniforms, 0, bytemuck::bytes_of(&uniforms));
         }
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("PresentPass::pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass =
+            super::fullscreen::begin_colour_pass(encoder, "PresentPass::pass", target, load);
         pass.set_pipeline(pipeline);
         for tile in tiles {
             let [x, y, w, h] = tile.rect;

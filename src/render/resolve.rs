@@ -25,24 +25,8 @@ pub struct ResolvePass {
 
 impl ResolvePass {
     pub fn new(device: &wgpu::Device, msaa: u32) -> Self {
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("ResolvePass::layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: true,
-                },
-                count: None,
-            }],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("ResolvePass::pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let (layout, pipeline_layout) =
+            super::fullscreen::texture_layout(device, "ResolvePass", true);
         let mut pass = Self {
             layout,
             pipeline_layout,
@@ -58,36 +42,19 @@ impl ResolvePass {
     pub fn build_pipeline(&mut self, device: &wgpu::Device, msaa: u32) {
         self.pipeline = (msaa > 1).then(|| {
             let constants = [("SAMPLE_COUNT", f64::from(msaa))];
-            let options = wgpu::PipelineCompilationOptions {
-                constants: &constants,
-                ..Default::default()
-            };
             self.pipelines_built += 1;
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("ResolvePass::pipeline"),
-                layout: Some(&self.pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &self.shader,
-                    entry_point: Some("vs_fullscreen"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
+            super::fullscreen::build(
+                device,
+                &super::fullscreen::FullscreenPipeline {
+                    label: "ResolvePass::pipeline",
+                    layout: &self.pipeline_layout,
+                    shader: &self.shader,
+                    fragment: "fs_resolve",
+                    constants: &constants,
+                    format: super::targets::ENCODED_FORMAT,
+                    blend: None,
                 },
-                primitive: wgpu::PrimitiveState::default(),
-                depth_stencil: None,
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &self.shader,
-                    entry_point: Some("fs_resolve"),
-                    compilation_options: options,
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: super::targets::ENCODED_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            )
         });
     }
 
@@ -98,14 +65,12 @@ impl ResolvePass {
 
     /// Binds a multisampled image's encoded samples (a view in `targets::ENCODED_FORMAT`).
     pub fn bind(&self, device: &wgpu::Device, samples: &wgpu::TextureView) -> wgpu::BindGroup {
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ResolvePass::bind_group"),
-            layout: &self.layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(samples),
-            }],
-        })
+        super::fullscreen::texture_bind_group(
+            device,
+            "ResolvePass::bind_group",
+            &self.layout,
+            samples,
+        )
     }
 
     /// Records the resolve of `samples` (bound by [`ResolvePass::bind`]) into `target`: the
@@ -119,22 +84,12 @@ impl ResolvePass {
         let Some(pipeline) = &self.pipeline else {
             return;
         };
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("ResolvePass::pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = super::fullscreen::begin_colour_pass(
+            encoder,
+            "ResolvePass::pass",
+            target,
+            wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+        );
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, samples, &[]);
         pass.draw(0..3, 0..1);

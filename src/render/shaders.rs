@@ -12,8 +12,16 @@ pub const PBR: &str = include_str!("../../shaders/pbr.wgsl");
 /// sRGB encoding and decoding, and the colour a pass's target takes (`target_color`).
 pub const SRGB: &str = include_str!("../../shaders/srgb.wgsl");
 
+/// The full-screen triangle's vertex shader (`vs_fullscreen`).
+pub const FULLSCREEN: &str = include_str!("../../shaders/fullscreen.wgsl");
+
 /// The shared sources by file stem.
-pub const SHARED: &[(&str, &str)] = &[("common", COMMON), ("pbr", PBR), ("srgb", SRGB)];
+pub const SHARED: &[(&str, &str)] = &[
+    ("common", COMMON),
+    ("pbr", PBR),
+    ("srgb", SRGB),
+    ("fullscreen", FULLSCREEN),
+];
 
 /// A feature shader: its file stem, its own source and the shared sources compiled before it.
 #[derive(Clone, Copy, Debug)]
@@ -58,7 +66,7 @@ pub const SKY: Feature = Feature {
 pub const PRESENT: Feature = Feature {
     stem: "present",
     source: include_str!("../../shaders/present.wgsl"),
-    shared: &[COMMON, SRGB],
+    shared: &[COMMON, SRGB, FULLSCREEN],
 };
 
 /// The panorama's image route (paired with `src/render/panorama.rs`).
@@ -72,11 +80,21 @@ pub const PANORAMA: Feature = Feature {
 pub const RESOLVE: Feature = Feature {
     stem: "resolve",
     source: include_str!("../../shaders/resolve.wgsl"),
-    shared: &[SRGB],
+    shared: &[SRGB, FULLSCREEN],
+};
+
+/// A cached overlay (the control panel) over a window's frame (paired with
+/// `src/render/overlay.rs`).
+pub const OVERLAY: Feature = Feature {
+    stem: "overlay",
+    source: include_str!("../../shaders/overlay.wgsl"),
+    shared: &[FULLSCREEN],
 };
 
 /// Every feature shader, for validation.
-pub const FEATURES: &[Feature] = &[SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA, RESOLVE];
+pub const FEATURES: &[Feature] = &[
+    SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA, RESOLVE, OVERLAY,
+];
 
 /// Full source of a feature shader: its shared sources followed by the feature's own code.
 pub fn compose(feature: Feature) -> String {
