@@ -674,8 +674,8 @@ pub struct EguiFrame {
     jobs: Vec<egui::ClippedPrimitive>,
     /// Textures egui released this frame (freed after painting).
     textures_free: Vec<egui::TextureId>,
-    /// Whether egui set or freed a texture this frame (the font atlas grows, an image
-    /// changes): what the panel shows may change with the same primitives.
+    /// Whether egui set or freed a texture since the panel was last painted (the font atlas
+    /// grows, an image changes): what the panel shows may change with the same primitives.
     textures_changed: bool,
     pixels_per_point: f32,
     /// The area left beside the docked panel, in pixels (preview).
@@ -693,6 +693,9 @@ pub struct EguiHost {
     overlay: OverlayPass,
     /// The panel as last painted, and the primitives it was painted from.
     panel: Option<(OverlayImage, PaintedPanel)>,
+    /// egui set or freed a texture since the panel was last painted (a frame the window
+    /// could not present does not paint).
+    textures_pending: bool,
 }
 
 /// What the panel's image was painted from: it is painted again only when this changes.
@@ -780,6 +783,7 @@ impl EguiHost {
             role: window.role,
             overlay: OverlayPass::new(&gpu.device, window.format()),
             panel: None,
+            textures_pending: false,
         }
     }
 
@@ -838,7 +842,7 @@ impl EguiHost {
         let jobs = self.ctx.tessellate(output.shapes, ppp);
         // Uploaded now, whether or not the window can present this frame.
         let mut textures = output.textures_delta;
-        let textures_changed = !textures.set.is_empty() || !textures.free.is_empty();
+        self.textures_pending |= !textures.set.is_empty() || !textures.free.is_empty();
         for (id, deltas) in &textures.set {
             for delta in deltas {
                 self.painter
@@ -850,7 +854,7 @@ impl EguiHost {
         EguiFrame {
             jobs,
             textures_free,
-            textures_changed,
+            textures_changed: self.textures_pending,
             pixels_per_point: ppp,
             central: central.map(|r| {
                 [
@@ -880,9 +884,12 @@ impl EguiHost {
             .as_ref()
             .is_some_and(|(image, painted)| image.size == size && painted.paints_the_same(frame));
         if !fresh {
-            let image = match self.panel.take() {
-                Some((image, _)) if image.size == size => image,
-                _ => self.overlay.image(&gpu.device, size),
+            let (image, mut painted) = match self.panel.take() {
+                Some((image, painted)) if image.size == size => (image, painted),
+                _ => (
+                    self.overlay.image(&gpu.device, size),
+                    PaintedPanel::default(),
+                ),
             };
             let screen = egui_wgpu::ScreenDescriptor {
                 size_in_pixels: size,
@@ -900,12 +907,13 @@ impl EguiHost {
             .forget_lifetime();
             self.painter.render(&mut pass, &frame.jobs, &screen);
             drop(pass);
-            let painted = PaintedPanel {
-                jobs: frame.jobs.clone(),
-                pixels_per_point: frame.pixels_per_point,
-                covered: covered_pixels(&frame.jobs, frame.pixels_per_point, size),
-            };
+            // Reuses the last list's allocation (the panel can change every frame, e.g. with
+            // its frame-time plot open).
+            painted.jobs.clone_from(&frame.jobs);
+            painted.pixels_per_point = frame.pixels_per_point;
+            painted.covered = covered_pixels(&frame.jobs, frame.pixels_per_point, size);
             self.panel = Some((image, painted));
+            self.textures_pending = false;
         }
         if let Some((image, painted)) = &self.panel {
             self.overlay.encode(encoder, image, view, painted.covered);

@@ -877,15 +877,18 @@ impl Renderer {
                 t.mark_in_pass(&mut pass, index, ViewStage::Sky);
             }
             drop(pass);
+            if let Some(t) = timer
+                && !in_pass
+            {
+                t.mark(&mut encoder, index, ViewStage::Scene);
+                t.mark(&mut encoder, index, ViewStage::Sky);
+            }
+            // The resolve stage: the pass's end, and the encoded samples' resolve pass.
             if let Some((_, group)) = samples {
                 self.resolve_pass
                     .encode(&mut encoder, group, &target.encoded_view);
             }
             if let Some(t) = timer {
-                if !in_pass {
-                    t.mark(&mut encoder, index, ViewStage::Scene);
-                    t.mark(&mut encoder, index, ViewStage::Sky);
-                }
                 t.mark(&mut encoder, index, ViewStage::Resolve);
             }
         }

@@ -210,13 +210,13 @@ impl SceneGpu {
         self.chunks.len()
     }
 
-    /// Number of draws (materials runs) the scene is drawn with.
     /// Whether any draw is alpha-blended (blending needs linear colour in the target, so
     /// such a scene is not drawn into shader-encoded samples).
     pub fn has_blended_draws(&self) -> bool {
         self.opaque_count < self.order.len()
     }
 
+    /// Number of draws (materials runs) the scene is drawn with.
     pub fn draw_count(&self) -> usize {
         self.draws.len()
     }
