@@ -157,7 +157,7 @@ fn pbr_light(k: u32, s: SurfacePoint, v: vec3<f32>, facing_normal: vec3<f32>) ->
 //
 // The lights are summed by constant index, not in a loop over a counter: with the counter,
 // lavapipe spent 5–10 % more of the desktop preview's frame (the same picture; see the
-// README's preview figures), apparently fetching each light's uniforms pixel by pixel.
+// book's performance page), apparently fetching each light's uniforms pixel by pixel.
 // `light_count` is uniform, so the guards cost nothing where a light is absent. One call per
 // light up to MAX_LIGHTS (keep in sync; `tests/gltf_features.rs`
 // `every_light_up_to_the_limit_lights_its_spot_and_the_one_past_it_none` fails otherwise).

@@ -100,7 +100,7 @@ pub fn button_from_name(name: &str) -> Option<Button> {
         .map(|(_, b)| *b)
 }
 
-/// The default button map (Xbox labels), shown in the README and `config/cave.toml`.
+/// The default button map (Xbox labels), shown in the book's keys reference and `config/cave.toml`.
 pub const DEFAULT_BUTTONS: &[(&str, GamepadAction)] = &[
     ("A", GamepadAction::NextRenderMode),
     ("B", GamepadAction::ToggleTessellation),

@@ -1,4 +1,4 @@
-//! The keyboard map: which key does what, as one table shown by F1 and in the README.
+//! The keyboard map: which key does what, as one table shown by F1 and in the book's keys reference.
 
 use glam::Vec3;
 use winit::keyboard::KeyCode;
@@ -11,7 +11,7 @@ const HEAD_STEP_M: f32 = 0.05;
 /// Eye separation change per key press, metres.
 const IPD_STEP_M: f32 = 0.002;
 
-/// Every key binding: key, what it does (shown by F1; the README's key map is this table).
+/// Every key binding: key, what it does (shown by F1; the book's key reference is this table).
 pub const KEY_MAP: &[(&str, &str)] = &[
     ("F1", "show / hide this key map"),
     ("Esc", "quit"),

@@ -360,64 +360,100 @@ impl App {
             return;
         }
         let now = Instant::now();
-        // A render node renders the master's frame (settings, state and number); the master
-        // and a single process take their own input.
-        let mut screenshot_id = 0;
-        match self.cluster.as_mut() {
-            Some(ClusterLink::Node(node)) => match node.next(&mut self.state) {
-                Ok(NodeNext::Render(s)) => {
-                    self.eye_frame = s.frame;
-                    screenshot_id = s.screenshot;
-                }
-                Ok(NodeNext::Stop(why)) => {
-                    self.quit_now(event_loop, &format!("the master said stop: {why}"));
-                    return;
-                }
-                Err(e) => {
-                    self.fail(event_loop, e.into());
-                    return;
-                }
-            },
-            _ => self.poll_input(now),
-        }
-        let Some(gfx) = self.gfx.as_mut() else {
+        let Some(mut screenshot_id) = self.take_input(event_loop, now) else {
             return;
         };
-        // The panel first, so what it changes shows in this frame.
-        let mut egui_frame = None;
-        if let Some(host) = gfx.egui.as_mut() {
-            let index = host.window_index;
-            let win = &gfx.windows[index];
-            let (state, info, gpu) = (&mut self.state, &self.info, &gfx.gpu);
-            // A window destroyed since the events were read: winit's size query panics.
-            match std::panic::catch_unwind(AssertUnwindSafe(|| host.run(gpu, win, state, info))) {
-                Ok(frame) => egui_frame = Some(frame),
-                Err(_) => {
-                    self.window_gone(
-                        event_loop,
-                        index,
-                        "destroyed from outside (its window system calls failed)",
-                    );
-                    return;
-                }
-            }
-        }
+        let Some(egui_frame) = self.run_panel(event_loop) else {
+            return;
+        };
         if self.state.screenshot_requested {
             self.state.screenshot_requested = false;
             screenshot_id = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(1, |d| d.as_secs().max(1));
         }
+        if self.render_frame(event_loop, screenshot_id).is_none() {
+            return;
+        }
+        if screenshot_id != 0 {
+            self.save_screenshot(screenshot_id);
+        }
+        let recorded = self.record_if_due();
+        if self.cluster_barrier(event_loop, recorded).is_none() {
+            return;
+        }
+        if self.present(event_loop, egui_frame).is_none() {
+            return;
+        }
+        self.read_back_figures(now);
+        self.log_stats();
+        self.save_if_requested();
+    }
+
+    /// This frame's input: a render node takes the master's frame (settings, state, number
+    /// and screenshot), the master and a single process their own input. The screenshot id
+    /// asked for (0: none), or `None` when the run ends here.
+    fn take_input(&mut self, event_loop: &ActiveEventLoop, now: Instant) -> Option<u64> {
+        match self.cluster.as_mut() {
+            Some(ClusterLink::Node(node)) => match node.next(&mut self.state) {
+                Ok(NodeNext::Render(s)) => {
+                    self.eye_frame = s.frame;
+                    Some(s.screenshot)
+                }
+                Ok(NodeNext::Stop(why)) => {
+                    self.quit_now(event_loop, &format!("the master said stop: {why}"));
+                    None
+                }
+                Err(e) => {
+                    self.fail(event_loop, e.into());
+                    None
+                }
+            },
+            _ => {
+                self.poll_input(now);
+                Some(0)
+            }
+        }
+    }
+
+    /// The panel, first, so that what it changes shows in this frame: its paint (`None`
+    /// inside when there is no panel), or `None` when its window is gone.
+    fn run_panel(&mut self, event_loop: &ActiveEventLoop) -> Option<Option<window::EguiFrame>> {
+        let gfx = self.gfx.as_mut()?;
+        let Some(host) = gfx.egui.as_mut() else {
+            return Some(None);
+        };
+        let index = host.window_index;
+        let win = &gfx.windows[index];
+        let (state, info, gpu) = (&mut self.state, &self.info, &gfx.gpu);
+        // A window destroyed since the events were read: winit's size query panics.
+        match std::panic::catch_unwind(AssertUnwindSafe(|| host.run(gpu, win, state, info))) {
+            Ok(frame) => Some(Some(frame)),
+            Err(_) => {
+                self.window_gone(
+                    event_loop,
+                    index,
+                    "destroyed from outside (its window system calls failed)",
+                );
+                None
+            }
+        }
+    }
+
+    /// The master's broadcast of this frame, then every view rendered and a wand selection
+    /// asked for made; `None` when the run ends here.
+    fn render_frame(&mut self, event_loop: &ActiveEventLoop, screenshot_id: u64) -> Option<()> {
         if let Some(ClusterLink::Master(master)) = self.cluster.as_mut()
             && let Err(e) = master.broadcast(&self.state, self.eye_frame, screenshot_id)
         {
             self.fail(event_loop, e.into());
-            return;
+            return None;
         }
         let node = matches!(self.cluster, Some(ClusterLink::Node(_)));
+        let gfx = self.gfx.as_mut()?;
         if let Err(e) = render_views(gfx, &mut self.state, &mut self.info, node) {
             self.fail(event_loop, e);
-            return;
+            return None;
         }
         if self.state.select_requested {
             self.state.select_requested = false;
@@ -426,43 +462,53 @@ impl App {
                 tracing::info!("selected: {s}");
             }
         }
-        if screenshot_id != 0 {
-            let shot = screenshot(
-                gfx,
-                &self.state,
-                screenshot_id,
-                self.eye_frame,
-                &self.own_walls,
-            );
-            self.info.save_message = Some(match shot {
-                Ok(dir) => {
-                    tracing::info!("screenshot written to {}", dir.display());
-                    format!("screenshot in {}", dir.display())
-                }
-                Err(e) => {
-                    tracing::error!("screenshot: {e}");
-                    format!("screenshot failed: {e}")
-                }
-            });
-        }
+        Some(())
+    }
+
+    /// Writes this frame's screenshot (`id` names its folder) and says where in the panel.
+    fn save_screenshot(&mut self, id: u64) {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return;
+        };
+        let shot = screenshot(gfx, &self.state, id, self.eye_frame, &self.own_walls);
+        self.info.save_message = Some(match shot {
+            Ok(dir) => {
+                tracing::info!("screenshot written to {}", dir.display());
+                format!("screenshot in {}", dir.display())
+            }
+            Err(e) => {
+                tracing::error!("screenshot: {e}");
+                format!("screenshot failed: {e}")
+            }
+        });
+    }
+
+    /// Records this frame when `--record` asks for it; whether it did.
+    fn record_if_due(&mut self) -> bool {
         let recorded = self.options.record.is_some()
             && self
                 .eye_frame
                 .is_multiple_of(self.options.record_every.max(1));
-        if let Some(dir) = self.options.record.as_ref().filter(|_| recorded) {
-            let describe = !matches!(self.cluster, Some(ClusterLink::Node(_)));
-            if let Err(e) = record_frame(
-                gfx,
-                &self.state,
-                dir,
-                self.eye_frame,
-                &self.own_walls,
-                describe,
-            ) {
-                tracing::error!("recording frame {}: {e}", self.eye_frame);
-            }
+        let describe = !matches!(self.cluster, Some(ClusterLink::Node(_)));
+        if let (Some(dir), Some(gfx)) = (
+            self.options.record.as_ref().filter(|_| recorded),
+            self.gfx.as_mut(),
+        ) && let Err(e) = record_frame(
+            gfx,
+            &self.state,
+            dir,
+            self.eye_frame,
+            &self.own_walls,
+            describe,
+        ) {
+            tracing::error!("recording frame {}: {e}", self.eye_frame);
         }
-        // Cluster mode: every process presents this frame together, once all have rendered it.
+        recorded
+    }
+
+    /// Cluster mode: every process presents this frame together, once all have rendered it.
+    /// `None` when the run ends here.
+    fn cluster_barrier(&mut self, event_loop: &ActiveEventLoop, recorded: bool) -> Option<()> {
         match self.cluster.as_mut() {
             Some(ClusterLink::Master(master)) => {
                 let passed = master.barrier(self.eye_frame, recorded);
@@ -481,43 +527,57 @@ impl App {
                 }
                 if let Err(e) = passed {
                     self.fail(event_loop, e.into());
-                    return;
+                    return None;
                 }
             }
             Some(ClusterLink::Node(node)) => match node.barrier(recorded) {
                 Ok(None) => {}
                 Ok(Some(why)) => {
                     self.quit_now(event_loop, &format!("the master said stop: {why}"));
-                    return;
+                    return None;
                 }
                 Err(e) => {
                     self.fail(event_loop, e.into());
-                    return;
+                    return None;
                 }
             },
             None => {}
         }
-        let Some(gfx) = self.gfx.as_mut() else {
-            return;
-        };
+        Some(())
+    }
+
+    /// Presents every window (with the panel's paint); `None` when a window is gone.
+    fn present(
+        &mut self,
+        event_loop: &ActiveEventLoop,
+        egui_frame: Option<window::EguiFrame>,
+    ) -> Option<()> {
+        let gfx = self.gfx.as_mut()?;
         let presented = present_windows(gfx, &self.state, egui_frame, self.eye_frame);
         // The next frame renders the preview's walls at the size they were just shown.
         if let Some(preview) = gfx.windows.iter().find(|w| w.role == Role::Preview) {
             self.state.set_shown_sizes(preview.shown_sizes());
         }
         self.eye_frame += 1;
-        let lost = presented.lost;
         self.surface_recoveries += presented.recovered;
         self.eye_resyncs += presented.resynced;
-        if let Some(index) = lost {
+        if let Some(index) = presented.lost {
             self.window_gone(
                 event_loop,
                 index,
                 "destroyed from outside (its window system calls failed)",
             );
-            return;
+            return None;
         }
-        // The newest frame the GPU has finished: its time and tessellation counts (never waits).
+        Some(())
+    }
+
+    /// The newest frame the GPU has finished: its time and tessellation counts (never
+    /// waits), into the panel's figures and the frame clock.
+    fn read_back_figures(&mut self, started: Instant) {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return;
+        };
         let readback = gfx.renderer.poll_readbacks();
         let gpu_ms = readback.gpu_ms;
         // Reuses the panel's buffers: nothing grows per frame.
@@ -535,11 +595,8 @@ impl App {
             self.state.cave().walls.len(),
             &mut self.info.tess_emitted,
         );
-        self.clock.record(Instant::now(), now.elapsed(), gpu_ms);
+        self.clock.record(Instant::now(), started.elapsed(), gpu_ms);
         self.info.stats = self.clock.summary;
-
-        self.log_stats();
-        self.save_if_requested();
     }
 
     /// Tracking, gamepads and held keys move the state for the time since the last frame.

@@ -187,6 +187,45 @@ pub struct DrawOutcome {
     pub resynced: bool,
 }
 
+/// A surface texture to draw into, or why there is none this frame.
+enum Acquired {
+    /// The texture, and whether the surface is suboptimal (resized after presenting).
+    Frame(wgpu::SurfaceTexture, bool),
+    /// No texture: skip the frame (`recovered`: the surface was made again).
+    Skipped { recovered: bool },
+}
+
+/// Which bound image a tile shows.
+#[derive(Debug, Clone, Copy)]
+enum TileSource {
+    /// The window's `i`th wall binding.
+    Wall(usize),
+    /// The panorama's binding.
+    Panorama,
+}
+
+/// One tile of a window's frame before it is bound: its image, format, place and crop.
+#[derive(Debug, Clone, Copy)]
+struct TilePlan {
+    source: TileSource,
+    format: StereoFormat,
+    /// x, y, width, height in window pixels.
+    rect: [f32; 4],
+    crop: Option<Crop>,
+}
+
+impl TilePlan {
+    /// A tile without a crop.
+    fn new(source: TileSource, format: StereoFormat, rect: [f32; 4]) -> Self {
+        Self {
+            source,
+            format,
+            rect,
+            crop: None,
+        }
+    }
+}
+
 impl OutputWindow {
     /// The preview's walls as last laid out: each one's size on screen, pixels (empty for
     /// other windows, and before the first frame).
@@ -367,60 +406,22 @@ impl OutputWindow {
         egui: Option<(&mut EguiHost, &EguiFrame)>,
         eye_frame: u64,
     ) -> Result<DrawOutcome, AppError> {
-        let recovered = |r: bool| {
-            Ok(DrawOutcome {
-                recovered: r,
-                resynced: false,
-            })
-        };
         if !self.configured {
-            return recovered(false);
+            return Ok(DrawOutcome::default());
         }
         let present = renderer.present_pass();
-        let walls = &state.cave().walls;
-        self.ensure_bindings(gpu, renderer, present, walls.len());
+        self.ensure_bindings(gpu, renderer, present, state.cave().walls.len());
         let show_pano =
             state.settings.panorama.show && matches!(self.role, Role::Preview | Role::Operator);
         if show_pano {
             self.ensure_pano_binding(gpu, renderer, present);
         }
-        let (frame, suboptimal) = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) => (t, false),
-            wgpu::CurrentSurfaceTexture::Suboptimal(t) => (t, true),
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
-                return recovered(false);
-            }
-            wgpu::CurrentSurfaceTexture::Outdated => {
-                let size = self.window.inner_size();
-                self.resize(gpu, size.width, size.height);
-                // A surface clamped below its window goes out of date again and again on
-                // some drivers (Mesa's X11 swapchain): expected while the clamp holds, so
-                // not counted as a recovery.
-                let clamped = clamp_surface_size(gpu, size.width, size.height);
-                return recovered(clamped == [size.width, size.height]);
-            }
-            wgpu::CurrentSurfaceTexture::Lost => {
-                // Recreate the surface on the same window (e.g. after a display change).
-                let target: Arc<Window> = self.window.clone();
-                match gpu.instance.create_surface(target) {
-                    Ok(surface) => {
-                        self.surface = surface;
-                        let size = self.window.inner_size();
-                        self.resize(gpu, size.width, size.height);
-                        return recovered(true);
-                    }
-                    Err(e) => {
-                        return Err(AppError::Surface {
-                            name: format!("{:?}", self.role),
-                            message: e.to_string(),
-                        });
-                    }
-                }
-            }
-            other => {
-                return Err(AppError::Surface {
-                    name: format!("{:?}", self.role),
-                    message: format!("{other:?}"),
+        let (frame, suboptimal) = match self.acquire(gpu)? {
+            Acquired::Frame(frame, suboptimal) => (frame, suboptimal),
+            Acquired::Skipped { recovered } => {
+                return Ok(DrawOutcome {
+                    recovered,
+                    resynced: false,
                 });
             }
         };
@@ -429,103 +430,27 @@ impl OutputWindow {
             format: Some(self.surface_config.format),
             ..Default::default()
         });
-        let [w, h] = self.size();
-        let params = |format| PresentParams {
-            format,
-            frame: eye_frame,
-            swap_eyes: state.swap_eyes,
-        };
-        let pano_binding = self
-            .pano_binding
-            .as_ref()
-            .map(|(b, _)| b)
-            .filter(|_| show_pano);
-        let mut tiles = Vec::with_capacity(self.bindings.len() + 1);
-        match self.role {
-            Role::Wall(i) => {
-                if let (Some(binding), Some(&format)) =
-                    (self.bindings.first(), state.wall_output(i).as_ref())
-                {
-                    tiles.push(Tile {
-                        binding,
-                        params: params(format),
-                        rect: [0.0, 0.0, w as f32, h as f32],
-                        crop: None,
-                    });
-                }
-            }
-            Role::WallEye { wall, output } => {
-                let out = state
-                    .config
-                    .app
-                    .walls
-                    .get(wall)
-                    .and_then(|w| w.eye_outputs.get(output));
-                if let (Some(binding), Some(out)) = (self.bindings.first(), out) {
-                    let format = match out.eye {
-                        Eye::Left => StereoFormat::LeftOnly,
-                        Eye::Right => StereoFormat::RightOnly,
-                    };
-                    tiles.push(Tile {
-                        binding,
-                        params: params(format),
-                        rect: [0.0, 0.0, w as f32, h as f32],
-                        crop: Some(Crop {
-                            rect: out.crop,
-                            offset: out.offset,
-                        }),
-                    });
-                }
-            }
-            Role::Preview => {
-                let mut area = egui
-                    .as_ref()
-                    .and_then(|(_, f)| f.central)
-                    .unwrap_or([0.0, 0.0, w as f32, h as f32]);
-                if let Some(binding) = pano_binding {
-                    // The walls above, the panorama below: each in half the area.
-                    let [x, y, aw, ah] = area;
-                    let below = [x, y + 0.5 * ah, aw, 0.5 * ah];
-                    tiles.push(Tile {
-                        binding,
-                        params: params(state.settings.app.preview_output),
-                        rect: clamp_rect(fit(below, state.settings.panorama.size), [w, h]),
-                        crop: None,
-                    });
-                    area = [x, y, aw, 0.5 * ah];
-                }
-                let sizes: Vec<[f32; 2]> = walls.iter().map(|w| w.size_m().to_array()).collect();
-                let rects = unfolded_layout(&sizes, area);
-                self.shown_sizes.clear();
-                self.shown_sizes.extend(
-                    rects
-                        .iter()
-                        .map(|r| [r[2].max(0.0) as u32, r[3].max(0.0) as u32]),
-                );
-                for (binding, rect) in self.bindings.iter().zip(rects) {
-                    tiles.push(Tile {
-                        binding,
-                        params: params(state.settings.app.preview_output),
-                        rect: clamp_rect(rect, [w, h]),
-                        crop: None,
-                    });
-                }
-            }
-            Role::Operator => {
-                if let Some(binding) = pano_binding {
-                    let area = egui
-                        .as_ref()
-                        .and_then(|(_, f)| f.central)
-                        .unwrap_or([0.0, 0.0, w as f32, h as f32]);
-                    tiles.push(Tile {
-                        binding,
-                        params: params(state.settings.app.preview_output),
-                        rect: clamp_rect(fit(area, state.settings.panorama.size), [w, h]),
-                        crop: None,
-                    });
-                }
-            }
-        }
+        let central = egui.as_ref().and_then(|(_, f)| f.central);
+        let plans = self.plan_tiles(state, central, show_pano);
+        let tiles: Vec<Tile<'_>> = plans
+            .iter()
+            .filter_map(|plan| {
+                let binding = match plan.source {
+                    TileSource::Wall(i) => self.bindings.get(i),
+                    TileSource::Panorama => self.pano_binding.as_ref().map(|(b, _)| b),
+                }?;
+                Some(Tile {
+                    binding,
+                    params: PresentParams {
+                        format: plan.format,
+                        frame: eye_frame,
+                        swap_eyes: state.swap_eyes,
+                    },
+                    rect: plan.rect,
+                    crop: plan.crop,
+                })
+            })
+            .collect();
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -539,33 +464,153 @@ impl OutputWindow {
             self.surface_config.format,
             wgpu::LoadOp::Clear(self.background),
         );
+        let first_format = tiles.first().map(|t| t.params.format);
         let mut extra = Vec::new();
         if let Some((host, egui_frame)) = egui {
-            extra = host.paint(gpu, &mut encoder, &view, egui_frame, [w, h]);
+            extra = host.paint(gpu, &mut encoder, &view, egui_frame, self.size());
         }
         gpu.queue
             .submit(extra.into_iter().chain(std::iter::once(encoder.finish())));
         self.window.pre_present_notify();
         gpu.queue.present(frame);
         self.presented += 1;
-        let resynced = self.note_present(eye_frame, tiles.first().map(|t| t.params.format));
-        if suboptimal {
-            let size = self.window.inner_size();
-            // A surface clamped below its window's size is suboptimal by design: nothing to
-            // recover while the clamp holds.
-            let clamped = clamp_surface_size(gpu, size.width, size.height);
-            if clamped != [size.width, size.height] && clamped == self.size() {
-                return Ok(DrawOutcome {
-                    recovered: false,
-                    resynced,
-                });
-            }
-            self.resize(gpu, size.width, size.height);
-        }
+        let resynced = self.note_present(eye_frame, first_format);
         Ok(DrawOutcome {
-            recovered: suboptimal,
+            recovered: suboptimal && self.recover_suboptimal(gpu),
             resynced,
         })
+    }
+
+    /// The surface's next texture, or why this frame is skipped (the surface timed out, is
+    /// hidden, or was outdated or lost and is made again: `recovered`).
+    fn acquire(&mut self, gpu: &Gpu) -> Result<Acquired, AppError> {
+        let skipped = |recovered| Ok(Acquired::Skipped { recovered });
+        match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) => Ok(Acquired::Frame(t, false)),
+            wgpu::CurrentSurfaceTexture::Suboptimal(t) => Ok(Acquired::Frame(t, true)),
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                skipped(false)
+            }
+            wgpu::CurrentSurfaceTexture::Outdated => {
+                let size = self.window.inner_size();
+                self.resize(gpu, size.width, size.height);
+                // A surface clamped below its window goes out of date again and again on
+                // some drivers (Mesa's X11 swapchain): expected while the clamp holds, so
+                // not counted as a recovery.
+                let clamped = clamp_surface_size(gpu, size.width, size.height);
+                skipped(clamped == [size.width, size.height])
+            }
+            wgpu::CurrentSurfaceTexture::Lost => {
+                // Recreate the surface on the same window (e.g. after a display change).
+                let target: Arc<Window> = self.window.clone();
+                match gpu.instance.create_surface(target) {
+                    Ok(surface) => {
+                        self.surface = surface;
+                        let size = self.window.inner_size();
+                        self.resize(gpu, size.width, size.height);
+                        skipped(true)
+                    }
+                    Err(e) => Err(AppError::Surface {
+                        name: format!("{:?}", self.role),
+                        message: e.to_string(),
+                    }),
+                }
+            }
+            other => Err(AppError::Surface {
+                name: format!("{:?}", self.role),
+                message: format!("{other:?}"),
+            }),
+        }
+    }
+
+    /// After presenting a suboptimal frame: resizes the surface to its window, unless it is
+    /// clamped below the window's size by design; whether it recovered.
+    fn recover_suboptimal(&mut self, gpu: &Gpu) -> bool {
+        let size = self.window.inner_size();
+        // A surface clamped below its window's size is suboptimal by design: nothing to
+        // recover while the clamp holds.
+        let clamped = clamp_surface_size(gpu, size.width, size.height);
+        if clamped != [size.width, size.height] && clamped == self.size() {
+            return false;
+        }
+        self.resize(gpu, size.width, size.height);
+        true
+    }
+
+    /// Where this window's role puts each image: a wall's format, a projector's eye and
+    /// crop, the preview's walls unfolded (their shown sizes noted) with the panorama below,
+    /// or the operator's panorama. `central`: the area the panel leaves, if any.
+    fn plan_tiles(
+        &mut self,
+        state: &AppState,
+        central: Option<[f32; 4]>,
+        show_pano: bool,
+    ) -> Vec<TilePlan> {
+        let [w, h] = self.size();
+        let whole = [0.0, 0.0, w as f32, h as f32];
+        let show_pano = show_pano && self.pano_binding.is_some();
+        let preview = state.settings.app.preview_output;
+        let mut plans = Vec::with_capacity(self.bindings.len() + 1);
+        match self.role {
+            Role::Wall(i) => {
+                if let Some(&format) = state.wall_output(i).as_ref() {
+                    plans.push(TilePlan::new(TileSource::Wall(0), format, whole));
+                }
+            }
+            Role::WallEye { wall, output } => {
+                let out = state
+                    .config
+                    .app
+                    .walls
+                    .get(wall)
+                    .and_then(|w| w.eye_outputs.get(output));
+                if let Some(out) = out {
+                    let format = match out.eye {
+                        Eye::Left => StereoFormat::LeftOnly,
+                        Eye::Right => StereoFormat::RightOnly,
+                    };
+                    plans.push(TilePlan {
+                        crop: Some(Crop {
+                            rect: out.crop,
+                            offset: out.offset,
+                        }),
+                        ..TilePlan::new(TileSource::Wall(0), format, whole)
+                    });
+                }
+            }
+            Role::Preview => {
+                let mut area = central.unwrap_or(whole);
+                if show_pano {
+                    // The walls above, the panorama below: each in half the area.
+                    let [x, y, aw, ah] = area;
+                    let below = [x, y + 0.5 * ah, aw, 0.5 * ah];
+                    let rect = clamp_rect(fit(below, state.settings.panorama.size), [w, h]);
+                    plans.push(TilePlan::new(TileSource::Panorama, preview, rect));
+                    area = [x, y, aw, 0.5 * ah];
+                }
+                let walls = &state.cave().walls;
+                let sizes: Vec<[f32; 2]> = walls.iter().map(|w| w.size_m().to_array()).collect();
+                let rects = unfolded_layout(&sizes, area);
+                self.shown_sizes.clear();
+                self.shown_sizes.extend(
+                    rects
+                        .iter()
+                        .map(|r| [r[2].max(0.0) as u32, r[3].max(0.0) as u32]),
+                );
+                for (i, rect) in rects.into_iter().enumerate().take(self.bindings.len()) {
+                    let rect = clamp_rect(rect, [w, h]);
+                    plans.push(TilePlan::new(TileSource::Wall(i), preview, rect));
+                }
+            }
+            Role::Operator => {
+                if show_pano {
+                    let area = central.unwrap_or(whole);
+                    let rect = clamp_rect(fit(area, state.settings.panorama.size), [w, h]);
+                    plans.push(TilePlan::new(TileSource::Panorama, preview, rect));
+                }
+            }
+        }
+        plans
     }
 
     /// Records a present of `eye_frame`: whether this frame-sequential window had fallen out of

@@ -130,92 +130,141 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// The chart as an SVG document.
-pub fn svg(points: &[ChartPoint], axes: &Axes, title: &str, subtitle: &str) -> String {
-    let (w, h) = (960.0, 600.0);
-    let (left, right, top, bottom) = (80.0, 290.0, 70.0, 70.0);
-    let (pw, ph) = (w - left - right, h - top - bottom);
-    let floor = axes.y_floor.as_ref().map_or(0.0, |(v, _)| *v);
-    let shown = |p: &ChartPoint| p.y.max(floor);
-    let (x0, x1) = log_range(points.iter().map(|p| p.x));
-    let (y0, y1) = log_range(points.iter().map(shown));
-    let y0 = if floor > 0.0 { y0.min(floor) } else { y0 };
-    let sx = |v: f64| left + (v.log10() - x0.log10()) / (x1.log10() - x0.log10()) * pw;
-    let sy = |v: f64| top + ph - (v.log10() - y0.log10()) / (y1.log10() - y0.log10()) * ph;
+/// The chart's geometry: the page, the plot area and its log axes.
+struct Plot {
+    w: f64,
+    h: f64,
+    left: f64,
+    top: f64,
+    /// Plot area width and height.
+    pw: f64,
+    ph: f64,
+    /// The x and y ranges drawn.
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    y1: f64,
+    /// Smallest y drawn (0: none).
+    floor: f64,
+}
 
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="Ubuntu, DejaVu Sans, Arial, sans-serif" font-size="13">"#
-    );
-    let _ = writeln!(out, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-    let _ = writeln!(
-        out,
-        r#"<text x="{left}" y="28" font-size="18" font-weight="bold">{}</text>"#,
-        escape(title)
-    );
-    let _ = writeln!(
-        out,
-        r##"<text x="{left}" y="50" fill="#444">{}</text>"##,
-        escape(subtitle)
-    );
-    // Grid and ticks.
-    for t in log_ticks(x0, x1) {
-        let x = sx(t);
-        let _ = writeln!(
-            out,
-            r##"<line x1="{x:.1}" y1="{top}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
-            top + ph,
-            top + ph + 18.0,
-            tick_label(t)
-        );
-    }
-    for t in log_ticks(y0, y1) {
-        let y = sy(t);
-        let label = match &axes.y_floor {
-            Some((v, label)) if (t - v).abs() < 1e-12 => label.clone(),
-            _ => tick_label(t),
-        };
-        let _ = writeln!(
-            out,
-            r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{label}</text>"##,
-            left + pw,
-            left - 6.0,
-            y + 4.0
-        );
-    }
-    let _ = writeln!(
-        out,
-        r#"<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
-    );
-    let _ = writeln!(
-        out,
-        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
-        left + pw / 2.0,
-        h - 22.0,
-        escape(&axes.x_label)
-    );
-    let _ = writeln!(
-        out,
-        r#"<text transform="translate(22 {:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
-        top + ph / 2.0,
-        escape(&axes.y_label)
-    );
-
-    // Series: points of one family joined in the order given (coarse to fine).
-    let mut families: Vec<&str> = Vec::new();
-    for p in points {
-        if !families.contains(&p.family.as_str()) {
-            families.push(&p.family);
+impl Plot {
+    /// The geometry for `points` on `axes`.
+    fn new(points: &[ChartPoint], axes: &Axes) -> Self {
+        let (w, h) = (960.0, 600.0);
+        let (left, right, top, bottom) = (80.0, 290.0, 70.0, 70.0);
+        let (pw, ph) = (w - left - right, h - top - bottom);
+        let floor = axes.y_floor.as_ref().map_or(0.0, |(v, _)| *v);
+        let (x0, x1) = log_range(points.iter().map(|p| p.x));
+        let (y0, y1) = log_range(points.iter().map(|p| p.y.max(floor)));
+        let y0 = if floor > 0.0 { y0.min(floor) } else { y0 };
+        Self {
+            w,
+            h,
+            left,
+            top,
+            pw,
+            ph,
+            x0,
+            x1,
+            y0,
+            y1,
+            floor,
         }
     }
-    for (k, family) in families.iter().enumerate() {
+
+    /// The y a point is drawn at: its own, or the floor below it.
+    fn shown(&self, p: &ChartPoint) -> f64 {
+        p.y.max(self.floor)
+    }
+
+    /// Page x of a value on the x axis.
+    fn sx(&self, v: f64) -> f64 {
+        let (x0, x1) = (self.x0, self.x1);
+        self.left + (v.log10() - x0.log10()) / (x1.log10() - x0.log10()) * self.pw
+    }
+
+    /// Page y of a value on the y axis.
+    fn sy(&self, v: f64) -> f64 {
+        let (y0, y1) = (self.y0, self.y1);
+        self.top + self.ph - (v.log10() - y0.log10()) / (y1.log10() - y0.log10()) * self.ph
+    }
+
+    /// The document's opening, the background and the title and subtitle.
+    fn write_heading(&self, out: &mut String, title: &str, subtitle: &str) {
+        let (w, h, left) = (self.w, self.h, self.left);
+        let _ = writeln!(
+            out,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="Ubuntu, DejaVu Sans, Arial, sans-serif" font-size="13">"#
+        );
+        let _ = writeln!(out, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+        let _ = writeln!(
+            out,
+            r#"<text x="{left}" y="28" font-size="18" font-weight="bold">{}</text>"#,
+            escape(title)
+        );
+        let _ = writeln!(
+            out,
+            r##"<text x="{left}" y="50" fill="#444">{}</text>"##,
+            escape(subtitle)
+        );
+    }
+
+    /// The grid with its tick labels, the plot's frame and the axis labels.
+    fn write_axes(&self, out: &mut String, axes: &Axes) {
+        let (h, left, top, pw, ph) = (self.h, self.left, self.top, self.pw, self.ph);
+        for t in log_ticks(self.x0, self.x1) {
+            let x = self.sx(t);
+            let _ = writeln!(
+                out,
+                r##"<line x1="{x:.1}" y1="{top}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
+                top + ph,
+                top + ph + 18.0,
+                tick_label(t)
+            );
+        }
+        for t in log_ticks(self.y0, self.y1) {
+            let y = self.sy(t);
+            let label = match &axes.y_floor {
+                Some((v, label)) if (t - v).abs() < 1e-12 => label.clone(),
+                _ => tick_label(t),
+            };
+            let _ = writeln!(
+                out,
+                r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{label}</text>"##,
+                left + pw,
+                left - 6.0,
+                y + 4.0
+            );
+        }
+        let _ = writeln!(
+            out,
+            r#"<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
+        );
+        let _ = writeln!(
+            out,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
+            left + pw / 2.0,
+            h - 22.0,
+            escape(&axes.x_label)
+        );
+        let _ = writeln!(
+            out,
+            r#"<text transform="translate(22 {:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            top + ph / 2.0,
+            escape(&axes.y_label)
+        );
+    }
+
+    /// The `k`th series: the points of `family` joined in the order given (coarse to fine),
+    /// their labels and the series' legend entry.
+    fn write_series(&self, out: &mut String, points: &[ChartPoint], k: usize, family: &str) {
         let colour = PALETTE[k % PALETTE.len()];
         let members: Vec<&ChartPoint> = points.iter().filter(|p| p.family == *family).collect();
         if members.len() > 1 {
             let path: Vec<String> = members
                 .iter()
-                .map(|p| format!("{:.1},{:.1}", sx(p.x), sy(shown(p))))
+                .map(|p| format!("{:.1},{:.1}", self.sx(p.x), self.sy(self.shown(p))))
                 .collect();
             let _ = writeln!(
                 out,
@@ -224,7 +273,7 @@ pub fn svg(points: &[ChartPoint], axes: &Axes, title: &str, subtitle: &str) -> S
             );
         }
         for p in &members {
-            let (x, y) = (sx(p.x), sy(shown(p)));
+            let (x, y) = (self.sx(p.x), self.sy(self.shown(p)));
             let _ = writeln!(
                 out,
                 r#"<circle cx="{x:.1}" cy="{y:.1}" r="4.5" fill="{colour}"/>"#
@@ -239,8 +288,8 @@ pub fn svg(points: &[ChartPoint], axes: &Axes, title: &str, subtitle: &str) -> S
                 );
             }
         }
-        let ly = top + 10.0 + 20.0 * k as f64;
-        let lx = left + pw + 20.0;
+        let ly = self.top + 10.0 + 20.0 * k as f64;
+        let lx = self.left + self.pw + 20.0;
         let _ = writeln!(
             out,
             r#"<circle cx="{lx:.1}" cy="{ly:.1}" r="4.5" fill="{colour}"/><text x="{:.1}" y="{:.1}">{}</text>"#,
@@ -249,42 +298,63 @@ pub fn svg(points: &[ChartPoint], axes: &Axes, title: &str, subtitle: &str) -> S
             escape(family)
         );
     }
-    if !axes.pareto {
-        out.push_str("</svg>\n");
-        return out;
-    }
-    // The Pareto front: rings and a dashed staircase.
-    let front = pareto_front(points);
-    let mut stairs = Vec::new();
-    for (n, &i) in front.iter().enumerate() {
-        let (x, y) = (sx(points[i].x), sy(shown(&points[i])));
-        if n > 0 {
-            let prev_y = sy(shown(&points[front[n - 1]]));
-            stairs.push(format!("{x:.1},{prev_y:.1}"));
+
+    /// The Pareto front: rings and a dashed staircase, and its legend entry below the
+    /// `families` series'.
+    fn write_pareto(&self, out: &mut String, points: &[ChartPoint], families: usize) {
+        let front = pareto_front(points);
+        let mut stairs = Vec::new();
+        for (n, &i) in front.iter().enumerate() {
+            let (x, y) = (self.sx(points[i].x), self.sy(self.shown(&points[i])));
+            if n > 0 {
+                let prev_y = self.sy(self.shown(&points[front[n - 1]]));
+                stairs.push(format!("{x:.1},{prev_y:.1}"));
+            }
+            stairs.push(format!("{x:.1},{y:.1}"));
+            let _ = writeln!(
+                out,
+                r#"<circle cx="{x:.1}" cy="{y:.1}" r="8" fill="none" stroke="black" stroke-width="1.5"/>"#
+            );
         }
-        stairs.push(format!("{x:.1},{y:.1}"));
+        if stairs.len() > 1 {
+            let _ = writeln!(
+                out,
+                r#"<polyline points="{}" fill="none" stroke="black" stroke-dasharray="5,4"/>"#,
+                stairs.join(" ")
+            );
+        }
+        let ly = self.top + 10.0 + 20.0 * families as f64 + 10.0;
+        let lx = self.left + self.pw + 20.0;
         let _ = writeln!(
             out,
-            r#"<circle cx="{x:.1}" cy="{y:.1}" r="8" fill="none" stroke="black" stroke-width="1.5"/>"#
+            r#"<circle cx="{lx:.1}" cy="{ly:.1}" r="8" fill="none" stroke="black" stroke-width="1.5"/><text x="{:.1}" y="{:.1}">Pareto front (nothing faster</text><text x="{:.1}" y="{:.1}">is also more accurate)</text>"#,
+            lx + 14.0,
+            ly + 4.0,
+            lx + 14.0,
+            ly + 20.0
         );
     }
-    if stairs.len() > 1 {
-        let _ = writeln!(
-            out,
-            r#"<polyline points="{}" fill="none" stroke="black" stroke-dasharray="5,4"/>"#,
-            stairs.join(" ")
-        );
+}
+
+/// The chart as an SVG document.
+pub fn svg(points: &[ChartPoint], axes: &Axes, title: &str, subtitle: &str) -> String {
+    let plot = Plot::new(points, axes);
+    let mut out = String::new();
+    plot.write_heading(&mut out, title, subtitle);
+    plot.write_axes(&mut out, axes);
+    // Series: points of one family joined in the order given (coarse to fine).
+    let mut families: Vec<&str> = Vec::new();
+    for p in points {
+        if !families.contains(&p.family.as_str()) {
+            families.push(&p.family);
+        }
     }
-    let ly = top + 10.0 + 20.0 * families.len() as f64 + 10.0;
-    let lx = left + pw + 20.0;
-    let _ = writeln!(
-        out,
-        r#"<circle cx="{lx:.1}" cy="{ly:.1}" r="8" fill="none" stroke="black" stroke-width="1.5"/><text x="{:.1}" y="{:.1}">Pareto front (nothing faster</text><text x="{:.1}" y="{:.1}">is also more accurate)</text>"#,
-        lx + 14.0,
-        ly + 4.0,
-        lx + 14.0,
-        ly + 20.0
-    );
+    for (k, family) in families.iter().enumerate() {
+        plot.write_series(&mut out, points, k, family);
+    }
+    if axes.pareto {
+        plot.write_pareto(&mut out, points, families.len());
+    }
     out.push_str("</svg>\n");
     out
 }

@@ -52,26 +52,40 @@ struct FrameRow {
     barrier_ms: f64,
 }
 
+/// This rank's renderer of its own walls, and the frame each frame number renders.
+struct RankRenderer<'a> {
+    config: &'a Config,
+    renderer: Renderer,
+    /// The head at rest; frames walk it round a small circle.
+    base: Vec3,
+}
+
+impl RankRenderer<'_> {
+    /// Renders `frame` (the head on its circle) and waits for the GPU; returns the time, ms.
+    fn render(&mut self, frame: u64) -> Result<f64, BenchError> {
+        let config = self.config;
+        let start = Instant::now();
+        let mut head = config.settings.head();
+        let t = frame as f32 * 0.1;
+        head.position = self.base + Vec3::new(0.2 * t.cos(), 0.0, 0.2 * t.sin());
+        let params = frame_params_from(
+            &config.settings,
+            &config.cave,
+            head,
+            config.settings.world_from_cave(),
+        );
+        self.renderer.render(&params)?;
+        self.renderer.wait_idle()?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+}
+
 /// Runs this rank's part; on rank 0, writes the report and returns its files.
 pub fn run_cluster(
     options: &ClusterBenchOptions,
     transport: Box<dyn Transport>,
 ) -> Result<Vec<PathBuf>, BenchError> {
-    let mut config = Config::load(&options.config)?;
-    if let Some(size) = options.size {
-        for wall in &mut config.cave.walls {
-            wall.resolution = size;
-        }
-        for wall in &mut config.settings.walls {
-            wall.resolution = size;
-        }
-    }
-    let scene_path = options.scene.clone().or_else(|| config.scene_path.clone());
-    let scene = match &scene_path {
-        Some(p) => load_scene(&config.settings, p)?,
-        None => crate::scene::Scene::default(),
-    };
-    place_at_camera(&mut config.settings, &scene)?;
+    let (config, scene) = load_cluster_config(options)?;
     let sky = load_config_sky(&config);
     let rank = transport.rank();
     let size = transport.size();
@@ -89,82 +103,26 @@ pub fn run_cluster(
     let me = identity(transport.host(), &config, &scene);
     let timeouts = Timeouts::from_settings(&config.settings.cluster);
     let base = config.settings.head().position;
-    let mut render = |frame: u64| -> Result<f64, BenchError> {
-        let start = Instant::now();
-        let mut head = config.settings.head();
-        let t = frame as f32 * 0.1;
-        head.position = base + Vec3::new(0.2 * t.cos(), 0.0, 0.2 * t.sin());
-        let params = frame_params_from(
-            &config.settings,
-            &config.cave,
-            head,
-            config.settings.world_from_cave(),
-        );
-        renderer.render(&params)?;
-        renderer.wait_idle()?;
-        Ok(start.elapsed().as_secs_f64() * 1e3)
+    let mut rank_renderer = RankRenderer {
+        config: &config,
+        renderer,
+        base,
     };
     if rank != 0 {
-        let mut node = Node::start(transport, &me, timeouts).map_err(BenchError::Cluster)?;
-        loop {
-            match node.next_frame(|_, _| {}).map_err(BenchError::Cluster)? {
-                NodeStep::Stop(_) => return Ok(Vec::new()),
-                NodeStep::Frame(s) => {
-                    let ms = if s.frame >= PROTOCOL_FRAMES_FROM {
-                        0.0
-                    } else {
-                        render(s.frame)?
-                    };
-                    if node
-                        .barrier(s.frame, ms, false)
-                        .map_err(BenchError::Cluster)?
-                        .is_some()
-                    {
-                        return Ok(Vec::new());
-                    }
-                }
-            }
-        }
+        let node = Node::start(transport, &me, timeouts).map_err(BenchError::Cluster)?;
+        return follow_master(node, &mut rank_renderer);
     }
     let mut master = Master::start(transport, &me, walls, timeouts).map_err(BenchError::Cluster)?;
     let mut lockstep = Vec::with_capacity(options.frames);
     let mut protocol = Vec::with_capacity(options.frames);
     for (phase, first) in [(&mut lockstep, 0), (&mut protocol, PROTOCOL_FRAMES_FROM)] {
-        for i in 0..(WARM_UP + options.frames) as u64 {
-            let frame = first + i;
-            let start = Instant::now();
-            let state = FrameState {
-                frame,
-                head_position: base,
-                ..Default::default()
-            };
-            let lost = master.broadcast(None, &state);
-            let master_render_ms = if first == 0 { render(frame)? } else { 0.0 };
-            let lost = master
-                .barrier(frame, false, lost)
-                .map_err(BenchError::Cluster)?;
-            if !lost.is_empty() {
-                master.stop("bench: a node was lost");
-                return Err(BenchError::Cluster(
-                    crate::cluster::ClusterError::NodeLostStop(format!("{lost:?}")),
-                ));
-            }
-            let slowest = master
-                .nodes()
-                .iter()
-                .skip(1)
-                .map(|n| f64::from(n.figures.render_ms))
-                .fold(master_render_ms, f64::max);
-            if i as usize >= WARM_UP {
-                phase.push(FrameRow {
-                    frame_ms: start.elapsed().as_secs_f64() * 1e3,
-                    master_render_ms,
-                    slowest_render_ms: slowest,
-                    broadcast_ms: master.figures.broadcast_ms,
-                    barrier_ms: master.figures.barrier_ms,
-                });
-            }
-        }
+        time_phase(
+            &mut master,
+            &mut rank_renderer,
+            first,
+            options.frames,
+            phase,
+        )?;
     }
     master.stop("bench done");
     let hosts: Vec<String> = master.nodes().iter().map(|n| n.describe()).collect();
@@ -176,6 +134,106 @@ pub fn run_cluster(
         &protocol,
         gpu.adapter.get_info().name,
     )
+}
+
+/// The config with every wall at the run's size, and its scene, the camera placed in it.
+fn load_cluster_config(
+    options: &ClusterBenchOptions,
+) -> Result<(Config, crate::scene::Scene), BenchError> {
+    let mut config = Config::load(&options.config)?;
+    if let Some(size) = options.size {
+        for wall in &mut config.cave.walls {
+            wall.resolution = size;
+        }
+        for wall in &mut config.settings.walls {
+            wall.resolution = size;
+        }
+    }
+    let scene_path = options.scene.clone().or_else(|| config.scene_path.clone());
+    let scene = match &scene_path {
+        Some(p) => load_scene(&config.settings, p)?,
+        None => crate::scene::Scene::default(),
+    };
+    place_at_camera(&mut config.settings, &scene)?;
+    Ok((config, scene))
+}
+
+/// A node's part: renders each frame the master sends (nothing in the protocol phase) and
+/// reports at the barrier, until the master stops.
+fn follow_master(
+    mut node: Node<Box<dyn Transport>>,
+    rank_renderer: &mut RankRenderer<'_>,
+) -> Result<Vec<PathBuf>, BenchError> {
+    loop {
+        match node.next_frame(|_, _| {}).map_err(BenchError::Cluster)? {
+            NodeStep::Stop(_) => return Ok(Vec::new()),
+            NodeStep::Frame(s) => {
+                let ms = if s.frame >= PROTOCOL_FRAMES_FROM {
+                    0.0
+                } else {
+                    rank_renderer.render(s.frame)?
+                };
+                if node
+                    .barrier(s.frame, ms, false)
+                    .map_err(BenchError::Cluster)?
+                    .is_some()
+                {
+                    return Ok(Vec::new());
+                }
+            }
+        }
+    }
+}
+
+/// One phase on the master: the warm-up frames, then `frames` timed ones numbered from
+/// `first` (rendered in the lockstep phase, from 0), appended to `phase`.
+fn time_phase(
+    master: &mut Master<Box<dyn Transport>>,
+    rank_renderer: &mut RankRenderer<'_>,
+    first: u64,
+    frames: usize,
+    phase: &mut Vec<FrameRow>,
+) -> Result<(), BenchError> {
+    for i in 0..(WARM_UP + frames) as u64 {
+        let frame = first + i;
+        let start = Instant::now();
+        let state = FrameState {
+            frame,
+            head_position: rank_renderer.base,
+            ..Default::default()
+        };
+        let lost = master.broadcast(None, &state);
+        let master_render_ms = if first == 0 {
+            rank_renderer.render(frame)?
+        } else {
+            0.0
+        };
+        let lost = master
+            .barrier(frame, false, lost)
+            .map_err(BenchError::Cluster)?;
+        if !lost.is_empty() {
+            master.stop("bench: a node was lost");
+            return Err(BenchError::Cluster(
+                crate::cluster::ClusterError::NodeLostStop(format!("{lost:?}")),
+            ));
+        }
+        let slowest = master
+            .nodes()
+            .iter()
+            .skip(1)
+            .map(|n| f64::from(n.figures.render_ms))
+            .fold(master_render_ms, f64::max);
+        if i as usize >= WARM_UP {
+            phase.push(FrameRow {
+                frame_ms: start.elapsed().as_secs_f64() * 1e3,
+                master_render_ms,
+                slowest_render_ms: slowest,
+                broadcast_ms: master.figures.broadcast_ms,
+                barrier_ms: master.figures.barrier_ms,
+            });
+        }
+    }
+    Ok(())
 }
 
 fn quantile(rows: &[FrameRow], q: f64, f: impl Fn(&FrameRow) -> f64) -> f64 {

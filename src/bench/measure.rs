@@ -10,7 +10,7 @@ use super::methods::{Method, MethodShadows, Timer, reference_method};
 use crate::cave::Head;
 use crate::config::Config;
 use crate::render::frame_timer::STAGES_PER_VIEW;
-use crate::render::{Gpu, RenderSettings, Renderer, ViewStage, WallImages};
+use crate::render::{FrameParams, Gpu, RenderSettings, Renderer, ViewStage, WallImages};
 use crate::scene::Scene;
 use crate::setup::frame_params;
 use crate::sky::{CubeMap, SkyMode};
@@ -95,6 +95,32 @@ pub fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[lo] + (pos - lo as f64) * (sorted[hi] - sorted[lo])
 }
 
+/// Per method, what its warm-up and timed frames collected.
+#[derive(Debug, Clone)]
+struct MethodTimes {
+    /// GPU frame times (ms) in the order measured (empty without timestamps).
+    gpu: Vec<f64>,
+    /// Wall-clock frame times (ms) in the order measured.
+    wall: Vec<f64>,
+    /// Per frame, each stage's GPU time (ms).
+    stages: Vec<[f64; STAGE_COLUMNS]>,
+    /// Triangles drawn over all views.
+    drawn: usize,
+    dispatches: usize,
+    refined_input: usize,
+}
+
+/// What the steps of measuring one case share: the config, the scene, the case, its methods
+/// and the timer read.
+struct CaseRun<'a> {
+    config: &'a Config,
+    scene_name: &'a str,
+    scene: Option<&'a Scene>,
+    case: &'a Case,
+    methods: &'a [Method],
+    timer: Timer,
+}
+
 #[allow(clippy::too_many_arguments)]
 pub(super) fn measure(
     gpu: &Gpu,
@@ -106,6 +132,35 @@ pub(super) fn measure(
     methods: &[Method],
     frames: usize,
 ) -> Result<Vec<Row>, BenchError> {
+    let (mut renderer, timer) = bench_renderer(gpu, config, scene, sky)?;
+    let run = CaseRun {
+        config,
+        scene_name,
+        scene,
+        case,
+        methods,
+        timer,
+    };
+    let mut times = run.warm_up(&mut renderer, frames)?;
+    run.time_rounds(&mut renderer, frames, &mut times)?;
+    let accuracies = run.accuracies();
+    let diffs = run.image_diffs(&mut renderer)?;
+    Ok(methods
+        .iter()
+        .zip(times)
+        .zip(accuracies.into_iter().zip(diffs))
+        .map(|((m, t), (accuracy, diff))| run.row(m, t, accuracy, diff))
+        .collect())
+}
+
+/// A renderer of the config's CAVE with the scene and sky loaded and GPU timing on where the
+/// adapter has timestamps; returns it with the timer the bench reads.
+fn bench_renderer(
+    gpu: &Gpu,
+    config: &Config,
+    scene: Option<&Scene>,
+    sky: &CubeMap,
+) -> Result<(Renderer, Timer), BenchError> {
     let mut renderer = Renderer::new(
         gpu,
         &config.cave,
@@ -123,17 +178,15 @@ pub(super) fn measure(
     } else {
         Timer::Wall
     };
-    let mut gpu_times = vec![Vec::with_capacity(frames); methods.len()];
-    let mut wall_times = vec![Vec::with_capacity(frames); methods.len()];
-    let mut drawn = vec![0usize; methods.len()];
-    let mut dispatches = vec![0usize; methods.len()];
-    let mut refined_input = vec![0usize; methods.len()];
-    let mut stage_times: Vec<Vec<[f64; STAGE_COLUMNS]>> =
-        vec![Vec::with_capacity(frames); methods.len()];
-    let params = |m: &Method| {
-        let mut p = frame_params(config);
-        p.head = Head::at(case.head);
-        p.world_from_cave = case.world_from_cave;
+    Ok((renderer, timer))
+}
+
+impl CaseRun<'_> {
+    /// The frame parameters of method `m` in this case.
+    fn params(&self, m: &Method) -> FrameParams<'_> {
+        let mut p = frame_params(self.config);
+        p.head = Head::at(self.case.head);
+        p.world_from_cave = self.case.world_from_cave;
         p.mode = m.mode;
         p.tess = m.tess;
         p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
@@ -144,120 +197,162 @@ pub(super) fn measure(
             MethodShadows::FilterEverywhere => p.shadows.pcf_range_test = false,
         }
         p
-    };
-    // One warm-up frame per method (first-use costs), then round-robin so that any drift of the
-    // machine spreads over all methods alike.
-    for (i, m) in methods.iter().enumerate() {
-        let stats = renderer.render(&params(m))?;
-        renderer.wait_idle()?;
-        dispatches[i] = stats.dispatches;
-        refined_input[i] = stats.refined_input;
-        let tess: usize = renderer
-            .read_tess_stats()?
-            .iter()
-            .map(|s| s.emitted as usize)
-            .sum();
-        drawn[i] = if m.tess.criterion.is_some() {
-            tess + stats.fine_triangles
-        } else {
-            stats.triangles_submitted
-        };
     }
-    for _ in 0..frames {
-        for (i, m) in methods.iter().enumerate() {
-            let start = Instant::now();
-            renderer.render(&params(m))?;
+
+    /// One warm-up frame per method (first-use costs), which also counts its drawn
+    /// triangles, dispatches and refined input.
+    fn warm_up(
+        &self,
+        renderer: &mut Renderer,
+        frames: usize,
+    ) -> Result<Vec<MethodTimes>, BenchError> {
+        let mut times = Vec::with_capacity(self.methods.len());
+        for m in self.methods {
+            let stats = renderer.render(&self.params(m))?;
             renderer.wait_idle()?;
-            wall_times[i].push(start.elapsed().as_secs_f64() * 1e3);
-            if let Some(b) = renderer.read_gpu_breakdown()? {
-                gpu_times[i].push(b.total_ms);
-                let mut stages = [b.shadows_ms; STAGE_COLUMNS];
-                for (slot, stage) in stages[1..].iter_mut().zip(ViewStage::ALL) {
-                    *slot = b.stage_ms(stage);
-                }
-                stage_times[i].push(stages);
-            }
-        }
-    }
-    let input = scene.map_or(0, Scene::triangle_count);
-    // Accuracy from the CPU twin; a sky does not change the geometry, so sky methods share
-    // the accuracy of the same method without one.
-    let mut accuracies: Vec<Option<Accuracy>> = vec![None; methods.len()];
-    if let Some(scene) = scene {
-        for (i, m) in methods.iter().enumerate() {
-            let base = methods[..i]
+            let tess: usize = renderer
+                .read_tess_stats()?
                 .iter()
-                .position(|o| o.mode == m.mode && o.tess == m.tess)
-                .and_then(|j| accuracies[j]);
-            accuracies[i] = Some(base.unwrap_or_else(|| {
-                accuracy::accuracy(config, scene, case.head, case.world_from_cave, m)
-            }));
-        }
-    }
-    // The picture against the reference render (one read-back per method, outside the timing).
-    let mut diffs: Vec<Option<f64>> = vec![None; methods.len()];
-    if scene.is_some() {
-        renderer.render(&params(&reference_method(config.settings.tess())))?;
-        let reference = renderer.read_images()?;
-        check_reference(scene_name, &reference)?;
-        for (i, m) in methods.iter().enumerate() {
-            let base = methods[..i]
-                .iter()
-                .position(|o| o.mode == m.mode && o.tess == m.tess)
-                .and_then(|j| diffs[j]);
-            diffs[i] = Some(match base {
-                Some(d) => d,
-                None => {
-                    // Without the sky, as the reference: the comparison is of the geometry,
-                    // and methods differing only by their sky share it.
-                    let mut p = params(m);
-                    p.sky.mode = SkyMode::Off;
-                    renderer.render(&p)?;
-                    image_difference_pct(&renderer.read_images()?, &reference)
-                }
+                .map(|s| s.emitted as usize)
+                .sum();
+            times.push(MethodTimes {
+                gpu: Vec::with_capacity(frames),
+                wall: Vec::with_capacity(frames),
+                stages: Vec::with_capacity(frames),
+                drawn: if m.tess.criterion.is_some() {
+                    tess + stats.fine_triangles
+                } else {
+                    stats.triangles_submitted
+                },
+                dispatches: stats.dispatches,
+                refined_input: stats.refined_input,
             });
         }
+        Ok(times)
     }
-    Ok(methods
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            let rounds_ms = if timer == Timer::Gpu {
-                gpu_times[i].clone()
-            } else {
-                wall_times[i].clone()
-            };
-            let mut wall = std::mem::take(&mut wall_times[i]);
-            wall.sort_by(f64::total_cmp);
-            let mut times = std::mem::take(&mut gpu_times[i]);
-            times.sort_by(f64::total_cmp);
-            let wall_median_ms = percentile(&wall, 0.5);
-            let stages_ms = (!stage_times[i].is_empty()).then(|| {
-                std::array::from_fn(|k| {
-                    let mut v: Vec<f64> = stage_times[i].iter().map(|s| s[k]).collect();
-                    v.sort_by(f64::total_cmp);
-                    percentile(&v, 0.5)
-                })
-            });
-            Row {
-                scene: scene_name.to_owned(),
-                viewpoint: case.viewpoint.clone(),
-                head: case.head_name.clone(),
-                method: m.clone(),
-                timer,
-                times_ms: if timer == Timer::Gpu { times } else { wall },
-                rounds_ms,
-                wall_median_ms,
-                input_triangles: input,
-                drawn_triangles: drawn[i],
-                accuracy: accuracies[i],
-                image_diff_pct: diffs[i],
-                stages_ms,
-                dispatches: dispatches[i],
-                refined_input: refined_input[i],
+
+    /// The timed frames: round-robin over the methods so that any drift of the machine
+    /// spreads over all methods alike.
+    fn time_rounds(
+        &self,
+        renderer: &mut Renderer,
+        frames: usize,
+        times: &mut [MethodTimes],
+    ) -> Result<(), BenchError> {
+        for _ in 0..frames {
+            for (t, m) in times.iter_mut().zip(self.methods) {
+                let start = Instant::now();
+                renderer.render(&self.params(m))?;
+                renderer.wait_idle()?;
+                t.wall.push(start.elapsed().as_secs_f64() * 1e3);
+                if let Some(b) = renderer.read_gpu_breakdown()? {
+                    t.gpu.push(b.total_ms);
+                    let mut stages = [b.shadows_ms; STAGE_COLUMNS];
+                    for (slot, stage) in stages[1..].iter_mut().zip(ViewStage::ALL) {
+                        *slot = b.stage_ms(stage);
+                    }
+                    t.stages.push(stages);
+                }
             }
-        })
-        .collect())
+        }
+        Ok(())
+    }
+
+    /// Accuracy from the CPU twin; a sky does not change the geometry, so sky methods share
+    /// the accuracy of the same method without one.
+    fn accuracies(&self) -> Vec<Option<Accuracy>> {
+        let methods = self.methods;
+        let mut accuracies: Vec<Option<Accuracy>> = vec![None; methods.len()];
+        if let Some(scene) = self.scene {
+            for (i, m) in methods.iter().enumerate() {
+                let base = methods[..i]
+                    .iter()
+                    .position(|o| o.mode == m.mode && o.tess == m.tess)
+                    .and_then(|j| accuracies[j]);
+                accuracies[i] = Some(base.unwrap_or_else(|| {
+                    let case = self.case;
+                    accuracy::accuracy(self.config, scene, case.head, case.world_from_cave, m)
+                }));
+            }
+        }
+        accuracies
+    }
+
+    /// The picture against the reference render (one read-back per method, outside the
+    /// timing).
+    fn image_diffs(&self, renderer: &mut Renderer) -> Result<Vec<Option<f64>>, BenchError> {
+        let methods = self.methods;
+        let mut diffs: Vec<Option<f64>> = vec![None; methods.len()];
+        if self.scene.is_some() {
+            renderer.render(&self.params(&reference_method(self.config.settings.tess())))?;
+            let reference = renderer.read_images()?;
+            check_reference(self.scene_name, &reference)?;
+            for (i, m) in methods.iter().enumerate() {
+                let base = methods[..i]
+                    .iter()
+                    .position(|o| o.mode == m.mode && o.tess == m.tess)
+                    .and_then(|j| diffs[j]);
+                diffs[i] = Some(match base {
+                    Some(d) => d,
+                    None => {
+                        // Without the sky, as the reference: the comparison is of the
+                        // geometry, and methods differing only by their sky share it.
+                        let mut p = self.params(m);
+                        p.sky.mode = SkyMode::Off;
+                        renderer.render(&p)?;
+                        image_difference_pct(&renderer.read_images()?, &reference)
+                    }
+                });
+            }
+        }
+        Ok(diffs)
+    }
+
+    /// The row of method `m`: its times sorted, their medians and its counts.
+    fn row(
+        &self,
+        m: &Method,
+        t: MethodTimes,
+        accuracy: Option<Accuracy>,
+        image_diff_pct: Option<f64>,
+    ) -> Row {
+        let timer = self.timer;
+        let rounds_ms = if timer == Timer::Gpu {
+            t.gpu.clone()
+        } else {
+            t.wall.clone()
+        };
+        let mut wall = t.wall;
+        wall.sort_by(f64::total_cmp);
+        let mut times = t.gpu;
+        times.sort_by(f64::total_cmp);
+        let wall_median_ms = percentile(&wall, 0.5);
+        let stages = &t.stages;
+        let stages_ms = (!stages.is_empty()).then(|| {
+            std::array::from_fn(|k| {
+                let mut v: Vec<f64> = stages.iter().map(|s| s[k]).collect();
+                v.sort_by(f64::total_cmp);
+                percentile(&v, 0.5)
+            })
+        });
+        Row {
+            scene: self.scene_name.to_owned(),
+            viewpoint: self.case.viewpoint.clone(),
+            head: self.case.head_name.clone(),
+            method: m.clone(),
+            timer,
+            times_ms: if timer == Timer::Gpu { times } else { wall },
+            rounds_ms,
+            wall_median_ms,
+            input_triangles: self.scene.map_or(0, Scene::triangle_count),
+            drawn_triangles: t.drawn,
+            accuracy,
+            image_diff_pct,
+            stages_ms,
+            dispatches: t.dispatches,
+            refined_input: t.refined_input,
+        }
+    }
 }
 
 /// A pixel differs visibly when a channel is off by more than this (of 255): a different

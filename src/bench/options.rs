@@ -11,7 +11,8 @@ pub struct BenchOptions {
     /// Sky for the sky methods; `None`: the config's, else the bundled one.
     pub sky: Option<PathBuf>,
     pub out: PathBuf,
-    /// Fewer frames and head positions (finishes in well under 2 minutes on lavapipe).
+    /// Fewer frames and head positions (about 5 minutes for the three default scenes on
+    /// lavapipe, 2 cores).
     pub quick: bool,
     /// Timed frames (rounds) per method and case (default 12, quick 5).
     pub frames: Option<usize>,

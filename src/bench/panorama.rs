@@ -12,7 +12,7 @@ use crate::config::Config;
 use crate::output;
 use crate::pano::raycast::{Comparison, compare, flat_reference};
 use crate::pano::{PanoRoute, PanoSettings, PanoStereo, Projection};
-use crate::render::{Gpu, RenderSettings, Renderer};
+use crate::render::{FrameParams, Gpu, RenderSettings, Renderer};
 use crate::scene::Scene;
 use crate::setup::frame_params;
 use crate::tess::{Criterion, TessSettings};
@@ -106,6 +106,19 @@ fn settings(method: &PanoMethod, size: [u32; 2]) -> PanoSettings {
     }
 }
 
+/// What measuring the panorama methods shares: the GPU, the config, the output folder, the
+/// panorama size and the frames timed.
+struct PanoRun<'a> {
+    gpu: &'a Gpu,
+    config: &'a Config,
+    out: &'a Path,
+    size: [u32; 2],
+    frames: usize,
+}
+
+/// Per projection, the scene in flat colours and the ray caster's picture of it.
+type References = Vec<(Projection, Scene, Reference)>;
+
 /// Measures every panorama method on every scene from the config's head, writes
 /// `panorama.csv` and 360° equirectangular and Hammer images of each scene into `out`, and
 /// returns the rows and the files written.
@@ -121,117 +134,177 @@ pub fn run_panorama(
         path: out.to_owned(),
         source,
     })?;
-    let size = pano_size(quick);
+    let run = PanoRun {
+        gpu,
+        config,
+        out,
+        size: pano_size(quick),
+        frames,
+    };
     let methods = pano_methods(quick);
     let mut rows = Vec::new();
     let mut files = Vec::new();
-    let head = config.settings.head().position;
     for (scene_name, scene) in scenes {
         // The reference: the ray caster on the scene in flat colours, once per projection
         // (mono, full sphere, from the head).
-        let mut references: Vec<(Projection, Scene, Reference)> = Vec::new();
+        let mut references: References = Vec::new();
         for method in &methods {
-            let pano = settings(method, size);
-            let tess = TessSettings {
-                criterion: method.criterion,
-                ..config.settings.tess()
-            };
-            let mut renderer = Renderer::new(
-                gpu,
-                &config.cave,
-                RenderSettings {
-                    msaa: 1,
-                    wireframe: false,
-                },
-            )?;
-            let gpu_timed = renderer.enable_gpu_timing(gpu);
-            renderer.set_scene(scene)?;
-            let mut frame = frame_params(config);
-            frame.tess = tess;
-            let mut times = Vec::with_capacity(frames);
-            // One frame to build buffers, then the timed ones.
-            renderer.render_panorama(&frame, &pano)?;
-            renderer.wait_idle()?;
-            for _ in 0..frames {
-                let start = std::time::Instant::now();
-                renderer.render_panorama(&frame, &pano)?;
-                renderer.wait_idle()?;
-                let wall = start.elapsed().as_secs_f64() * 1e3;
-                times.push(match renderer.read_gpu_time_ms()? {
-                    Some(ms) if gpu_timed => ms,
-                    _ => wall,
-                });
-            }
-            times.sort_by(f64::total_cmp);
-            let emitted = renderer
-                .read_panorama_tess_stats()?
-                .first()
-                .map(|s| s.emitted);
-            if method.projection == Projection::Equirectangular
-                || method.projection == Projection::Hammer
-            {
-                // The textured, lit images for the report (recommended route only).
-                if method.route == PanoRoute::Geometric
-                    && method.criterion == Some(Criterion::Error(0.5))
-                {
-                    let [image, _] = renderer.read_panorama()?;
-                    let path = out.join(format!(
-                        "panorama-{scene_name}-{}.png",
-                        method.projection.name()
-                    ));
-                    output::write_png(&path, &image).map_err(|e| BenchError::Write {
-                        path: path.clone(),
-                        source: std::io::Error::other(e.to_string()),
-                    })?;
-                    files.push(path);
-                }
-            }
-            // Accuracy: the same method on the flat-coloured scene against the ray caster.
-            if !references.iter().any(|(p, _, _)| *p == method.projection) {
-                let (flat, reference) = flat_reference(
-                    scene,
-                    config.settings.world_from_cave().inverse(),
-                    &pano,
-                    head,
-                    config.cave.near,
-                    config.cave.far,
-                );
-                references.push((method.projection, flat, reference));
-            }
-            let Some((_, flat, reference)) =
-                references.iter().find(|(p, _, _)| *p == method.projection)
-            else {
-                continue;
-            };
-            renderer.set_scene(flat)?;
-            renderer.render_panorama(&frame, &pano)?;
-            let [image, _] = renderer.read_panorama()?;
-            let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();
-            let bg = config
-                .settings
-                .render
-                .background
-                .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
-            let comparison = compare(&pixels, reference, size[0] as usize, bg);
-            tracing::info!(
-                "panorama {scene_name}, {}: {:.2} ms, {:.3} % of pixels off the ray caster",
-                method.name,
-                percentile(&times, 0.5),
-                comparison.differ_pct()
-            );
-            rows.push(PanoRow {
-                scene: scene_name.clone(),
-                method: method.clone(),
-                times_ms: times,
-                gpu_timed,
-                emitted,
-                comparison,
-            });
+            let row = run.measure_method(scene_name, scene, method, &mut references, &mut files)?;
+            rows.extend(row);
         }
     }
     let csv_path = out.join("panorama.csv");
+    write_pano_csv(&csv_path, &rows)?;
+    files.insert(0, csv_path);
+    Ok((rows, files))
+}
+
+impl PanoRun<'_> {
+    /// Times one method on one scene, writes its report image where it is the recommended
+    /// route (appending the path to `files`) and compares it with the ray caster.
+    fn measure_method(
+        &self,
+        scene_name: &str,
+        scene: &Scene,
+        method: &PanoMethod,
+        references: &mut References,
+        files: &mut Vec<PathBuf>,
+    ) -> Result<Option<PanoRow>, BenchError> {
+        let config = self.config;
+        let pano = settings(method, self.size);
+        let tess = TessSettings {
+            criterion: method.criterion,
+            ..config.settings.tess()
+        };
+        let mut renderer = Renderer::new(
+            self.gpu,
+            &config.cave,
+            RenderSettings {
+                msaa: 1,
+                wireframe: false,
+            },
+        )?;
+        let gpu_timed = renderer.enable_gpu_timing(self.gpu);
+        renderer.set_scene(scene)?;
+        let mut frame = frame_params(config);
+        frame.tess = tess;
+        let times = self.time_frames(&mut renderer, &frame, &pano, gpu_timed)?;
+        let emitted = renderer
+            .read_panorama_tess_stats()?
+            .first()
+            .map(|s| s.emitted);
+        files.extend(self.write_report_image(&renderer, scene_name, method)?);
+        // Accuracy: the same method on the flat-coloured scene against the ray caster.
+        if !references.iter().any(|(p, _, _)| *p == method.projection) {
+            let (flat, reference) = flat_reference(
+                scene,
+                config.settings.world_from_cave().inverse(),
+                &pano,
+                config.settings.head().position,
+                config.cave.near,
+                config.cave.far,
+            );
+            references.push((method.projection, flat, reference));
+        }
+        let Some((_, flat, reference)) =
+            references.iter().find(|(p, _, _)| *p == method.projection)
+        else {
+            return Ok(None);
+        };
+        renderer.set_scene(flat)?;
+        renderer.render_panorama(&frame, &pano)?;
+        let comparison = self.compare_with(&renderer, reference)?;
+        tracing::info!(
+            "panorama {scene_name}, {}: {:.2} ms, {:.3} % of pixels off the ray caster",
+            method.name,
+            percentile(&times, 0.5),
+            comparison.differ_pct()
+        );
+        Ok(Some(PanoRow {
+            scene: scene_name.to_owned(),
+            method: method.clone(),
+            times_ms: times,
+            gpu_timed,
+            emitted,
+            comparison,
+        }))
+    }
+
+    /// One frame to build buffers, then the timed ones; returns their sorted times (GPU
+    /// where timed, else wall-clock), ms.
+    fn time_frames(
+        &self,
+        renderer: &mut Renderer,
+        frame: &FrameParams<'_>,
+        pano: &PanoSettings,
+        gpu_timed: bool,
+    ) -> Result<Vec<f64>, BenchError> {
+        let mut times = Vec::with_capacity(self.frames);
+        renderer.render_panorama(frame, pano)?;
+        renderer.wait_idle()?;
+        for _ in 0..self.frames {
+            let start = std::time::Instant::now();
+            renderer.render_panorama(frame, pano)?;
+            renderer.wait_idle()?;
+            let wall = start.elapsed().as_secs_f64() * 1e3;
+            times.push(match renderer.read_gpu_time_ms()? {
+                Some(ms) if gpu_timed => ms,
+                _ => wall,
+            });
+        }
+        times.sort_by(f64::total_cmp);
+        Ok(times)
+    }
+
+    /// The textured, lit image for the report (recommended route only): writes the panorama
+    /// just rendered and returns its path.
+    fn write_report_image(
+        &self,
+        renderer: &Renderer,
+        scene_name: &str,
+        method: &PanoMethod,
+    ) -> Result<Option<PathBuf>, BenchError> {
+        if (method.projection == Projection::Equirectangular
+            || method.projection == Projection::Hammer)
+            && method.route == PanoRoute::Geometric
+            && method.criterion == Some(Criterion::Error(0.5))
+        {
+            let [image, _] = renderer.read_panorama()?;
+            let path = self.out.join(format!(
+                "panorama-{scene_name}-{}.png",
+                method.projection.name()
+            ));
+            output::write_png(&path, &image).map_err(|e| BenchError::Write {
+                path: path.clone(),
+                source: std::io::Error::other(e.to_string()),
+            })?;
+            return Ok(Some(path));
+        }
+        Ok(None)
+    }
+
+    /// The panorama just rendered against the ray caster's `reference`.
+    fn compare_with(
+        &self,
+        renderer: &Renderer,
+        reference: &Reference,
+    ) -> Result<Comparison, BenchError> {
+        let [image, _] = renderer.read_panorama()?;
+        let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();
+        let bg = self
+            .config
+            .settings
+            .render
+            .background
+            .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+        Ok(compare(&pixels, reference, self.size[0] as usize, bg))
+    }
+}
+
+/// Writes `panorama.csv`: one line per measured method and scene.
+fn write_pano_csv(path: &Path, rows: &[PanoRow]) -> Result<(), BenchError> {
     write_csv(
-        &csv_path,
+        path,
         &[
             "scene",
             "method",
@@ -264,9 +337,7 @@ pub fn run_panorama(
                 format!("{:.4}", r.comparison.away_pct()),
             ]
         }),
-    )?;
-    files.insert(0, csv_path);
-    Ok((rows, files))
+    )
 }
 
 /// The report's panorama section: the table and the 360° images.

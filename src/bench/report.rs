@@ -60,6 +60,160 @@ fn find<'a>(rows: &'a [Row], like: &Row, pred: impl Fn(&Method) -> bool) -> Opti
     })
 }
 
+/// The columns of `results.csv`, in order.
+const RESULT_HEADER: &[&str] = &[
+    "scene",
+    "viewpoint",
+    "head",
+    "method",
+    "mode",
+    "tessellation",
+    "sky",
+    "frames",
+    "timer",
+    "median_ms",
+    "p25_ms",
+    "p75_ms",
+    "min_ms",
+    "max_ms",
+    "wall_median_ms",
+    "input_triangles",
+    "drawn_triangles",
+    "ratio_to_stereo",
+    "ratio_to_no_sky",
+    "error_max_px",
+    "error_p99_px",
+    "error_samples",
+    "cpu_input_triangles",
+    "cpu_culled_triangles",
+    "cpu_drawn_triangles",
+    "cpu_edge_px",
+    "image_diff_pct",
+    "seam_max_px",
+    "seam_p99_px",
+    "seam_crossings",
+    "shadows_ms",
+    "tess_cull_ms",
+    "tess_split_ms",
+    "tess_sort_ms",
+    "scene_ms",
+    "sky_ms",
+    "resolve_ms",
+    "dispatches",
+    "refined_input_triangles",
+];
+
+/// Plain off-axis stereo of the same case; none for an empty scene, whose reference frame
+/// would be a bare clear.
+fn reference_row<'a>(rows: &'a [Row], r: &Row) -> Option<&'a Row> {
+    find(rows, r, |m| {
+        m.mode == RenderMode::Stereo
+            && m.sky.is_none()
+            && m.tess.criterion.is_none()
+            && m.shading == Shading::Pbr
+            && m.shadows == MethodShadows::Config
+    })
+    .filter(|o| o.input_triangles > 0)
+}
+
+/// The same method of the same case without a sky.
+fn without_sky_row<'a>(rows: &'a [Row], r: &Row) -> Option<&'a Row> {
+    find(rows, r, |m| {
+        m.mode == r.method.mode
+            && m.tess == r.method.tess
+            && m.sky.is_none()
+            && m.shading == r.method.shading
+            && m.shadows == r.method.shadows
+    })
+}
+
+/// A number as a CSV cell with four decimals.
+fn f4(v: f64) -> String {
+    format!("{v:.4}")
+}
+
+/// One row of `results.csv`: the cells of `r`, in the order of [`RESULT_HEADER`].
+fn result_cells(rows: &[Row], r: &Row) -> Vec<String> {
+    let ratio = |other: Option<&Row>| other.map_or(String::new(), |o| f4(r.ratio_to(o)));
+    let mut cells = vec![
+        r.scene.clone(),
+        r.viewpoint.clone(),
+        r.head.clone(),
+        r.method.name.clone(),
+        r.method.mode.name().to_owned(),
+        r.method
+            .tess
+            .criterion
+            .map_or("none".into(), |c| c.to_string()),
+        r.method.sky.map_or("none", SkyMode::name).to_owned(),
+        r.times_ms.len().to_string(),
+        r.timer.name().to_owned(),
+        f4(r.median()),
+        f4(percentile(&r.times_ms, 0.25)),
+        f4(percentile(&r.times_ms, 0.75)),
+        f4(r.times_ms.first().copied().unwrap_or(f64::NAN)),
+        f4(r.times_ms.last().copied().unwrap_or(f64::NAN)),
+        f4(r.wall_median_ms),
+        r.input_triangles.to_string(),
+        r.drawn_triangles.to_string(),
+        ratio(reference_row(rows, r)),
+        if r.method.sky.is_some() {
+            ratio(without_sky_row(rows, r))
+        } else {
+            String::new()
+        },
+    ];
+    push_accuracy_cells(&mut cells, r);
+    cells.push(r.dispatches.to_string());
+    cells.push(r.refined_input.to_string());
+    cells
+}
+
+/// The CSV cells from `error_max_px` to `resolve_ms`: the CPU twin's accuracy, the image
+/// difference, the seams and the stage times (empty where the row has none).
+fn push_accuracy_cells(cells: &mut Vec<String>, r: &Row) {
+    match r.accuracy {
+        Some(a) => cells.extend([
+            format!("{:.4}", a.error.max),
+            format!("{:.4}", a.error.p99),
+            a.error.samples.to_string(),
+            a.input.to_string(),
+            a.culled.to_string(),
+            a.emitted.to_string(),
+            format!("{:.0}", a.edge_px),
+        ]),
+        None => cells.extend(std::iter::repeat_n(String::new(), 7)),
+    }
+    cells.push(
+        r.image_diff_pct
+            .map_or(String::new(), |d| format!("{d:.3}")),
+    );
+    match r.accuracy {
+        Some(a) => cells.extend([
+            format!("{:.4}", a.seam.max),
+            format!("{:.4}", a.seam.p99),
+            a.seam.samples.to_string(),
+        ]),
+        None => cells.extend(std::iter::repeat_n(String::new(), 3)),
+    }
+    match r.stages_ms {
+        Some(st) => cells.extend(st.iter().map(|&v| f4(v))),
+        None => cells.extend(std::iter::repeat_n(String::new(), STAGE_COLUMNS)),
+    }
+}
+
+/// What the report's sections and charts share: the run's settings and its rows.
+struct ReportInputs<'a> {
+    options: &'a BenchOptions,
+    config: &'a Config,
+    adapter: &'a str,
+    frames: usize,
+    rows: &'a [Row],
+    /// The CAVE's walls with their resolutions, comma separated.
+    walls: String,
+}
+
+/// Writes `results.csv`, `report.md` and the charts into the output folder; returns their paths.
 pub(super) fn write_outputs(
     options: &BenchOptions,
     config: &Config,
@@ -71,268 +225,187 @@ pub(super) fn write_outputs(
         path: options.out.clone(),
         source,
     })?;
-    // Plain off-axis stereo of the same case; none for an empty scene, whose reference frame
-    // would be a bare clear.
-    let reference = |r: &Row| {
-        find(rows, r, |m| {
-            m.mode == RenderMode::Stereo
-                && m.sky.is_none()
-                && m.tess.criterion.is_none()
-                && m.shading == Shading::Pbr
-                && m.shadows == MethodShadows::Config
-        })
-        .filter(|o| o.input_triangles > 0)
-    };
-    let without_sky = |r: &Row| {
-        find(rows, r, |m| {
-            m.mode == r.method.mode
-                && m.tess == r.method.tess
-                && m.sky.is_none()
-                && m.shading == r.method.shading
-                && m.shadows == r.method.shadows
-        })
-    };
-
-    let header = [
-        "scene",
-        "viewpoint",
-        "head",
-        "method",
-        "mode",
-        "tessellation",
-        "sky",
-        "frames",
-        "timer",
-        "median_ms",
-        "p25_ms",
-        "p75_ms",
-        "min_ms",
-        "max_ms",
-        "wall_median_ms",
-        "input_triangles",
-        "drawn_triangles",
-        "ratio_to_stereo",
-        "ratio_to_no_sky",
-        "error_max_px",
-        "error_p99_px",
-        "error_samples",
-        "cpu_input_triangles",
-        "cpu_culled_triangles",
-        "cpu_drawn_triangles",
-        "cpu_edge_px",
-        "image_diff_pct",
-        "seam_max_px",
-        "seam_p99_px",
-        "seam_crossings",
-        "shadows_ms",
-        "tess_cull_ms",
-        "tess_split_ms",
-        "tess_sort_ms",
-        "scene_ms",
-        "sky_ms",
-        "resolve_ms",
-        "dispatches",
-        "refined_input_triangles",
-    ];
-    let f4 = |v: f64| format!("{v:.4}");
-    let table = rows.iter().map(|r| {
-        let ratio = |other: Option<&Row>| other.map_or(String::new(), |o| f4(r.ratio_to(o)));
-        let mut cells = vec![
-            r.scene.clone(),
-            r.viewpoint.clone(),
-            r.head.clone(),
-            r.method.name.clone(),
-            r.method.mode.name().to_owned(),
-            r.method
-                .tess
-                .criterion
-                .map_or("none".into(), |c| c.to_string()),
-            r.method.sky.map_or("none", SkyMode::name).to_owned(),
-            r.times_ms.len().to_string(),
-            r.timer.name().to_owned(),
-            f4(r.median()),
-            f4(percentile(&r.times_ms, 0.25)),
-            f4(percentile(&r.times_ms, 0.75)),
-            f4(r.times_ms.first().copied().unwrap_or(f64::NAN)),
-            f4(r.times_ms.last().copied().unwrap_or(f64::NAN)),
-            f4(r.wall_median_ms),
-            r.input_triangles.to_string(),
-            r.drawn_triangles.to_string(),
-            ratio(reference(r)),
-            if r.method.sky.is_some() {
-                ratio(without_sky(r))
-            } else {
-                String::new()
-            },
-        ];
-        match r.accuracy {
-            Some(a) => cells.extend([
-                format!("{:.4}", a.error.max),
-                format!("{:.4}", a.error.p99),
-                a.error.samples.to_string(),
-                a.input.to_string(),
-                a.culled.to_string(),
-                a.emitted.to_string(),
-                format!("{:.0}", a.edge_px),
-            ]),
-            None => cells.extend(std::iter::repeat_n(String::new(), 7)),
-        }
-        cells.push(
-            r.image_diff_pct
-                .map_or(String::new(), |d| format!("{d:.3}")),
-        );
-        match r.accuracy {
-            Some(a) => cells.extend([
-                format!("{:.4}", a.seam.max),
-                format!("{:.4}", a.seam.p99),
-                a.seam.samples.to_string(),
-            ]),
-            None => cells.extend(std::iter::repeat_n(String::new(), 3)),
-        }
-        match r.stages_ms {
-            Some(st) => cells.extend(st.iter().map(|&v| f4(v))),
-            None => cells.extend(std::iter::repeat_n(String::new(), STAGE_COLUMNS)),
-        }
-        cells.push(r.dispatches.to_string());
-        cells.push(r.refined_input.to_string());
-        cells
-    });
     let csv_path = options.out.join("results.csv");
-    write_csv(&csv_path, &header, table)?;
-
-    let walls: Vec<String> = config
-        .cave
-        .walls
-        .iter()
-        .map(|w| format!("{} {}×{}", w.name, w.resolution[0], w.resolution[1]))
-        .collect();
-    let timer = rows.first().map_or("none", |r| r.timer.name());
-    let mut md = String::new();
-    let _ = writeln!(md, "# omnicave benchmark\n");
-    let _ = writeln!(
-        md,
-        "- adapter: {adapter}\n- machine: {}\n- CAVE: {} ({}), MSAA ×{}, both eyes\n- timer: {timer}; \
-         median of {frames} frames per method, methods interleaved frame by frame\n- command: \
-         `omnicave bench --config {}{}{}{}{}`\n",
-        machine(),
-        options.config.display(),
-        walls.join(", "),
-        config.settings.render.msaa,
-        options.config.display(),
-        options
-            .size
-            .map_or(String::new(), |[w, h]| format!(" --size {w}x{h}")),
-        options
-            .frames
-            .map_or(String::new(), |n| format!(" --frames {n}")),
-        if options.quick { " --quick" } else { "" },
-        options
-            .scenes
+    write_csv(
+        &csv_path,
+        RESULT_HEADER,
+        rows.iter().map(|r| result_cells(rows, r)),
+    )?;
+    let inputs = ReportInputs {
+        options,
+        config,
+        adapter,
+        frames,
+        rows,
+        walls: config
+            .cave
+            .walls
             .iter()
-            .map(|s| format!(" --scene {}", s.display()))
-            .collect::<String>(),
-    );
-    let tess = config.settings.tess();
-    let on = |b: bool| if b { "on" } else { "off" };
-    let _ = writeln!(
-        md,
-        "Every tessellated method uses the config's `[tessellation]` with its own criterion: \
-         maximum depth {}, back-face culling {}, frustum culling {}, fine clusters drawn \
-         directly {}.\n",
-        tess.max_depth,
-        on(tess.backface_cull),
-        on(tess.frustum_cull),
-        on(tess.skip_fine)
-    );
-    let _ = writeln!(md, "## Frame time of the whole stereo frame\n");
-    let _ = writeln!(
-        md,
-        "| scene | viewpoint | head | method | median ms | p25–p75 ms | × stereo | drawn triangles |\n|---|---|---|---|---:|---:|---:|---:|"
-    );
-    for r in rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.2} | {:.2}–{:.2} | {} | {} |",
-            r.scene,
-            r.viewpoint,
-            r.head,
-            r.method.name,
-            r.median(),
-            percentile(&r.times_ms, 0.25),
-            percentile(&r.times_ms, 0.75),
-            reference(r).map_or("–".into(), |o| format!("{:.3}", r.ratio_to(o))),
-            r.drawn_triangles,
-        );
-    }
-    let _ = writeln!(
-        md,
-        "\n## Cost of each sky mode relative to no sky (same render mode, same run)\n"
-    );
-    let _ = writeln!(
-        md,
-        "| scene | viewpoint | head | render mode | offaxis | omni-quad | omni-exact |\n|---|---|---|---|---:|---:|---:|"
-    );
-    for r in rows.iter().filter(|r| r.method.sky.is_none()) {
-        let cell = |sky: SkyMode| {
-            find(rows, r, |m| {
-                m.mode == r.method.mode && m.tess == r.method.tess && m.sky == Some(sky)
-            })
-            .map_or("–".into(), |s| format!("{:.3}", s.median() / r.median()))
-        };
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {} | {} |",
-            r.scene,
-            r.viewpoint,
-            r.head,
-            r.method.name,
-            cell(SkyMode::Offaxis),
-            cell(SkyMode::OmniQuad),
-            cell(SkyMode::OmniExact),
-        );
-    }
-    let summary = summarise(rows);
-    let reference = super::methods::reference_method(tess).name;
-    write_accuracy_sections(&mut md, &summary, &reference);
-    let scaling = scaling_points(&summary);
-    // Both eyes of every wall.
-    write_scaling_section(&mut md, &summary, 2 * config.cave.walls.len());
-    let md_path = options.out.join("report.md");
-    write_file(&md_path, &md)?;
-    let mut files = vec![csv_path, md_path];
-    let subtitle = |cases: usize| {
-        format!(
-            "walls {} · MSAA ×{} · median frame time over {cases} viewpoint/head case(s)",
-            walls.join(", "),
-            config.settings.render.msaa,
-        )
+            .map(|w| format!("{} {}×{}", w.name, w.resolution[0], w.resolution[1]))
+            .collect::<Vec<String>>()
+            .join(", "),
     };
-    if summary.len() > 1 {
-        let svg = chart::svg(
-            &scaling,
-            &chart::Axes::time_against_triangles(),
-            "Scaling with scene size: stereo, plain warp and the cheapest exact method",
-            &subtitle(summary.iter().map(|s| s.cases).max().unwrap_or(0)),
-        );
-        files.extend(write_chart(&options.out, "time-vs-triangles", &svg)?);
-    }
-    if let Some(first) = summary.first() {
-        let points = chart_points(first);
-        let svg = chart::svg(
-            &points,
-            &chart::Axes::speed_against_accuracy(),
-            &format!("Speed against accuracy: {}", first.scene),
-            &format!(
-                "walls {} · MSAA ×{} · median frame time and worst p99 error over {} \
-                 viewpoint/head case(s)",
-                walls.join(", "),
-                config.settings.render.msaa,
-                first.cases
-            ),
-        );
-        files.extend(write_chart(&options.out, "speed-vs-accuracy", &svg)?);
-    }
+    let summary = summarise(rows);
+    let md_path = options.out.join("report.md");
+    write_file(&md_path, &inputs.report(&summary))?;
+    let mut files = vec![csv_path, md_path];
+    inputs.write_charts(&summary, &mut files)?;
     Ok(files)
+}
+
+impl ReportInputs<'_> {
+    /// The whole `report.md`.
+    fn report(&self, summary: &[SceneSummary]) -> String {
+        let mut md = String::new();
+        self.write_header(&mut md);
+        self.write_frame_time_section(&mut md);
+        self.write_sky_cost_section(&mut md);
+        let tess = self.config.settings.tess();
+        let reference = super::methods::reference_method(tess).name;
+        write_accuracy_sections(&mut md, summary, &reference);
+        // Both eyes of every wall.
+        write_scaling_section(&mut md, summary, 2 * self.config.cave.walls.len());
+        md
+    }
+
+    /// The report's title, the run's setup and command, and the tessellation settings.
+    fn write_header(&self, md: &mut String) {
+        let (options, adapter, frames) = (self.options, self.adapter, self.frames);
+        let timer = self.rows.first().map_or("none", |r| r.timer.name());
+        let _ = writeln!(md, "# omnicave benchmark\n");
+        let _ = writeln!(
+            md,
+            "- adapter: {adapter}\n- machine: {}\n- CAVE: {} ({}), MSAA ×{}, both eyes\n- timer: {timer}; \
+             median of {frames} frames per method, methods interleaved frame by frame\n- command: \
+             `omnicave bench --config {}{}{}{}{}`\n",
+            machine(),
+            options.config.display(),
+            self.walls,
+            self.config.settings.render.msaa,
+            options.config.display(),
+            options
+                .size
+                .map_or(String::new(), |[w, h]| format!(" --size {w}x{h}")),
+            options
+                .frames
+                .map_or(String::new(), |n| format!(" --frames {n}")),
+            if options.quick { " --quick" } else { "" },
+            options
+                .scenes
+                .iter()
+                .map(|s| format!(" --scene {}", s.display()))
+                .collect::<String>(),
+        );
+        let tess = self.config.settings.tess();
+        let on = |b: bool| if b { "on" } else { "off" };
+        let _ = writeln!(
+            md,
+            "Every tessellated method uses the config's `[tessellation]` with its own criterion: \
+             maximum depth {}, back-face culling {}, frustum culling {}, fine clusters drawn \
+             directly {}.\n",
+            tess.max_depth,
+            on(tess.backface_cull),
+            on(tess.frustum_cull),
+            on(tess.skip_fine)
+        );
+    }
+
+    /// The table of every row's whole-frame time and its ratio to stereo.
+    fn write_frame_time_section(&self, md: &mut String) {
+        let _ = writeln!(md, "## Frame time of the whole stereo frame\n");
+        let _ = writeln!(
+            md,
+            "| scene | viewpoint | head | method | median ms | p25–p75 ms | × stereo | drawn triangles |\n|---|---|---|---|---:|---:|---:|---:|"
+        );
+        for r in self.rows {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {:.2} | {:.2}–{:.2} | {} | {} |",
+                r.scene,
+                r.viewpoint,
+                r.head,
+                r.method.name,
+                r.median(),
+                percentile(&r.times_ms, 0.25),
+                percentile(&r.times_ms, 0.75),
+                reference_row(self.rows, r)
+                    .map_or("–".into(), |o| format!("{:.3}", r.ratio_to(o))),
+                r.drawn_triangles,
+            );
+        }
+    }
+
+    /// The table of each sky mode's frame time relative to the same method without a sky.
+    fn write_sky_cost_section(&self, md: &mut String) {
+        let rows = self.rows;
+        let _ = writeln!(
+            md,
+            "\n## Cost of each sky mode relative to no sky (same render mode, same run)\n"
+        );
+        let _ = writeln!(
+            md,
+            "| scene | viewpoint | head | render mode | offaxis | omni-quad | omni-exact |\n|---|---|---|---|---:|---:|---:|"
+        );
+        for r in rows.iter().filter(|r| r.method.sky.is_none()) {
+            let cell = |sky: SkyMode| {
+                find(rows, r, |m| {
+                    m.mode == r.method.mode && m.tess == r.method.tess && m.sky == Some(sky)
+                })
+                .map_or("–".into(), |s| format!("{:.3}", s.median() / r.median()))
+            };
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                r.scene,
+                r.viewpoint,
+                r.head,
+                r.method.name,
+                cell(SkyMode::Offaxis),
+                cell(SkyMode::OmniQuad),
+                cell(SkyMode::OmniExact),
+            );
+        }
+    }
+
+    /// The scaling chart (with two scenes or more) and the first scene's speed-against-accuracy
+    /// chart; appends their files to `files`.
+    fn write_charts(
+        &self,
+        summary: &[SceneSummary],
+        files: &mut Vec<PathBuf>,
+    ) -> Result<(), BenchError> {
+        let out = &self.options.out;
+        let msaa = self.config.settings.render.msaa;
+        if summary.len() > 1 {
+            let cases = summary.iter().map(|s| s.cases).max().unwrap_or(0);
+            let svg = chart::svg(
+                &scaling_points(summary),
+                &chart::Axes::time_against_triangles(),
+                "Scaling with scene size: stereo, plain warp and the cheapest exact method",
+                &format!(
+                    "walls {} · MSAA ×{msaa} · median frame time over {cases} \
+                     viewpoint/head case(s)",
+                    self.walls,
+                ),
+            );
+            files.extend(write_chart(out, "time-vs-triangles", &svg)?);
+        }
+        if let Some(first) = summary.first() {
+            let points = chart_points(first);
+            let svg = chart::svg(
+                &points,
+                &chart::Axes::speed_against_accuracy(),
+                &format!("Speed against accuracy: {}", first.scene),
+                &format!(
+                    "walls {} · MSAA ×{msaa} · median frame time and worst p99 error over {} \
+                     viewpoint/head case(s)",
+                    self.walls, first.cases
+                ),
+            );
+            files.extend(write_chart(out, "speed-vs-accuracy", &svg)?);
+        }
+        Ok(())
+    }
 }
 
 /// Writes a chart as `NAME.svg` and `NAME.png` into `dir`; returns both paths.

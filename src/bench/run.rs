@@ -15,7 +15,7 @@ use crate::render::Gpu;
 use crate::render::tessellator::DEFAULT_CAPACITY;
 use crate::scene::Scene;
 use crate::setup::load_scene;
-use crate::sky::load_sky;
+use crate::sky::{CubeMap, load_sky};
 use crate::tess::Criterion;
 
 /// Everything a run produced.
@@ -55,19 +55,78 @@ pub fn methods_within_budget(methods: &[Method], triangles: usize) -> Vec<Method
         .collect()
 }
 
+/// What the steps of a run share once the scenes, the sky and the GPU are loaded.
+struct BenchRun<'a> {
+    options: &'a BenchOptions,
+    config: &'a Config,
+    gpu: &'a Gpu,
+    sky: &'a CubeMap,
+    /// The adapter, as the report names it.
+    adapter: &'a str,
+    /// Timed frames per method.
+    frames: usize,
+}
+
+/// The scenes of a run by name (`None`: the sky alone).
+type Scenes = Vec<(String, Option<Scene>)>;
+
 /// Runs the benchmark and writes `results.csv`, `report.md` and the chart into the output
 /// folder. `progress(done, total, what)` is told before each case.
 pub fn run(
     options: &BenchOptions,
     progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<BenchReport, BenchError> {
+    let config = load_config(options)?;
+    let scenes = load_scenes(options, &config)?;
+    let sky = load_sky(&sky_path(options, &config))?;
+    let frames = options
+        .frames
+        .unwrap_or(if options.quick { 5 } else { 12 })
+        .max(1);
+    let gpu = Gpu::headless()?;
+    let adapter = adapter_name(&gpu);
+    let base = config.settings.tess();
+    let methods = select_methods(methods(options.quick, base), &options.methods, base)?;
+    let run = BenchRun {
+        options,
+        config: &config,
+        gpu: &gpu,
+        sky: &sky,
+        adapter: &adapter,
+        frames,
+    };
+    let total = run.case_count(&scenes);
+    let rows = run.measure_walls(&scenes, &methods, total, progress)?;
+    progress(
+        total,
+        total,
+        "panorama methods (geometric and image routes, against the CPU ray caster)",
+    );
+    let (pano_rows, pano_files) = run.panoramas(&scenes)?;
+    progress(total, total, "done");
+    let files = run.finish_report(&rows, &pano_rows, pano_files)?;
+    Ok(BenchReport {
+        pano_rows,
+        rows,
+        adapter,
+        files,
+    })
+}
+
+/// The config, with every wall at the run's size where it sets one.
+fn load_config(options: &BenchOptions) -> Result<Config, BenchError> {
     let mut config = Config::load(&options.config)?;
     if let Some(size) = options.size.or(options.quick.then_some(QUICK_SIZE)) {
         for wall in &mut config.cave.walls {
             wall.resolution = size;
         }
     }
-    let mut scenes: Vec<(String, Option<Scene>)> = Vec::new();
+    Ok(config)
+}
+
+/// The scenes measured, loaded and named by their files, then the sky alone.
+fn load_scenes(options: &BenchOptions, config: &Config) -> Result<Scenes, BenchError> {
+    let mut scenes: Scenes = Vec::new();
     let scene_paths: Vec<PathBuf> = if options.scenes.is_empty() {
         let mut v: Vec<PathBuf> = config.scene_path.iter().cloned().collect();
         // The bundled city and the large atrium (225 108 triangles), for scaling with size.
@@ -90,123 +149,146 @@ pub fn run(
     }
     // The sky alone, over the whole of every wall: its worst case.
     scenes.push(("sky only".into(), None));
+    Ok(scenes)
+}
 
-    let sky_path = options
+/// The sky's file: the run's, else the config's, else the bundled one.
+fn sky_path(options: &BenchOptions, config: &Config) -> PathBuf {
+    options
         .sky
         .clone()
         .or_else(|| config.sky_path.clone())
-        .unwrap_or_else(|| bundled_path(&options.config, crate::sky::bundled::PATH));
-    let sky = load_sky(&sky_path)?;
+        .unwrap_or_else(|| bundled_path(&options.config, crate::sky::bundled::PATH))
+}
 
-    let frames = options
-        .frames
-        .unwrap_or(if options.quick { 5 } else { 12 })
-        .max(1);
+/// The adapter's name, backend and driver, as the report names them.
+fn adapter_name(gpu: &Gpu) -> String {
+    let info = gpu.adapter.get_info();
+    format!(
+        "{} ({:?}, driver {} {})",
+        info.name, info.backend, info.driver, info.driver_info
+    )
+}
 
-    let gpu = Gpu::headless()?;
-    let adapter = {
-        let info = gpu.adapter.get_info();
-        format!(
-            "{} ({:?}, driver {} {})",
-            info.name, info.backend, info.driver, info.driver_info
-        )
-    };
-    let base = config.settings.tess();
-    let methods = select_methods(methods(options.quick, base), &options.methods, base)?;
-    let mut rows = Vec::new();
-    let total: usize = scenes
-        .iter()
-        .filter(|_| !options.panorama_only)
-        .map(|(_, s)| cases(&config, options.quick, s.is_some()).len())
-        .sum();
-    let mut done = 0;
-    let wall_scenes: &[(String, Option<Scene>)] = if options.panorama_only { &[] } else { &scenes };
-    for (scene_name, scene) in wall_scenes {
-        let triangles = scene.as_ref().map_or(0, Scene::triangle_count);
-        let methods = methods_within_budget(&methods, triangles);
-        for case in cases(&config, options.quick, scene.is_some()) {
-            let what = format!(
-                "{scene_name}, {}, head {}: {} methods × {frames} frames",
-                case.viewpoint,
-                case.head_name,
-                methods.len()
-            );
-            progress(done, total, &what);
-            done += 1;
-            tracing::info!("[{done}/{total}] {what}");
-            rows.extend(measure(
-                &gpu,
-                &config,
-                scene_name,
-                scene.as_ref(),
-                &sky,
-                &case,
-                &methods,
-                frames,
-            )?);
-            // Rewritten after every case, so a run that is stopped keeps what it measured.
-            write_outputs(options, &config, &adapter, frames, &rows)?;
+impl BenchRun<'_> {
+    /// The cases the walls are measured in, over all scenes (none for a panorama-only run).
+    fn case_count(&self, scenes: &Scenes) -> usize {
+        let options = self.options;
+        scenes
+            .iter()
+            .filter(|_| !options.panorama_only)
+            .map(|(_, s)| cases(self.config, options.quick, s.is_some()).len())
+            .sum()
+    }
+
+    /// Measures every case of every scene on the walls, rewriting the reports after each.
+    fn measure_walls(
+        &self,
+        scenes: &Scenes,
+        methods: &[Method],
+        total: usize,
+        progress: &mut dyn FnMut(usize, usize, &str),
+    ) -> Result<Vec<Row>, BenchError> {
+        let (options, config, frames) = (self.options, self.config, self.frames);
+        let mut rows = Vec::new();
+        let mut done = 0;
+        let wall_scenes: &[(String, Option<Scene>)] =
+            if options.panorama_only { &[] } else { scenes };
+        for (scene_name, scene) in wall_scenes {
+            let triangles = scene.as_ref().map_or(0, Scene::triangle_count);
+            let methods = methods_within_budget(methods, triangles);
+            for case in cases(config, options.quick, scene.is_some()) {
+                let what = format!(
+                    "{scene_name}, {}, head {}: {} methods × {frames} frames",
+                    case.viewpoint,
+                    case.head_name,
+                    methods.len()
+                );
+                progress(done, total, &what);
+                done += 1;
+                tracing::info!("[{done}/{total}] {what}");
+                rows.extend(measure(
+                    self.gpu,
+                    config,
+                    scene_name,
+                    scene.as_ref(),
+                    self.sky,
+                    &case,
+                    &methods,
+                    frames,
+                )?);
+                // Rewritten after every case, so a run that is stopped keeps what it measured.
+                write_outputs(options, config, self.adapter, frames, &rows)?;
+            }
         }
+        Ok(rows)
     }
-    progress(
-        total,
-        total,
-        "panorama methods (geometric and image routes, against the CPU ray caster)",
-    );
-    let with_geometry: Vec<(String, Scene)> = scenes
-        .iter()
-        .filter_map(|(name, s)| s.clone().map(|s| (name.clone(), s)))
-        .collect();
-    let (pano_rows, pano_files) = if !options.methods.is_empty() {
-        (Vec::new(), Vec::new())
-    } else {
+
+    /// The panorama methods on the scenes with geometry (none when the run names methods).
+    fn panoramas(
+        &self,
+        scenes: &Scenes,
+    ) -> Result<(Vec<panorama::PanoRow>, Vec<PathBuf>), BenchError> {
+        let with_geometry: Vec<(String, Scene)> = scenes
+            .iter()
+            .filter_map(|(name, s)| s.clone().map(|s| (name.clone(), s)))
+            .collect();
+        if !self.options.methods.is_empty() {
+            return Ok((Vec::new(), Vec::new()));
+        }
         panorama::run_panorama(
-            &gpu,
-            &config,
+            self.gpu,
+            self.config,
             &with_geometry,
-            &options.out,
-            options.quick,
-            frames,
-        )?
-    };
-    progress(total, total, "done");
-    let md_path = options.out.join("report.md");
-    let (mut files, mut md) = if options.panorama_only {
-        let md = format!(
-            "# omnicave bench: the panorama methods\n\nadapter: {adapter}\n\ncommand: `omnicave \
-             bench --panorama-only --config {}{}`\n",
-            options.config.display(),
-            if options.quick { " --quick" } else { "" }
-        );
-        (Vec::new(), md)
-    } else {
-        let files = write_outputs(options, &config, &adapter, frames, &rows)?;
-        // The panorama section at the end of the report.
-        let md = std::fs::read_to_string(&md_path).map_err(|source| BenchError::Write {
-            path: md_path.clone(),
-            source,
-        })?;
-        (files, md)
-    };
-    let images: Vec<PathBuf> = pano_files
-        .iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "png"))
-        .cloned()
-        .collect();
-    md.push_str(&panorama::pano_markdown(
-        &pano_rows,
-        panorama::pano_size(options.quick),
-        &images,
-    ));
-    write_file(&md_path, &md)?;
-    if options.panorama_only {
-        files.push(md_path);
+            &self.options.out,
+            self.options.quick,
+            self.frames,
+        )
     }
-    files.extend(pano_files);
-    Ok(BenchReport {
-        pano_rows,
-        rows,
-        adapter,
-        files,
-    })
+
+    /// Writes the final reports with the panorama section at the end of `report.md`;
+    /// returns every file written.
+    fn finish_report(
+        &self,
+        rows: &[Row],
+        pano_rows: &[panorama::PanoRow],
+        pano_files: Vec<PathBuf>,
+    ) -> Result<Vec<PathBuf>, BenchError> {
+        let options = self.options;
+        let adapter = self.adapter;
+        let md_path = options.out.join("report.md");
+        let (mut files, mut md) = if options.panorama_only {
+            let md = format!(
+                "# omnicave bench: the panorama methods\n\nadapter: {adapter}\n\ncommand: `omnicave \
+                 bench --panorama-only --config {}{}`\n",
+                options.config.display(),
+                if options.quick { " --quick" } else { "" }
+            );
+            (Vec::new(), md)
+        } else {
+            let files = write_outputs(options, self.config, adapter, self.frames, rows)?;
+            // The panorama section at the end of the report.
+            let md = std::fs::read_to_string(&md_path).map_err(|source| BenchError::Write {
+                path: md_path.clone(),
+                source,
+            })?;
+            (files, md)
+        };
+        let images: Vec<PathBuf> = pano_files
+            .iter()
+            .filter(|p| p.extension().is_some_and(|e| e == "png"))
+            .cloned()
+            .collect();
+        md.push_str(&panorama::pano_markdown(
+            pano_rows,
+            panorama::pano_size(options.quick),
+            &images,
+        ));
+        write_file(&md_path, &md)?;
+        if options.panorama_only {
+            files.push(md_path);
+        }
+        files.extend(pano_files);
+        Ok(files)
+    }
 }

@@ -3,7 +3,7 @@
 //! reports.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Vec3};
 
@@ -31,6 +31,12 @@ pub struct StabilityOptions {
 /// each direction, enough to show holes a pixel wide and render the whole grid in minutes.
 pub const STABILITY_SIZE: [u32; 2] = [320, 180];
 
+/// A warp configuration's name and what the CPU vertex sweep found.
+type SweepResult = (&'static str, stability::Failures);
+
+/// A method and what the rendered sweep found.
+type RenderedResult = (stability::SweepMethod, stability::Rendered);
+
 /// Runs the stability sweep (`bench --stability`) on the config's CAVE: the CPU vertex sweep for
 /// every warp configuration, then every rendered method on the closed sweep scene over the
 /// head grid (holes on the GPU, popping with the CPU twin); writes `stability.md` and
@@ -39,8 +45,27 @@ pub fn run_stability(
     options: &StabilityOptions,
     progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<Vec<PathBuf>, BenchError> {
-    let (config_path, out) = (&options.config, &options.out);
-    let config = Config::load(config_path)?;
+    let out = &options.out;
+    let config = Config::load(&options.config)?;
+    let results = run_vertex_sweeps(&config);
+    let rendered = run_rendered_sweep(options, &config, progress)?;
+    std::fs::create_dir_all(out).map_err(|source| BenchError::Write {
+        path: out.to_owned(),
+        source,
+    })?;
+    let csv_path = out.join("stability.csv");
+    write_sweep_csv(&csv_path, &results)?;
+    let rendered_csv_path = out.join("stability-rendered.csv");
+    write_rendered_csv(&rendered_csv_path, &rendered)?;
+    let mut md = sweep_markdown(options, &config, &results);
+    md.push_str(&rendered_markdown(options, &rendered));
+    let md_path = out.join("stability.md");
+    write_file(&md_path, &md)?;
+    Ok(vec![csv_path, rendered_csv_path, md_path])
+}
+
+/// The CPU vertex sweep of every warp configuration.
+fn run_vertex_sweeps(config: &Config) -> Vec<SweepResult> {
     let mut results = Vec::new();
     for (name, settings) in stability::configurations() {
         tracing::info!("stability sweep: {name}");
@@ -49,14 +74,13 @@ pub fn run_stability(
             stability::sweep(&config.cave, config.settings.cave.eye_separation, settings),
         ));
     }
-    let rendered = run_rendered_sweep(options, &config, progress)?;
-    std::fs::create_dir_all(out).map_err(|source| BenchError::Write {
-        path: out.to_owned(),
-        source,
-    })?;
-    let csv_path = out.join("stability.csv");
+    results
+}
+
+/// Writes `stability.csv`: the failures of each warp configuration.
+fn write_sweep_csv(path: &Path, results: &[SweepResult]) -> Result<(), BenchError> {
     write_csv(
-        &csv_path,
+        path,
         &[
             "warp",
             "heads",
@@ -73,10 +97,13 @@ pub fn run_stability(
                 .chain(f.counts().iter().map(usize::to_string))
                 .collect()
         }),
-    )?;
-    let rendered_csv_path = out.join("stability-rendered.csv");
+    )
+}
+
+/// Writes `stability-rendered.csv`: the holes and popping of each rendered method.
+fn write_rendered_csv(path: &Path, rendered: &[RenderedResult]) -> Result<(), BenchError> {
     write_csv(
-        &rendered_csv_path,
+        path,
         &[
             "method",
             "edge_points",
@@ -101,7 +128,12 @@ pub fn run_stability(
                 format!("{:.4}", r.worst_frame_pct),
             ]
         }),
-    )?;
+    )
+}
+
+/// The start of `stability.md`: the setup and the CPU vertex sweep's table and verdict.
+fn sweep_markdown(options: &StabilityOptions, config: &Config, results: &[SweepResult]) -> String {
+    let config_path = &options.config;
     let heads = results.first().map_or(0, |(_, f)| f.heads);
     let mut md = format!(
         "# omnicave stability sweep\n\n- CAVE: {} ({} walls), eye separation {} m\n- {heads} head \
@@ -115,7 +147,7 @@ pub fn run_stability(
         config.settings.cave.eye_separation,
         config_path.display()
     );
-    md.push_str(&stability::markdown(&results));
+    md.push_str(&stability::markdown(results));
     md.push_str(
         "\nghost: a vertex drawn on a wall through which its own eye cannot see it; misplaced: \
          drawn more than 1 px from where its own eye sees it; exploded: a triangle drawn more \
@@ -133,6 +165,12 @@ pub fn run_stability(
             }
         );
     }
+    md
+}
+
+/// The rendered part of `stability.md`: what was measured, the table and the verdict.
+fn rendered_markdown(options: &StabilityOptions, rendered: &[RenderedResult]) -> String {
+    let mut md = String::new();
     let size = options.size.unwrap_or(STABILITY_SIZE);
     let rendered_heads = rendered.first().map_or(0, |(_, r)| r.frames);
     let _ = writeln!(
@@ -149,7 +187,7 @@ pub fn run_stability(
         stability::POP_SAMPLES_PER_EDGE,
         stability::POP_STEP_M * 1000.0,
     );
-    md.push_str(&stability::rendered_markdown(&rendered, size));
+    md.push_str(&stability::rendered_markdown(rendered, size));
     if let Some((m, r)) = rendered.first() {
         let _ = writeln!(
             md,
@@ -157,9 +195,7 @@ pub fn run_stability(
             m.name, r.hole_pixels, r.motion.popping, r.motion.max_error_px
         );
     }
-    let md_path = out.join("stability.md");
-    write_file(&md_path, &md)?;
-    Ok(vec![csv_path, rendered_csv_path, md_path])
+    md
 }
 
 /// The rendered part of the sweep: every method of [`stability::sweep_methods`] at the grid's
@@ -168,7 +204,7 @@ fn run_rendered_sweep(
     options: &StabilityOptions,
     config: &Config,
     progress: &mut dyn FnMut(usize, usize, &str),
-) -> Result<Vec<(stability::SweepMethod, stability::Rendered)>, BenchError> {
+) -> Result<Vec<RenderedResult>, BenchError> {
     let scene = stability::sweep_scene(&config.cave);
     let mut cave = config.cave.clone();
     let size = options.size.unwrap_or(STABILITY_SIZE);

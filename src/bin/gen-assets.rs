@@ -182,8 +182,76 @@ fn fabric_texture() -> RgbaImage {
     })
 }
 
+/// The living room's materials (indices into the writer's materials).
+struct RoomMaterials {
+    floor: usize,
+    wall: usize,
+    ceiling: usize,
+    wood: usize,
+    sofa: usize,
+    metal: usize,
+    shade: usize,
+    bulb: usize,
+    vase: usize,
+    painting: usize,
+    frame: usize,
+    books: Vec<usize>,
+}
+
+/// The living room's meshes (indices into the writer's meshes).
+struct RoomMeshes {
+    sofa: usize,
+    table: usize,
+    vase: usize,
+    chair: usize,
+    lamp: usize,
+    ceiling_lamp: usize,
+    picture: usize,
+    shelf: usize,
+}
+
+/// The room's extent: x from `ROOM_X0` to `ROOM_X1`, z from `ROOM_Z0` to `ROOM_Z1`, and its
+/// height.
+const ROOM_X0: f32 = -3.0;
+const ROOM_X1: f32 = 3.0;
+const ROOM_Z0: f32 = -3.5;
+const ROOM_Z1: f32 = 2.5;
+const ROOM_TOP: f32 = 2.7;
+
+/// `m` moved by `p`.
+fn at(m: MeshData, p: Vec3) -> MeshData {
+    m.transformed(Mat4::from_translation(p))
+}
+
+/// The living room: a single-quad room around the CAVE with furniture, as GLB bytes.
 fn living_room() -> anyhow::Result<Vec<u8>> {
     let mut w = GlbWriter::new();
+    let mats = living_room_materials(&mut w)?;
+    let [room, floor_node] = add_room_shell(&mut w, &mats);
+    let sofa_mesh = w.add_mesh("sofa", &[(&sofa(), mats.sofa)]);
+    let table_mesh = w.add_mesh("coffee table", &[(&coffee_table(), mats.wood)]);
+    let vase_mesh = w.add_mesh("vase", &[(&vase(), mats.vase)]);
+    let chair_mesh = w.add_mesh("chair", &[(&chair(), mats.wood)]);
+    let lamp_mesh = add_floor_lamp(&mut w, &mats);
+    let ceiling_lamp_mesh = add_ceiling_lamp(&mut w, &mats);
+    let picture_mesh = add_picture(&mut w, &mats);
+    let shelf_mesh = add_bookshelf(&mut w, &mats);
+    let meshes = RoomMeshes {
+        sofa: sofa_mesh,
+        table: table_mesh,
+        vase: vase_mesh,
+        chair: chair_mesh,
+        lamp: lamp_mesh,
+        ceiling_lamp: ceiling_lamp_mesh,
+        picture: picture_mesh,
+        shelf: shelf_mesh,
+    };
+    let furniture = add_furniture_nodes(&mut w, &meshes);
+    Ok(w.to_glb(&[room, floor_node, furniture]))
+}
+
+/// The living room's textures and materials, added in a fixed order.
+fn living_room_materials(w: &mut GlbWriter) -> anyhow::Result<RoomMaterials> {
     let parquet = w.add_png_texture("parquet", &png(&parquet_texture())?);
     let wallpaper = w.add_png_texture("wallpaper", &png(&wallpaper_texture())?);
     let painting = w.add_png_texture("painting", &png(&painting_texture())?);
@@ -194,33 +262,33 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         ..MaterialDesc::plain(name, [1.0; 3], roughness)
     };
     let parquet_normals = w.add_png_texture("parquet normals", &png(&parquet_normal_map())?);
-    let m_floor = w.add_material(&MaterialDesc {
+    let floor = w.add_material(&MaterialDesc {
         maps: MaterialMaps {
             normal: Some(parquet_normals),
             ..MaterialMaps::default()
         },
         ..textured("parquet", parquet, 0.35)
     });
-    let m_wall = w.add_material(&textured("wallpaper", wallpaper, 0.9));
-    let m_ceiling = w.add_material(&MaterialDesc::plain("ceiling", [0.92, 0.92, 0.9], 0.95));
-    let m_wood = w.add_material(&MaterialDesc::plain("dark wood", [0.30, 0.17, 0.08], 0.45));
-    let m_sofa = w.add_material(&textured("sofa fabric", fabric, 0.85));
-    let m_metal = w.add_material(&MaterialDesc {
+    let wall = w.add_material(&textured("wallpaper", wallpaper, 0.9));
+    let ceiling = w.add_material(&MaterialDesc::plain("ceiling", [0.92, 0.92, 0.9], 0.95));
+    let wood = w.add_material(&MaterialDesc::plain("dark wood", [0.30, 0.17, 0.08], 0.45));
+    let sofa = w.add_material(&textured("sofa fabric", fabric, 0.85));
+    let metal = w.add_material(&MaterialDesc {
         metallic: 1.0,
         ..MaterialDesc::plain("brass", [0.8, 0.62, 0.3], 0.3)
     });
-    let m_shade = w.add_material(&MaterialDesc {
+    let shade = w.add_material(&MaterialDesc {
         double_sided: true,
         ..MaterialDesc::plain("lamp shade", [0.95, 0.85, 0.65], 0.8)
     });
-    let m_bulb = w.add_material(&MaterialDesc {
+    let bulb = w.add_material(&MaterialDesc {
         emissive: [1.0, 0.9, 0.7],
         ..MaterialDesc::plain("bulb", [1.0, 0.95, 0.85], 0.5)
     });
-    let m_vase = w.add_material(&MaterialDesc::plain("glazed vase", [0.1, 0.35, 0.55], 0.12));
-    let m_painting = w.add_material(&textured("painting", painting, 0.6));
-    let m_frame = w.add_material(&MaterialDesc::plain("gilt frame", [0.55, 0.42, 0.15], 0.4));
-    let m_books: Vec<usize> = [
+    let vase = w.add_material(&MaterialDesc::plain("glazed vase", [0.1, 0.35, 0.55], 0.12));
+    let painting = w.add_material(&textured("painting", painting, 0.6));
+    let frame = w.add_material(&MaterialDesc::plain("gilt frame", [0.55, 0.42, 0.15], 0.4));
+    let books: Vec<usize> = [
         [0.6, 0.1, 0.1],
         [0.1, 0.3, 0.5],
         [0.2, 0.45, 0.2],
@@ -231,10 +299,28 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
     .enumerate()
     .map(|(i, c)| w.add_material(&MaterialDesc::plain(&format!("book {i}"), *c, 0.7)))
     .collect();
+    Ok(RoomMaterials {
+        floor,
+        wall,
+        ceiling,
+        wood,
+        sofa,
+        metal,
+        shade,
+        bulb,
+        vase,
+        painting,
+        frame,
+        books,
+    })
+}
 
+/// The room around the CAVE: walls and ceiling, and the normal-mapped floor; returns their
+/// nodes.
+fn add_room_shell(w: &mut GlbWriter, mats: &RoomMaterials) -> [usize; 2] {
     // The room: 6 m × 6 m × 2.7 m around the CAVE, each surface a single large quad (two
     // triangles) as in the thesis: exactly what a per-vertex warp interpolates badly.
-    let (x0, x1, z0, z1, top) = (-3.0, 3.0, -3.5, 2.5, 2.7);
+    let (x0, x1, z0, z1, top) = (ROOM_X0, ROOM_X1, ROOM_Z0, ROOM_Z1, ROOM_TOP);
     let floor = grid(
         Vec3::new(x0, 0.0, z1),
         Vec3::X * (x1 - x0),
@@ -285,7 +371,7 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         1,
         1.2,
     )); // right
-    let room_mesh = w.add_mesh("room", &[(&walls, m_wall), (&ceiling, m_ceiling)]);
+    let room_mesh = w.add_mesh("room", &[(&walls, mats.wall), (&ceiling, mats.ceiling)]);
     // The floor with tangents for its normal map: u along +x, v (image rows) towards +z,
     // which is −(n × t) for n = +y, t = +x.
     let mut floor = floor;
@@ -294,7 +380,7 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
     }
     let floor_mesh = w.add_mesh_with(
         "floor",
-        &[(&floor, m_floor)],
+        &[(&floor, mats.floor)],
         &MeshOptions {
             tangents: true,
             ..MeshOptions::default()
@@ -302,10 +388,12 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
     );
     let room = w.add_node(NodeDesc::new("room").with_mesh(room_mesh));
     let floor_node = w.add_node(NodeDesc::new("floor").with_mesh(floor_mesh));
+    [room, floor_node]
+}
 
-    // Sofa against the left room wall, facing +x.
+/// Sofa against the left room wall, facing +x.
+fn sofa() -> MeshData {
     let mut sofa = MeshData::default();
-    let at = |m: MeshData, p: Vec3| m.transformed(Mat4::from_translation(p));
     sofa.append(&at(
         cuboid(Vec3::new(0.9, 0.42, 2.2), 2.0),
         Vec3::new(0.0, 0.21, 0.0),
@@ -320,9 +408,11 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
             Vec3::new(0.0, 0.31, z),
         ));
     }
-    let sofa_mesh = w.add_mesh("sofa", &[(&sofa, m_sofa)]);
+    sofa
+}
 
-    // Coffee table: top and four legs.
+/// Coffee table: top and four legs.
+fn coffee_table() -> MeshData {
     let mut table = at(
         cuboid(Vec3::new(1.1, 0.05, 0.6), 1.0),
         Vec3::new(0.0, 0.42, 0.0),
@@ -333,13 +423,16 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
             Vec3::new(x, 0.2, z),
         ));
     }
-    let table_mesh = w.add_mesh("coffee table", &[(&table, m_wood)]);
+    table
+}
 
-    // Dense vase on the table (specular highlights show the lighting eye).
-    let vase = uv_sphere(0.12, 32, 48).transformed(Mat4::from_scale(Vec3::new(1.0, 1.4, 1.0)));
-    let vase_mesh = w.add_mesh("vase", &[(&vase, m_vase)]);
+/// Dense vase on the table (specular highlights show the lighting eye).
+fn vase() -> MeshData {
+    uv_sphere(0.12, 32, 48).transformed(Mat4::from_scale(Vec3::new(1.0, 1.4, 1.0)))
+}
 
-    // A chair (one mesh, used twice through nodes).
+/// A chair (one mesh, used twice through nodes).
+fn chair() -> MeshData {
     let mut chair = at(
         cuboid(Vec3::new(0.45, 0.05, 0.45), 1.0),
         Vec3::new(0.0, 0.45, 0.0),
@@ -354,9 +447,11 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
             Vec3::new(x, 0.225, z),
         ));
     }
-    let chair_mesh = w.add_mesh("chair", &[(&chair, m_wood)]);
+    chair
+}
 
-    // Floor lamp: brass pole, dense shade, emissive bulb.
+/// Floor lamp: brass pole, dense shade, emissive bulb; returns its mesh.
+fn add_floor_lamp(w: &mut GlbWriter, mats: &RoomMaterials) -> usize {
     let pole = frustum_shell(0.015, 0.015, 1.45, 16, true);
     let base = frustum_shell(0.16, 0.14, 0.03, 32, true);
     let mut lamp_metal = pole;
@@ -366,28 +461,33 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         Vec3::new(0.0, 1.3, 0.0),
     );
     let bulb = at(uv_sphere(0.05, 12, 16), Vec3::new(0.0, 1.42, 0.0));
-    let lamp_mesh = w.add_mesh(
+    w.add_mesh(
         "floor lamp",
         &[
-            (&lamp_metal, m_metal),
-            (&shade_mesh_data, m_shade),
-            (&bulb, m_bulb),
+            (&lamp_metal, mats.metal),
+            (&shade_mesh_data, mats.shade),
+            (&bulb, mats.bulb),
         ],
-    );
+    )
+}
 
-    // Ceiling lamp where the config's point light is.
+/// Ceiling lamp where the config's point light is; returns its mesh.
+fn add_ceiling_lamp(w: &mut GlbWriter, mats: &RoomMaterials) -> usize {
     let ceiling_lamp = at(uv_sphere(0.12, 16, 24), Vec3::new(0.0, 2.5, -0.6));
     let ceiling_cord = at(
         frustum_shell(0.008, 0.008, 0.08, 8, false),
         Vec3::new(0.0, 2.62, -0.6),
     );
-    let ceiling_lamp_mesh = w.add_mesh(
+    w.add_mesh(
         "ceiling lamp",
-        &[(&ceiling_lamp, m_bulb), (&ceiling_cord, m_metal)],
-    );
+        &[(&ceiling_lamp, mats.bulb), (&ceiling_cord, mats.metal)],
+    )
+}
 
-    // Picture hung 1 cm in front of the left room wall (thesis Fig. 7.3: with a plain warp it
-    // vanishes behind the wall in one eye).
+/// Picture hung 1 cm in front of the left room wall (thesis Fig. 7.3: with a plain warp it
+/// vanishes behind the wall in one eye): canvas and frame; returns its mesh.
+fn add_picture(w: &mut GlbWriter, mats: &RoomMaterials) -> usize {
+    let x0 = ROOM_X0;
     let canvas = grid(
         Vec3::new(x0 + 0.012, 1.1, 0.6),
         Vec3::NEG_Z * 1.2,
@@ -419,9 +519,12 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
             Vec3::new(x0 + 0.015, y, z),
         ));
     }
-    let picture_mesh = w.add_mesh("picture", &[(&canvas, m_painting), (&frame, m_frame)]);
+    w.add_mesh("picture", &[(&canvas, mats.painting), (&frame, mats.frame)])
+}
 
-    // Bookshelf on the right room wall, many small books (medium density).
+/// Bookshelf on the right room wall, many small books (medium density); returns its mesh.
+fn add_bookshelf(w: &mut GlbWriter, mats: &RoomMaterials) -> usize {
+    let m_books = &mats.books;
     let mut rng = Rng(42);
     let mut shelf = MeshData::default();
     for side in [-0.9, 0.9] {
@@ -449,56 +552,59 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
             z += thick + 0.004;
         }
     }
-    let mut shelf_prims: Vec<(&MeshData, usize)> = vec![(&shelf, m_wood)];
-    for (mesh, mat) in books.iter().zip(&m_books) {
+    let mut shelf_prims: Vec<(&MeshData, usize)> = vec![(&shelf, mats.wood)];
+    for (mesh, mat) in books.iter().zip(m_books) {
         shelf_prims.push((mesh, *mat));
     }
-    let shelf_mesh = w.add_mesh("bookshelf", &shelf_prims);
+    w.add_mesh("bookshelf", &shelf_prims)
+}
 
-    // Furniture hierarchy: a group node with children (exercises node transforms).
+/// Furniture hierarchy: a group node with children (exercises node transforms); returns the
+/// group.
+fn add_furniture_nodes(w: &mut GlbWriter, meshes: &RoomMeshes) -> usize {
     let n_sofa = w.add_node(
         NodeDesc::new("sofa")
-            .with_mesh(sofa_mesh)
+            .with_mesh(meshes.sofa)
             .at(Vec3::new(-2.45, 0.0, 0.0)),
     );
     let n_vase = w.add_node(
         NodeDesc::new("vase")
-            .with_mesh(vase_mesh)
+            .with_mesh(meshes.vase)
             .at(Vec3::new(0.25, 0.61, 0.0)),
     );
     let n_table = w.add_node(
         NodeDesc::new("coffee table")
-            .with_mesh(table_mesh)
+            .with_mesh(meshes.table)
             .at(Vec3::new(-1.75, 0.0, 0.3))
             .rotated_y_degrees(90.0)
             .with_children(vec![n_vase]),
     );
     let n_chair_a = w.add_node(
         NodeDesc::new("chair A")
-            .with_mesh(chair_mesh)
+            .with_mesh(meshes.chair)
             .at(Vec3::new(1.0, 0.0, -2.2))
             .rotated_y_degrees(200.0),
     );
     let n_chair_b = w.add_node(
         NodeDesc::new("chair B")
-            .with_mesh(chair_mesh)
+            .with_mesh(meshes.chair)
             .at(Vec3::new(2.2, 0.0, -1.0))
             .rotated_y_degrees(120.0),
     );
     let n_lamp = w.add_node(
         NodeDesc::new("floor lamp")
-            .with_mesh(lamp_mesh)
+            .with_mesh(meshes.lamp)
             .at(Vec3::new(-2.3, 0.0, -2.8)),
     );
     let n_shelf = w.add_node(
         NodeDesc::new("bookshelf")
-            .with_mesh(shelf_mesh)
+            .with_mesh(meshes.shelf)
             .at(Vec3::new(2.82, 0.0, 0.6))
             .rotated_y_degrees(180.0),
     );
-    let n_picture = w.add_node(NodeDesc::new("picture").with_mesh(picture_mesh));
-    let n_ceiling_lamp = w.add_node(NodeDesc::new("ceiling lamp").with_mesh(ceiling_lamp_mesh));
-    let furniture = w.add_node(NodeDesc::new("furniture").with_children(vec![
+    let n_picture = w.add_node(NodeDesc::new("picture").with_mesh(meshes.picture));
+    let n_ceiling_lamp = w.add_node(NodeDesc::new("ceiling lamp").with_mesh(meshes.ceiling_lamp));
+    w.add_node(NodeDesc::new("furniture").with_children(vec![
         n_sofa,
         n_table,
         n_chair_a,
@@ -507,8 +613,7 @@ fn living_room() -> anyhow::Result<Vec<u8>> {
         n_shelf,
         n_picture,
         n_ceiling_lamp,
-    ]));
-    Ok(w.to_glb(&[room, floor_node, furniture]))
+    ]))
 }
 
 /// City ground: one 40 m cell = a 30 m block of pavement and half a 10 m street on each side.
@@ -693,22 +798,78 @@ fn flagstone_texture() -> RgbaImage {
     })
 }
 
+/// The atrium's half width (x), half length (z) and height, m.
+const ATRIUM_HALF_X: f32 = 10.0;
+const ATRIUM_HALF_Z: f32 = 18.0;
+const ATRIUM_HEIGHT: f32 = 14.0;
+/// Height of one storey of the arcades, m.
+const ATRIUM_STOREY: f32 = 7.0;
+/// Distance between column centres along an arcade, m.
+const ATRIUM_BAY: f32 = 4.0;
+/// Distance of each arcade from the atrium's long axis, m.
+const ATRIUM_X_ROW: f32 = 6.0;
+
+/// The atrium's materials (indices into the writer's materials).
+struct AtriumMaterials {
+    floor: usize,
+    wall: usize,
+    marble: usize,
+    stone: usize,
+}
+
+/// The atrium's repeated meshes (indices into the writer's meshes).
+struct AtriumMeshes {
+    column: usize,
+    arch: usize,
+    baluster: usize,
+}
+
 /// An atrium for the bench's scaling with scene size: 20 m × 36 m, 14 m high, two storeys of
 /// fluted columns carrying arcades, a balustraded gallery, and large floor, wall and ceiling
 /// polygons; over 200 000 triangles, most of them small and far from the CAVE (which stands
 /// at the centre of the floor, facing −z), the floor and walls few and large.
 fn atrium() -> anyhow::Result<Vec<u8>> {
     let mut w = GlbWriter::new();
+    let mats = atrium_materials(&mut w)?;
+    let mut roots = add_atrium_shell(&mut w, &mats).to_vec();
+    let column_mesh = w.add_mesh("column", &[(&fluted_column(), mats.marble)]);
+    let arch_mesh = w.add_mesh("arch", &[(&arcade_bay(), mats.stone)]);
+    let baluster_mesh = w.add_mesh("baluster", &[(&lathe(&baluster_profile(), 12), mats.stone)]);
+    let meshes = AtriumMeshes {
+        column: column_mesh,
+        arch: arch_mesh,
+        baluster: baluster_mesh,
+    };
+    let [columns, arches, balusters] = add_arcade_nodes(&mut w, &meshes);
+    let slab_mesh = w.add_mesh("gallery floors", &[(&gallery_floors(), mats.stone)]);
+    roots.push(w.add_node(NodeDesc::new("gallery floors").with_mesh(slab_mesh)));
+    roots.push(w.add_node(NodeDesc::new("columns").with_children(columns)));
+    roots.push(w.add_node(NodeDesc::new("arcades").with_children(arches)));
+    roots.push(w.add_node(NodeDesc::new("balustrades").with_children(balusters)));
+    Ok(w.to_glb(&roots))
+}
+
+/// The atrium's texture and materials, added in a fixed order.
+fn atrium_materials(w: &mut GlbWriter) -> anyhow::Result<AtriumMaterials> {
     let flags = w.add_png_texture("flagstones", &png(&flagstone_texture())?);
-    let m_floor = w.add_material(&MaterialDesc {
+    let floor = w.add_material(&MaterialDesc {
         texture: Some(flags),
         ..MaterialDesc::plain("floor", [1.0; 3], 0.7)
     });
-    let m_wall = w.add_material(&MaterialDesc::plain("plaster", [0.86, 0.82, 0.74], 0.9));
-    let m_marble = w.add_material(&MaterialDesc::plain("marble", [0.93, 0.92, 0.9], 0.35));
-    let m_stone = w.add_material(&MaterialDesc::plain("stone", [0.78, 0.72, 0.62], 0.8));
-    let (half_x, half_z, height) = (10.0, 18.0, 14.0);
-    // The shell: one quad per face, seen from inside.
+    let wall = w.add_material(&MaterialDesc::plain("plaster", [0.86, 0.82, 0.74], 0.9));
+    let marble = w.add_material(&MaterialDesc::plain("marble", [0.93, 0.92, 0.9], 0.35));
+    let stone = w.add_material(&MaterialDesc::plain("stone", [0.78, 0.72, 0.62], 0.8));
+    Ok(AtriumMaterials {
+        floor,
+        wall,
+        marble,
+        stone,
+    })
+}
+
+/// The shell: one quad per face, seen from inside; returns the floor's and the walls' nodes.
+fn add_atrium_shell(w: &mut GlbWriter, mats: &AtriumMaterials) -> [usize; 2] {
+    let (half_x, half_z, height) = (ATRIUM_HALF_X, ATRIUM_HALF_Z, ATRIUM_HEIGHT);
     let shell = [
         grid(
             Vec3::new(-half_x, 0.0, half_z),
@@ -766,15 +927,16 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
         wall_mesh.append(g);
     }
     wall_mesh.append(&shell[1]);
-    let floor_mesh = w.add_mesh("floor", &[(&shell[0], m_floor)]);
-    let walls_mesh = w.add_mesh("walls and ceiling", &[(&wall_mesh, m_wall)]);
-    let mut roots = vec![
+    let floor_mesh = w.add_mesh("floor", &[(&shell[0], mats.floor)]);
+    let walls_mesh = w.add_mesh("walls and ceiling", &[(&wall_mesh, mats.wall)]);
+    [
         w.add_node(NodeDesc::new("floor").with_mesh(floor_mesh)),
         w.add_node(NodeDesc::new("walls").with_mesh(walls_mesh)),
-    ];
+    ]
+}
 
-    // A fluted column, 6 m: base, shaft with 16 flutes (64 segments, 16 rings), capital.
-    let storey = 7.0;
+/// A fluted column, 6 m: base, shaft with 16 flutes (64 segments, 16 rings), capital.
+fn fluted_column() -> MeshData {
     let mut column = MeshData::default();
     let base: Vec<(f32, f32)> = (0..=6)
         .map(|k| {
@@ -814,33 +976,40 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
         &cuboid(Vec3::new(1.5, 0.2, 1.5), 1.0)
             .transformed(Mat4::from_translation(Vec3::new(0.0, 6.1, 0.0))),
     );
-    let column_mesh = w.add_mesh("column", &[(&column, m_marble)]);
+    column
+}
 
-    // An arch spanning 4 m between column centres, springing from the capitals, with the
-    // wall above it up to the next floor.
-    let bay = 4.0;
+/// An arch spanning 4 m between column centres, springing from the capitals, with the
+/// wall above it up to the next floor.
+fn arcade_bay() -> MeshData {
+    let (bay, storey) = (ATRIUM_BAY, ATRIUM_STOREY);
     let mut arcade =
         arch(1.45, 2.0, 0.8, 48).transformed(Mat4::from_translation(Vec3::new(0.0, 6.2, 0.0)));
     arcade.append(&cuboid(Vec3::new(bay, storey - 8.2, 0.8), 1.0).transformed(
         Mat4::from_translation(Vec3::new(0.0, 8.2 + 0.5 * (storey - 8.2), 0.0)),
     ));
-    let arch_mesh = w.add_mesh("arch", &[(&arcade, m_stone)]);
+    arcade
+}
 
-    // A baluster, 0.9 m: a turned profile of 12 rings, 12 around.
-    let baluster_profile: Vec<(f32, f32)> = (0..=12)
+/// A baluster's profile, 0.9 m: a turned profile of 12 rings (drawn 12 around).
+fn baluster_profile() -> Vec<(f32, f32)> {
+    (0..=12)
         .map(|k| {
             let t = k as f32 / 12.0;
             let bulge = (t * std::f32::consts::PI).sin();
             (0.05 + 0.05 * bulge * bulge, 0.9 * t)
         })
-        .collect();
-    let baluster_mesh = w.add_mesh("baluster", &[(&lathe(&baluster_profile, 12), m_stone)]);
+        .collect()
+}
 
+/// The two storeys of arcades on both sides: a node per column and arch, and on the upper
+/// storey the gallery's balusters; returns the columns', arches' and balusters' nodes.
+fn add_arcade_nodes(w: &mut GlbWriter, meshes: &AtriumMeshes) -> [Vec<usize>; 3] {
+    let (storey, bay, x_row) = (ATRIUM_STOREY, ATRIUM_BAY, ATRIUM_X_ROW);
     let mut columns = Vec::new();
     let mut arches = Vec::new();
     let mut balusters = Vec::new();
     let rows = 9;
-    let x_row = 6.0;
     for level in 0..2 {
         let y = level as f32 * storey;
         for side in [-1.0f32, 1.0] {
@@ -850,7 +1019,7 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
                 columns.push(
                     w.add_node(
                         NodeDesc::new("column")
-                            .with_mesh(column_mesh)
+                            .with_mesh(meshes.column)
                             .at(Vec3::new(x, y, z)),
                     ),
                 );
@@ -858,7 +1027,7 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
                     arches.push(
                         w.add_node(
                             NodeDesc::new("arch")
-                                .with_mesh(arch_mesh)
+                                .with_mesh(meshes.arch)
                                 .rotated_y_degrees(90.0)
                                 .at(Vec3::new(x, y, z + 0.5 * bay)),
                         ),
@@ -873,7 +1042,7 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
                     balusters.push(
                         w.add_node(
                             NodeDesc::new("baluster")
-                                .with_mesh(baluster_mesh)
+                                .with_mesh(meshes.baluster)
                                 .at(Vec3::new(x - side * 0.6, y, z)),
                         ),
                     );
@@ -881,8 +1050,13 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
             }
         }
     }
-    // The gallery floors: slabs from the arcades to the side walls.
-    let slab_w = half_x - x_row + 0.8;
+    [columns, arches, balusters]
+}
+
+/// The gallery floors: slabs from the arcades to the side walls.
+fn gallery_floors() -> MeshData {
+    let (half_x, half_z, storey) = (ATRIUM_HALF_X, ATRIUM_HALF_Z, ATRIUM_STOREY);
+    let slab_w = half_x - ATRIUM_X_ROW + 0.8;
     let mut slabs = MeshData::default();
     for side in [-1.0f32, 1.0] {
         slabs.append(
@@ -891,12 +1065,7 @@ fn atrium() -> anyhow::Result<Vec<u8>> {
             )),
         );
     }
-    let slab_mesh = w.add_mesh("gallery floors", &[(&slabs, m_stone)]);
-    roots.push(w.add_node(NodeDesc::new("gallery floors").with_mesh(slab_mesh)));
-    roots.push(w.add_node(NodeDesc::new("columns").with_children(columns)));
-    roots.push(w.add_node(NodeDesc::new("arcades").with_children(arches)));
-    roots.push(w.add_node(NodeDesc::new("balustrades").with_children(balusters)));
-    Ok(w.to_glb(&roots))
+    slabs
 }
 
 /// Smooth 3D value noise in 0..1 (a hashed lattice, trilinear with smoothstep), so the clouds

@@ -72,7 +72,7 @@ pub enum ClusterError {
     )]
     NotBuilt,
     #[error(
-        "cluster mode drives the walls' windows: it needs `app.mode = \"cave\"` (or `--mode cave`), not the preview"
+        "cluster mode drives the walls' windows: it needs `app.mode = \"cave\"` (or `run --cave`), not the preview"
     )]
     NotCaveMode,
     #[error(

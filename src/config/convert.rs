@@ -2,7 +2,7 @@
 //! sky and panorama settings, the CAVE's placement in the scene and the lights. Validation,
 //! the application and the render command all build them here, so each is built once.
 
-use crate::render::shadow_pass::ShadowSettings;
+use crate::scene::shadows::ShadowSettings;
 use glam::{Mat4, Quat, Vec3};
 
 use super::file::{ConfigFile, LightingSection};

@@ -479,7 +479,7 @@ impl Default for PlausibilitySection {
     }
 }
 
-/// Cluster mode (README "Cluster"): every process (MPI rank) loads the same config and scene;
+/// Cluster mode (the book's "A cluster of PCs"): every process (MPI rank) loads the same config and scene;
 /// rank 0, the master, takes the input and broadcasts each frame's state; every rank renders
 /// the walls whose `node` is its rank; all present together after a barrier.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
@@ -524,7 +524,7 @@ crate::named_enum!(NodeLoss {
     Self::Stop => "stop",
 });
 
-/// What inputs may cost (README "Budgets"). A scene or sky past one is refused with the
+/// What inputs may cost (the book's budgets reference). A scene or sky past one is refused with the
 /// budget named; images larger than `max_texture_side` are downscaled, with a warning.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
@@ -740,7 +740,7 @@ pub struct ShadowsSection {
 
 impl Default for ShadowsSection {
     fn default() -> Self {
-        let d = crate::render::shadow_pass::ShadowSettings::default();
+        let d = crate::scene::shadows::ShadowSettings::default();
         Self {
             enabled: d.enabled,
             map_size: d.map_size,
@@ -846,7 +846,8 @@ pub struct WallSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub centre: Option<[f32; 3]>,
     /// Yaw about the up axis (+ turns left), pitch about the wall's horizontal edge (+ tilts
-    /// its top back), roll about its normal, degrees. At 0 the wall faces the viewer as the
+    /// its top towards the viewer: +90 is a ceiling, −90 a floor), roll about its normal,
+    /// degrees. At 0 the wall faces the viewer as the
     /// front wall does (its right edge along +x).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(inner(range(min = -360.0, max = 360.0)))]

@@ -98,35 +98,11 @@ impl ConfigFile {
         // Every range the model declares, for every setting at once.
         super::bounds::check(self).map_err(|e| ck.fail_text(&e.path, e.value, &e.reason))?;
 
-        if self.walls.is_empty() {
-            return Err(ck.fail("wall", "[]", "at least one [[wall]] is required"));
-        }
-        let max_walls = self.budgets.max_walls as usize;
-        if self.walls.len() > max_walls {
-            return Err(ck.fail_text(
-                "wall",
-                format!("({} walls)", self.walls.len()),
-                &format!("more than budgets.max_walls = {max_walls}"),
-            ));
-        }
-        let mut walls = Vec::with_capacity(self.walls.len());
-        let mut names = std::collections::HashSet::with_capacity(self.walls.len());
-        let frame = self.cave.wall_frame();
-        for (i, w) in self.walls.iter().enumerate() {
-            let wall = validate_wall(&ck, i, w, frame)?;
-            if !names.insert(wall.name.clone()) {
-                return Err(ck.fail(
-                    &format!("wall[{i}].name"),
-                    &w.name,
-                    "another wall has this name",
-                ));
-            }
-            walls.push(wall);
-        }
+        let walls = self.validate_walls(&ck)?;
 
         let target_bytes: u64 = walls
             .iter()
-            .map(|w| crate::render::targets::wall_target_bytes(w.resolution, self.render.msaa))
+            .map(|w| wall_target_bytes(w.resolution, self.render.msaa))
             .sum();
         let target_budget = u64::from(self.budgets.max_target_memory_mb) << 20;
         if target_bytes > target_budget {
@@ -146,6 +122,85 @@ impl ConfigFile {
             ));
         }
 
+        let cave = self.validate_cave(&ck, walls)?;
+        let o = &self.omnistereo;
+        let start = o.pole_merge_start_degrees;
+        // Cross-field: the fade ends after it starts (each is 0..90 by the model).
+        ck.range(
+            "omnistereo.pole_merge_end_degrees",
+            o.pole_merge_end_degrees,
+            start,
+            90.0,
+        )?;
+        let h = &self.head;
+        let head_pos = ck.finite3("head.position", h.position)?;
+        if let Some(problem) = cave.head_problem(head_pos) {
+            return Err(ck.fail("head.position", h.position, &problem));
+        }
+        self.validate_render_and_lighting(&ck)?;
+
+        let resolve = |p: &PathBuf| {
+            if p.is_absolute() {
+                p.clone()
+            } else {
+                path.parent().unwrap_or(Path::new(".")).join(p)
+            }
+        };
+        let scene_path = self.scene.path.as_ref().map(resolve);
+
+        let sky_path = self
+            .skybox
+            .file
+            .as_ref()
+            .filter(|p| p.as_os_str() != "none")
+            .map(resolve);
+
+        self.panorama.validate(&ck)?;
+        Ok(Config {
+            source: path.to_owned(),
+            cave,
+            scene_path,
+            sky_path,
+            app: self.validate_app(&ck)?,
+            tracking: self.validate_tracking(&ck)?,
+            gamepad: self.validate_gamepad(&ck)?,
+            settings: self.clone(),
+        })
+    }
+
+    /// The walls: at least one, at most the budget's, each valid and with its own name.
+    fn validate_walls(&self, ck: &Checker<'_>) -> Result<Vec<Wall>, ConfigError> {
+        if self.walls.is_empty() {
+            return Err(ck.fail("wall", "[]", "at least one [[wall]] is required"));
+        }
+        let max_walls = self.budgets.max_walls as usize;
+        if self.walls.len() > max_walls {
+            return Err(ck.fail_text(
+                "wall",
+                format!("({} walls)", self.walls.len()),
+                &format!("more than budgets.max_walls = {max_walls}"),
+            ));
+        }
+        let mut walls = Vec::with_capacity(self.walls.len());
+        let mut names = std::collections::HashSet::with_capacity(self.walls.len());
+        let frame = self.cave.wall_frame();
+        for (i, w) in self.walls.iter().enumerate() {
+            let wall = validate_wall(ck, i, w, frame)?;
+            if !names.insert(wall.name.clone()) {
+                return Err(ck.fail(
+                    &format!("wall[{i}].name"),
+                    &w.name,
+                    "another wall has this name",
+                ));
+            }
+            walls.push(wall);
+        }
+        Ok(walls)
+    }
+
+    /// The CAVE of `walls`: the clipping planes, the stereo view direction and a projection
+    /// centre in front of every wall.
+    fn validate_cave(&self, ck: &Checker<'_>, walls: Vec<Wall>) -> Result<Cave, ConfigError> {
         let c = &self.cave;
         let near = c.near;
         let far = c.far;
@@ -182,30 +237,17 @@ impl ConfigFile {
                 ));
             }
         }
-
-        let o = &self.omnistereo;
-        let start = o.pole_merge_start_degrees;
-        // Cross-field: the fade ends after it starts (each is 0..90 by the model).
-        ck.range(
-            "omnistereo.pole_merge_end_degrees",
-            o.pole_merge_end_degrees,
-            start,
-            90.0,
-        )?;
-
-        let h = &self.head;
-        let head_pos = ck.finite3("head.position", h.position)?;
-        let cave_for_check = Cave {
-            walls: walls.clone(),
+        Ok(Cave {
+            walls,
             near,
             far,
             stereo_view_direction: view_dir,
             projection_centre,
-        };
-        if let Some(problem) = cave_for_check.head_problem(head_pos) {
-            return Err(ck.fail("head.position", h.position, &problem));
-        }
+        })
+    }
 
+    /// The render settings, the scene's placement and the lights.
+    fn validate_render_and_lighting(&self, ck: &Checker<'_>) -> Result<(), ConfigError> {
         let r = &self.render;
         if !matches!(r.msaa, 1 | 4) {
             return Err(ck.fail("render.msaa", r.msaa, "must be 1 (off) or 4"));
@@ -229,79 +271,14 @@ impl ConfigFile {
         ck.colour("lighting.directional.color", l.directional.color, 10.0)?;
         ck.finite3("lighting.point.position", l.point.position)?;
         ck.colour("lighting.point.color", l.point.color, 10.0)?;
-
-        let resolve = |p: &PathBuf| {
-            if p.is_absolute() {
-                p.clone()
-            } else {
-                path.parent().unwrap_or(Path::new(".")).join(p)
-            }
-        };
-        let scene_path = self.scene.path.as_ref().map(resolve);
-
-        let sky_path = self
-            .skybox
-            .file
-            .as_ref()
-            .filter(|p| p.as_os_str() != "none")
-            .map(resolve);
-
-        self.panorama.validate(&ck)?;
-        Ok(Config {
-            source: path.to_owned(),
-            cave: cave_for_check,
-            scene_path,
-            sky_path,
-            app: self.validate_app(&ck)?,
-            tracking: self.validate_tracking(&ck)?,
-            gamepad: self.validate_gamepad(&ck)?,
-            settings: self.clone(),
-        })
+        Ok(())
     }
 
     fn validate_tracking(&self, ck: &Checker<'_>) -> Result<TrackingConfig, ConfigError> {
         let t = &self.tracking;
-        let listen: SocketAddr = t.listen.trim().parse().map_err(|_| {
-            ck.fail(
-                "tracking.listen",
-                &t.listen,
-                "must be an address:port such as \"0.0.0.0:7000\" or \"[::]:7000\"",
-            )
-        })?;
-        let mut allowed_senders = Vec::with_capacity(t.allowed_senders.len());
-        for (i, s) in t.allowed_senders.iter().enumerate() {
-            let ip: IpAddr = s.trim().parse().map_err(|_| {
-                ck.fail(
-                    &format!("tracking.allowed_senders[{i}]"),
-                    s,
-                    "must be an IP address such as \"192.168.1.20\"",
-                )
-            })?;
-            allowed_senders.push(ip);
-        }
-        for (field, address) in [
-            ("tracking.position_address", &t.position_address),
-            ("tracking.orientation_address", &t.orientation_address),
-            ("tracking.euler_address", &t.euler_address),
-            ("tracking.natnet_address", &t.natnet_address),
-        ] {
-            if !address.is_empty() && (!address.starts_with('/') || address.contains(' ')) {
-                return Err(ck.fail(
-                    field,
-                    address,
-                    "must be an OSC address starting with '/' (no spaces), or \"\" for off",
-                ));
-            }
-        }
+        let (listen, allowed_senders) = self.validate_osc_receiver(ck)?;
         let timeout = t.timeout_seconds;
-
-        let c = &t.calibration;
-        let remap = Calibration::remap_from_axes(&c.axes)
-            .map_err(|e| ck.fail("tracking.calibration.axes", &c.axes, &e.to_string()))?;
-        let scale = c.scale;
-        let [yaw, pitch, roll] = c.rotation_degrees;
-        let offset = ck.finite3("tracking.calibration.offset", c.offset)?;
-
+        let calibration = self.validate_calibration(ck)?;
         let f = &t.filter;
         let params = OneEuroParams {
             min_cutoff_hz: f.min_cutoff_hz,
@@ -316,72 +293,11 @@ impl ConfigFile {
                 "is more than 0.5 m from the tracked body: not an offset to the eyes",
             ));
         }
-        let mut buttons = BTreeMap::new();
-        for (key, action) in &t.buttons {
-            let field = format!("tracking.buttons.{key}");
-            let index: usize = key
-                .parse()
-                .ok()
-                .filter(|&i| i < MAX_BUTTONS)
-                .ok_or_else(|| {
-                    ck.fail(
-                        &field,
-                        key,
-                        &format!("must be a button number, 0 to {}", MAX_BUTTONS - 1),
-                    )
-                })?;
-            if action == "none" {
-                continue;
-            }
-            let action = ButtonAction::from_name(action).ok_or_else(|| {
-                ck.fail(
-                    &field,
-                    action,
-                    &format!(
-                        "is not an action; one of: none, fly, select, {}",
-                        GamepadAction::NAMES.join(", ")
-                    ),
-                )
-            })?;
-            buttons.insert(index, action);
-        }
+        let buttons = self.validate_buttons(ck)?;
         let source = match t.source {
             SourceKind::Osc => None,
             SourceKind::Vrpn => Some(SourceSettings::Vrpn(self.validate_vrpn(ck)?)),
-            SourceKind::NatNet => {
-                let n = &t.natnet;
-                let server = n.server.trim();
-                let server: SocketAddrV4 = server
-                    .parse()
-                    .or_else(|_| {
-                        server.parse::<std::net::Ipv4Addr>().map(|ip| {
-                            SocketAddrV4::new(ip, crate::tracking::natnet::DEFAULT_COMMAND_PORT)
-                        })
-                    })
-                    .map_err(|_| {
-                        ck.fail(
-                            "tracking.natnet.server",
-                            &n.server,
-                            "must be Motive's IPv4 address, with its command port if not 1510 \
-                             (\"192.168.1.10\" or \"192.168.1.10:1510\")",
-                        )
-                    })?;
-                let interface = n.interface.trim().parse().map_err(|_| {
-                    ck.fail(
-                        "tracking.natnet.interface",
-                        &n.interface,
-                        "must be a local IPv4 address, or \"0.0.0.0\"",
-                    )
-                })?;
-                let retry = ck.retry("tracking.natnet.retry_seconds", n.retry_seconds)?;
-                Some(SourceSettings::NatNet(NatNetSettings {
-                    server,
-                    interface,
-                    head_rigid_body: n.head_rigid_body,
-                    wand_rigid_body: (n.wand_rigid_body >= 0).then_some(n.wand_rigid_body),
-                    retry,
-                }))
-            }
+            SourceKind::NatNet => Some(SourceSettings::NatNet(self.validate_natnet(ck)?)),
             SourceKind::DTrack => {
                 let d = &t.dtrack;
                 let listen: SocketAddr = d.listen.trim().parse().map_err(|_| {
@@ -417,12 +333,7 @@ impl ConfigFile {
             buttons,
             receiver,
             settings: TrackingSettings {
-                calibration: Calibration {
-                    remap,
-                    scale,
-                    rotation: crate::cave::Head::orientation_from_degrees(yaw, pitch, roll),
-                    offset,
-                },
+                calibration,
                 filter: f.enabled.then_some(params),
                 eye_offset,
                 plausibility: PlausibilityLimits {
@@ -438,6 +349,138 @@ impl ConfigFile {
                     )
                 })?,
             },
+        })
+    }
+
+    /// The OSC receiver's listening address and allowed senders, and its OSC addresses
+    /// checked.
+    fn validate_osc_receiver(
+        &self,
+        ck: &Checker<'_>,
+    ) -> Result<(SocketAddr, Vec<IpAddr>), ConfigError> {
+        let t = &self.tracking;
+        let listen: SocketAddr = t.listen.trim().parse().map_err(|_| {
+            ck.fail(
+                "tracking.listen",
+                &t.listen,
+                "must be an address:port such as \"0.0.0.0:7000\" or \"[::]:7000\"",
+            )
+        })?;
+        let mut allowed_senders = Vec::with_capacity(t.allowed_senders.len());
+        for (i, s) in t.allowed_senders.iter().enumerate() {
+            let ip: IpAddr = s.trim().parse().map_err(|_| {
+                ck.fail(
+                    &format!("tracking.allowed_senders[{i}]"),
+                    s,
+                    "must be an IP address such as \"192.168.1.20\"",
+                )
+            })?;
+            allowed_senders.push(ip);
+        }
+        for (field, address) in [
+            ("tracking.position_address", &t.position_address),
+            ("tracking.orientation_address", &t.orientation_address),
+            ("tracking.euler_address", &t.euler_address),
+            ("tracking.natnet_address", &t.natnet_address),
+        ] {
+            if !address.is_empty() && (!address.starts_with('/') || address.contains(' ')) {
+                return Err(ck.fail(
+                    field,
+                    address,
+                    "must be an OSC address starting with '/' (no spaces), or \"\" for off",
+                ));
+            }
+        }
+        Ok((listen, allowed_senders))
+    }
+
+    /// The tracker's calibration into CAVE coordinates.
+    fn validate_calibration(&self, ck: &Checker<'_>) -> Result<Calibration, ConfigError> {
+        let c = &self.tracking.calibration;
+        let remap = Calibration::remap_from_axes(&c.axes)
+            .map_err(|e| ck.fail("tracking.calibration.axes", &c.axes, &e.to_string()))?;
+        let scale = c.scale;
+        let [yaw, pitch, roll] = c.rotation_degrees;
+        let offset = ck.finite3("tracking.calibration.offset", c.offset)?;
+        Ok(Calibration {
+            remap,
+            scale,
+            rotation: crate::cave::Head::orientation_from_degrees(yaw, pitch, roll),
+            offset,
+        })
+    }
+
+    /// The tracker's buttons: a button number to an action ("none" left out).
+    fn validate_buttons(
+        &self,
+        ck: &Checker<'_>,
+    ) -> Result<BTreeMap<usize, ButtonAction>, ConfigError> {
+        let mut buttons = BTreeMap::new();
+        for (key, action) in &self.tracking.buttons {
+            let field = format!("tracking.buttons.{key}");
+            let index: usize = key
+                .parse()
+                .ok()
+                .filter(|&i| i < MAX_BUTTONS)
+                .ok_or_else(|| {
+                    ck.fail(
+                        &field,
+                        key,
+                        &format!("must be a button number, 0 to {}", MAX_BUTTONS - 1),
+                    )
+                })?;
+            if action == "none" {
+                continue;
+            }
+            let action = ButtonAction::from_name(action).ok_or_else(|| {
+                ck.fail(
+                    &field,
+                    action,
+                    &format!(
+                        "is not an action; one of: none, fly, select, {}",
+                        GamepadAction::NAMES.join(", ")
+                    ),
+                )
+            })?;
+            buttons.insert(index, action);
+        }
+        Ok(buttons)
+    }
+
+    /// The NatNet client's settings: Motive's address, the local interface, the rigid
+    /// bodies and the retry interval.
+    fn validate_natnet(&self, ck: &Checker<'_>) -> Result<NatNetSettings, ConfigError> {
+        let n = &self.tracking.natnet;
+        let server = n.server.trim();
+        let server: SocketAddrV4 = server
+            .parse()
+            .or_else(|_| {
+                server
+                    .parse::<std::net::Ipv4Addr>()
+                    .map(|ip| SocketAddrV4::new(ip, crate::tracking::natnet::DEFAULT_COMMAND_PORT))
+            })
+            .map_err(|_| {
+                ck.fail(
+                    "tracking.natnet.server",
+                    &n.server,
+                    "must be Motive's IPv4 address, with its command port if not 1510 \
+                     (\"192.168.1.10\" or \"192.168.1.10:1510\")",
+                )
+            })?;
+        let interface = n.interface.trim().parse().map_err(|_| {
+            ck.fail(
+                "tracking.natnet.interface",
+                &n.interface,
+                "must be a local IPv4 address, or \"0.0.0.0\"",
+            )
+        })?;
+        let retry = ck.retry("tracking.natnet.retry_seconds", n.retry_seconds)?;
+        Ok(NatNetSettings {
+            server,
+            interface,
+            head_rigid_body: n.head_rigid_body,
+            wand_rigid_body: (n.wand_rigid_body >= 0).then_some(n.wand_rigid_body),
+            retry,
         })
     }
 
@@ -632,7 +675,9 @@ fn wall_corners(
             &field("lower_left"),
             format!("{given} forms"),
             &format!(
-                "wall '{name}' needs exactly one of: lower_left + lower_right + upper_left; centre                  + size (+ yaw_pitch_roll_degrees); origin + horizontal_axis + vertical_axis +                  size"
+                "wall '{name}' needs exactly one of: lower_left + lower_right + upper_left; \
+                 centre + size (+ yaw_pitch_roll_degrees); origin + horizontal_axis + \
+                 vertical_axis + size"
             ),
         ));
     }
@@ -817,4 +862,15 @@ impl PanoramaSection {
         }
         Ok(())
     }
+}
+
+/// GPU memory of one wall's targets (two eyes: colour, MSAA colour, depth), as
+/// `render::targets::EyeTarget::new` allocates them (keep in sync); for the config's target budget.
+fn wall_target_bytes(size: [u32; 2], msaa: u32) -> u64 {
+    let pixels = u64::from(size[0]) * u64::from(size[1]);
+    let samples = u64::from(msaa.max(1));
+    let color = 4;
+    let msaa_color = if samples > 1 { 4 * samples } else { 0 };
+    let depth = 4 * samples; // Depth32Float
+    2 * pixels * (color + msaa_color + depth)
 }

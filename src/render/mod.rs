@@ -1,16 +1,20 @@
 //! The multi-wall stereo renderer: owns the GPU resources and draws every wall for every eye.
 
+pub mod bindings;
 pub mod error;
+pub mod formats;
 pub mod frame_timer;
 pub mod fullscreen;
 pub mod gpu;
 pub mod overlay;
 pub mod panorama;
+mod panorama_frame;
 pub mod pbr;
 pub mod present;
 pub mod readback;
 pub mod resolve;
 pub mod scene_chunks;
+pub mod scene_gpu;
 pub mod scene_pass;
 pub mod shaders;
 pub mod shadow_pass;
@@ -19,6 +23,7 @@ pub mod targets;
 pub mod tessellator;
 pub mod uniforms;
 pub mod view_set;
+mod wall_frame;
 
 use glam::Mat4;
 use image::RgbaImage;
@@ -27,20 +32,20 @@ pub use error::RenderError;
 pub use frame_timer::{FrameBreakdown, ViewStage};
 use frame_timer::{FrameTimer, STAGES_PER_VIEW};
 pub use gpu::Gpu;
-use scene_pass::{GpuVertex, SceneGpu, ScenePass};
-use sky_pass::{SkyFrame, SkyPass};
+use scene_gpu::{GpuVertex, SceneGpu};
+use scene_pass::ScenePass;
+use sky_pass::SkyPass;
 use targets::WallTargets;
-use tessellator::{TessUniforms, Tessellator};
-use uniforms::{FrameLights, FrameUniforms, ViewUniforms};
+use tessellator::Tessellator;
 use view_set::ViewSet;
 
 use crate::cave::omni::OmniSettings;
-use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup, eye_positions, view_setups};
-use crate::pano::{PanoRoute, PanoSettings};
+use crate::cave::{Cave, Eye, Head, RenderMode, ViewSetup};
+use crate::pano::PanoSettings;
 use crate::scene::Scene;
 use crate::scene::{Lighting, Shading};
-use crate::sky::{CubeMap, SkyMode, SkySettings};
-use crate::tess::clusters::{ClusterSplit, ClusterTest, Verdict};
+use crate::sky::{CubeMap, SkySettings};
+use crate::tess::clusters::ClusterSplit;
 use crate::tess::{TessSettings, TessStats};
 
 /// Settings that change pipelines or targets (rarely; never per frame).
@@ -72,7 +77,7 @@ pub struct FrameParams<'a> {
     /// The shading model.
     pub shading: Shading,
     /// Shadow maps from the lights.
-    pub shadows: shadow_pass::ShadowSettings,
+    pub shadows: crate::scene::shadows::ShadowSettings,
     /// Clear colour, sRGB 0..1.
     pub background: [f32; 3],
     /// Warp variant and pole merge (used by the omnistereo modes).
@@ -571,53 +576,6 @@ impl Renderer {
         }
     }
 
-    /// The frame's uniforms (the config's and the scene's lights, the shading model, the
-    /// shadow maps' layers), with the scene's blended draws sorted back to front from the
-    /// head; records the shadow maps into `encoder` when they changed.
-    fn prepare_frame(
-        &mut self,
-        encoder: &mut wgpu::CommandEncoder,
-        frame: &FrameParams<'_>,
-        omni: Option<OmniSettings>,
-    ) -> FrameUniforms {
-        let head = frame.world_from_cave.transform_point3(frame.head.position);
-        if let Some(scene) = &mut self.scene {
-            scene.sort_blended(head);
-        }
-        let scene_lights = self.scene.as_ref().map_or(&[][..], |s| s.lights.as_slice());
-        let lights = FrameLights {
-            config: &frame.lighting,
-            scene: scene_lights,
-            shading: frame.shading,
-        };
-        let centre = frame.world_from_cave.transform_point3(glam::Vec3::ZERO);
-        let bounds = self.scene.as_ref().and_then(|s| s.bounds);
-        let plan = shadow_pass::plan_shadows(&lights.all(), bounds, centre, &frame.shadows);
-        self.scene_pass.shadows.prepare(
-            &self.device,
-            &self.queue,
-            &plan,
-            frame.shadows.map_size,
-            frame.shadows.range_test(),
-        );
-        if let Some(scene) = &self.scene {
-            self.scene_pass.shadows.encode(encoder, scene);
-        }
-        let shadows = uniforms::FrameShadows {
-            settings: &frame.shadows,
-            plan: &plan,
-        };
-        let sky = self
-            .sky_irradiance
-            .as_ref()
-            .filter(|_| frame.sky.mode != SkyMode::Off)
-            .map(|irradiance| uniforms::SkyLight {
-                irradiance,
-                strength: frame.sky.light * frame.sky.exposure,
-            });
-        FrameUniforms::new(frame.world_from_cave, lights, Some(shadows), sky, omni)
-    }
-
     /// Renders every view of the frame and submits the work (no CPU read-back).
     pub fn render(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
         let result = self.render_walls(frame);
@@ -633,345 +591,6 @@ impl Renderer {
         result
     }
 
-    /// [`Renderer::render`]'s frame.
-    fn render_walls(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
-        self.sync_walls(frame.cave);
-        let tessellate =
-            frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
-        let mut views = view_setups(frame.cave, &frame.head, frame.mode, frame.eye_separation);
-        if let Some(walls) = &self.wall_filter {
-            views.retain(|v| walls.get(v.wall).copied().unwrap_or(false));
-        }
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("Renderer::frame"),
-            });
-        if let Some(timer) = &mut self.timer {
-            timer.ensure_views(&self.device, &self.queue, views.len());
-            encoder.write_timestamp(&timer.queries, 0);
-        }
-        let frame_uniforms = self.prepare_frame(
-            &mut encoder,
-            frame,
-            frame.mode.is_omni().then_some(frame.omni),
-        );
-        if let Some(timer) = &self.timer {
-            encoder.write_timestamp(&timer.queries, frame_timer::SHADOWS_END);
-        }
-        self.walls.write_uniforms(
-            &self.queue,
-            &frame_uniforms,
-            views.iter().map(ViewUniforms::from),
-        );
-        // Each view's clusters: the provably invisible dropped, the rest drawn whole or, when
-        // tessellating, refined if they may need it (see tess::clusters). A split scene has
-        // no clusters (and is not tessellated): drawn whole, every draw in every view.
-        let direct = self.scene.as_ref().is_some_and(|s| !s.clusters.is_empty())
-            && (!tessellate || frame.tess.skip_fine);
-        if let (true, Some(scene)) = (direct, &self.scene) {
-            let omni = frame.mode.is_omni().then_some(frame.omni);
-            let unproven = if tessellate {
-                Verdict::Needy
-            } else {
-                Verdict::Fine
-            };
-            self.cluster_splits
-                .resize_with(views.len(), Default::default);
-            for (v, split) in views.iter().zip(&mut self.cluster_splits) {
-                let wall = &frame.cave.walls[v.wall];
-                let tv = crate::tess::tess_view(v, wall, frame.world_from_cave, omni);
-                let test = ClusterTest::for_settings(&tv, &frame.tess, tessellate);
-                split.classify(&scene.clusters, test.as_ref(), unproven);
-            }
-        }
-        if let (true, Some(scene), Some(tessellator)) = (tessellate, &self.scene, &self.tessellator)
-        {
-            let buffers =
-                self.walls
-                    .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
-            let cluster_mode = direct;
-            buffers.write_needy(
-                &self.queue,
-                self.cluster_splits[..if direct { views.len() } else { 0 }]
-                    .iter()
-                    .map(|s| s.needy.as_slice()),
-                &mut self.needy_ranges,
-            );
-            let ranges = &self.needy_ranges;
-            buffers.write_uniforms(
-                &self.queue,
-                views.iter().enumerate().map(|(i, v)| {
-                    let (offset, count, triangles) = ranges.get(i).copied().unwrap_or((0, 0, 0));
-                    TessUniforms {
-                        cluster_mode: u32::from(cluster_mode),
-                        needy_offset: offset,
-                        needy_count: count,
-                        root_bound: triangles,
-                        ..TessUniforms::new(
-                            v,
-                            &frame.cave.walls[v.wall],
-                            &frame.tess,
-                            frame.mode.is_omni(),
-                        )
-                    }
-                }),
-            );
-        }
-        let sky_frame = SkyFrame {
-            world_from_cave: frame.world_from_cave,
-            head: frame.head.position,
-            eye_separation: frame.eye_separation,
-            // The omnistereo modes' fixed-direction eyes are their stereo eyes.
-            offaxis_eyes: eye_positions(
-                frame.mode,
-                &frame.head,
-                frame.eye_separation,
-                frame.cave.stereo_view_direction,
-            ),
-            pole_merge: frame.omni.pole_merge,
-            exposure: frame.sky.exposure,
-        };
-        self.sky_pass.prepare(
-            &self.device,
-            &self.queue,
-            frame.cave,
-            &views,
-            &frame.sky,
-            frame.sky.mode.resolve(frame.mode),
-            &sky_frame,
-        );
-        if let Some(ray) = &frame.wand_ray {
-            crate::scene::wand_mesh::positions(
-                ray,
-                frame.world_from_cave,
-                &mut self.wand_positions,
-            );
-            for (v, p) in self.wand_vertices.iter_mut().zip(&self.wand_positions) {
-                v.position = p.to_array();
-            }
-            self.wand.write_vertices(&self.queue, &self.wand_vertices);
-        }
-        let rounds = tessellator::rounds(&frame.tess);
-        let clear = srgb_to_linear_color(frame.background);
-        let wireframe = self.settings.wireframe && self.wireframe_supported;
-        // With MSAA, the shaders encode each fragment's colour once and `resolve_pass`
-        // averages the samples in linear light, instead of the rasteriser encoding every
-        // sample (see `resolve`); blending needs linear colour in the target.
-        let encoded = self.encoded_samples
-            && self.settings.msaa > 1
-            && !self.scene.as_ref().is_some_and(SceneGpu::has_blended_draws)
-            && !(frame.wand_ray.is_some() && self.wand.has_blended_draws());
-        // The background as bytes in the encoded samples: already sRGB.
-        let encoded_clear = wgpu::Color {
-            r: f64::from(frame.background[0]),
-            g: f64::from(frame.background[1]),
-            b: f64::from(frame.background[2]),
-            a: clear.a,
-        };
-        self.drew_encoded = encoded;
-        self.walls
-            .set_tessellated_views(if tessellate { views.len() } else { 0 });
-        for (index, view) in views.iter().enumerate() {
-            let tess = self.walls.tessellated();
-            let timer = self.timer.as_ref();
-            let split = self.cluster_splits.get(index).filter(|_| direct);
-            let needy = split.map(|_| self.needy_ranges.get(index).map_or(0, |r| r.1));
-            let drew = match (tess, &self.tessellator) {
-                (Some(buffers), Some(tessellator)) => buffers.encode(
-                    tessellator,
-                    &mut encoder,
-                    index,
-                    rounds,
-                    needy,
-                    timer.map(|t| t.tess_marks(index)),
-                ),
-                _ => {
-                    if let Some(t) = timer {
-                        for stage in [
-                            ViewStage::TessCull,
-                            ViewStage::TessSplit,
-                            ViewStage::TessSort,
-                        ] {
-                            t.mark(&mut encoder, index, stage);
-                        }
-                    }
-                    false
-                }
-            };
-            let fine = split.map_or(&[][..], |s| s.fine.as_slice());
-            let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
-            let samples = target
-                .encoded_samples
-                .as_ref()
-                .and_then(|(view, group)| Some((view, group.as_ref()?)))
-                .filter(|_| encoded);
-            let encoded = samples.is_some();
-            let mut pass = match samples {
-                Some((view, _)) => targets::begin_scene_pass(
-                    &mut encoder,
-                    "Renderer::scene_pass",
-                    view,
-                    None,
-                    &target.depth_view,
-                    encoded_clear,
-                ),
-                None => targets::begin_scene_pass(
-                    &mut encoder,
-                    "Renderer::scene_pass",
-                    &target.color_view,
-                    target.msaa_view.as_ref(),
-                    &target.depth_view,
-                    clear,
-                ),
-            };
-            match (&self.scene, tess) {
-                (Some(scene), Some(buffers)) => {
-                    self.scene_pass.draw_split(
-                        &mut pass,
-                        scene,
-                        self.walls.bind_group(),
-                        drew.then_some(buffers),
-                        split.map(|s| s.needy_draws.as_slice()),
-                        fine,
-                        index,
-                        wireframe,
-                        encoded,
-                    );
-                }
-                (Some(scene), None) if direct => self.scene_pass.draw_split(
-                    &mut pass,
-                    scene,
-                    self.walls.bind_group(),
-                    None,
-                    None,
-                    fine,
-                    index,
-                    wireframe,
-                    encoded,
-                ),
-                (Some(scene), None) => self.scene_pass.draw(
-                    &mut pass,
-                    scene,
-                    self.walls.bind_group(),
-                    index,
-                    wireframe,
-                    encoded,
-                ),
-                (None, _) => {}
-            }
-            if frame.wand_ray.is_some() {
-                // Never tessellated: its segments are short enough for the per-vertex warp.
-                self.scene_pass.draw(
-                    &mut pass,
-                    &self.wand,
-                    self.walls.bind_group(),
-                    index,
-                    false,
-                    encoded,
-                );
-            }
-            let in_pass = timer.is_some_and(|t| t.mark_in_pass(&mut pass, index, ViewStage::Scene));
-            self.sky_pass.draw(&mut pass, index, view.wall, encoded);
-            if in_pass && let Some(t) = timer {
-                t.mark_in_pass(&mut pass, index, ViewStage::Sky);
-            }
-            drop(pass);
-            if let Some(t) = timer
-                && !in_pass
-            {
-                t.mark(&mut encoder, index, ViewStage::Scene);
-                t.mark(&mut encoder, index, ViewStage::Sky);
-            }
-            // The resolve stage: the pass's end, and the encoded samples' resolve pass.
-            if let Some((_, group)) = samples {
-                self.resolve_pass
-                    .encode(&mut encoder, group, &target.encoded_view);
-            }
-            if let Some(t) = timer {
-                t.mark(&mut encoder, index, ViewStage::Resolve);
-            }
-        }
-        let stamps = frame_timer::timestamp_count(views.len());
-        if let Some(timer) = &self.timer {
-            encoder.resolve_query_set(&timer.queries, 0..stamps, &timer.resolve, 0);
-            self.timed_stamps = stamps;
-            self.timed_views = views.len();
-        }
-        let tessellated_views = if !tessellate {
-            0
-        } else if direct {
-            self.needy_ranges.iter().filter(|r| r.1 > 0).count()
-        } else {
-            views.len()
-        };
-        self.last_dispatches = tessellated_views * tessellator::dispatches_per_view(rounds);
-        let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
-        let refined_input: usize = if !tessellate {
-            0
-        } else if direct {
-            self.cluster_splits[..views.len()]
-                .iter()
-                .flat_map(|s| &s.needy)
-                .map(|n| n[1] as usize)
-                .sum()
-        } else {
-            triangles * views.len()
-        };
-        let fine_triangles: usize = if tessellate && direct {
-            self.cluster_splits[..views.len()]
-                .iter()
-                .map(|s| s.fine_triangles() as usize)
-                .sum()
-        } else {
-            0
-        };
-        // This frame's timestamps and tessellation counts into the read-back ring.
-        self.frame_number += 1;
-        let layout = readback::SlotLayout {
-            timestamps: if self.timer.is_some() { stamps } else { 0 },
-            tess_views: if tessellate { views.len() } else { 0 },
-        };
-        let needed = layout.stats_offset() + tessellator::STATS_BYTES * layout.tess_views as u64;
-        if needed > self.readback.slot_size() {
-            // More walls than the ring was made for (not per frame).
-            self.readback = readback::ReadbackRing::new(&self.device, needed);
-        }
-        let wanted = layout.timestamps > 0 || layout.tess_views > 0;
-        if let Some(slot) = wanted
-            .then(|| self.readback.begin(self.frame_number, layout))
-            .flatten()
-        {
-            if let Some(timer) = &self.timer {
-                encoder.copy_buffer_to_buffer(&timer.resolve, 0, slot, 0, layout.stats_offset());
-            }
-            if let Some(stats) = self
-                .walls
-                .tessellated()
-                .and_then(|t| t.stats_buffer(layout.tess_views))
-            {
-                encoder.copy_buffer_to_buffer(
-                    stats,
-                    0,
-                    slot,
-                    layout.stats_offset(),
-                    needed - layout.stats_offset(),
-                );
-            }
-        }
-        self.queue.submit([encoder.finish()]);
-        self.readback.finish();
-        let stats = FrameStats {
-            views: views.len(),
-            triangles_submitted: triangles * views.len(),
-            dispatches: self.last_dispatches,
-            fine_triangles,
-            refined_input,
-        };
-        self.last_views = views;
-        Ok(stats)
-    }
-
     /// Renders the panorama view of `frame` (its scene, head, lighting, tessellation and
     /// omnistereo settings) into the panorama's own eye targets and submits the work (no CPU
     /// read-back). Independent of the walls: call it after `render` in the same frame.
@@ -985,173 +604,6 @@ impl Renderer {
     }
 
     /// [`Renderer::render_panorama`]'s frame.
-    fn render_panorama_frame(
-        &mut self,
-        frame: &FrameParams<'_>,
-        pano: &PanoSettings,
-    ) -> Result<(), RenderError> {
-        let [w, h] = pano.size;
-        let max = self.device.limits().max_texture_dimension_2d;
-        if w == 0 || h == 0 || w > max || h > max {
-            return Err(RenderError::PanoramaSize(w, h));
-        }
-        let route = pano.effective_route();
-        if route == PanoRoute::Geometric && self.tessellator.is_none() {
-            return Err(RenderError::PanoramaNeedsTessellator);
-        }
-        self.pano
-            .ensure_targets(&self.device, pano.size, self.settings.msaa);
-        let head = frame.head.position;
-        let (near, far) = (frame.cave.near, frame.cave.far);
-        let clear = srgb_to_linear_color(frame.background);
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("Renderer::panorama"),
-            });
-        if let Some(timer) = &self.timer {
-            encoder.write_timestamp(&timer.queries, 0);
-        }
-        // The sky behind the panorama: a direction lookup (at infinity, the same for every
-        // eye), unless the sky is off.
-        let use_sky = frame.sky.mode != SkyMode::Off;
-        let face_size = pano.cube_size.clamp(4, max);
-        let fitted = pano.fitted();
-        self.pano.write_resolve(
-            &self.queue,
-            &panorama::ResolveUniforms {
-                cave_from_view: pano.view_from_cave(head).inverse().to_cols_array_2d(),
-                cube_from_cave: sky_pass::cube_from_cave(frame.world_from_cave).to_cols_array_2d(),
-                window: fitted.map_window(),
-                params: [
-                    fitted.projection.code() as f32,
-                    panorama::face_half_extent(face_size),
-                    frame.sky.exposure,
-                    0.0,
-                ],
-                background: [clear.r as f32, clear.g as f32, clear.b as f32, 1.0],
-            },
-        );
-        match route {
-            PanoRoute::Image => {
-                self.pano
-                    .ensure_cube(&self.device, face_size, self.settings.msaa);
-                let frame_uniforms = self.prepare_frame(&mut encoder, frame, None);
-                let faces = (0..6).map(|f| ViewUniforms {
-                    clip_from_cave: panorama::face_clip_from_cave(f, head, face_size, near, far)
-                        .to_cols_array_2d(),
-                    eye_position: head.extend(1.0).to_array(),
-                    // A plain perspective view: no omnistereo, no panorama fields.
-                    ..bytemuck::Zeroable::zeroed()
-                });
-                self.pano_set
-                    .write_uniforms(&self.queue, &frame_uniforms, faces);
-                self.pano_set.set_tessellated_views(0);
-                let (scene_pass, scene, faces) =
-                    (&self.scene_pass, &self.scene, self.pano_set.bind_group());
-                // Alpha 0 where the faces show nothing: the look-up puts the sky there.
-                let face_clear = wgpu::Color { a: 0.0, ..clear };
-                self.pano
-                    .encode_faces(&mut encoder, face_clear, |pass, face| {
-                        if let Some(scene) = scene {
-                            scene_pass.draw(pass, scene, faces, face, false, false);
-                        }
-                    });
-                let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);
-                self.pano.encode_resolve(&mut encoder, sky);
-                self.pano_views = 1;
-            }
-            PanoRoute::Geometric => {
-                let eyes: &[Option<Eye>] = if pano.stereo.is_stereo() {
-                    &[Some(Eye::Left), Some(Eye::Right)]
-                } else {
-                    &[None]
-                };
-                let omni = matches!(pano.stereo, crate::pano::PanoStereo::Omni);
-                let frame_uniforms =
-                    self.prepare_frame(&mut encoder, frame, omni.then_some(frame.omni));
-                let msaa = self.settings.msaa;
-                let views = eyes.iter().map(|&eye| {
-                    panorama::pano_view_uniforms(
-                        pano,
-                        head,
-                        eye,
-                        frame.eye_separation,
-                        near,
-                        far,
-                        msaa,
-                    )
-                });
-                self.pano_set
-                    .write_uniforms(&self.queue, &frame_uniforms, views);
-                let pixels_per_radian = w as f32 / pano.fitted().fov().x;
-                let radius = if omni {
-                    0.5 * frame.eye_separation
-                } else {
-                    0.0
-                };
-                if let (Some(scene), Some(tessellator)) = (&self.scene, &self.tessellator) {
-                    let buffers = self.pano_set.tessellation(
-                        &self.device,
-                        tessellator,
-                        scene,
-                        self.tess_capacity,
-                    )?;
-                    buffers.write_uniforms(
-                        &self.queue,
-                        eyes.iter().map(|_| {
-                            TessUniforms::panorama(
-                                &frame.tess,
-                                pano.size,
-                                pixels_per_radian,
-                                head,
-                                radius,
-                            )
-                        }),
-                    );
-                }
-                let rounds = tessellator::rounds(&frame.tess);
-                let sky = self.sky_pass.cube_bind_group().filter(|_| use_sky);
-                self.pano_set
-                    .set_tessellated_views(if self.scene.is_some() { eyes.len() } else { 0 });
-                for index in 0..eyes.len() {
-                    let (Some(scene), Some(buffers), Some(tessellator)) =
-                        (&self.scene, self.pano_set.tessellated(), &self.tessellator)
-                    else {
-                        // No scene: the sky alone (or the clear colour).
-                        if let (Some(mut pass), Some(sky)) =
-                            (self.pano.begin_eye_pass(&mut encoder, index, clear), sky)
-                        {
-                            self.pano.draw_sky(&mut pass, sky);
-                        }
-                        continue;
-                    };
-                    buffers.encode(tessellator, &mut encoder, index, rounds, None, None);
-                    if let Some(mut pass) = self.pano.begin_eye_pass(&mut encoder, index, clear) {
-                        self.scene_pass.draw_panorama(
-                            &mut pass,
-                            scene,
-                            self.pano_set.bind_group(),
-                            buffers,
-                            index,
-                        );
-                        if let Some(sky) = sky {
-                            self.pano.draw_sky(&mut pass, sky);
-                        }
-                    }
-                }
-                self.pano_views = eyes.len();
-            }
-        }
-        if let Some(timer) = &self.timer {
-            encoder.write_timestamp(&timer.queries, 1);
-            encoder.resolve_query_set(&timer.queries, 0..2, &timer.resolve, 0);
-            self.timed_stamps = 2;
-        }
-        self.queue.submit([encoder.finish()]);
-        Ok(())
-    }
-
     /// The colour texture of the last panorama for `eye` (mono: one image for both).
     pub fn panorama_texture(&self, eye: Eye) -> Option<&wgpu::Texture> {
         let slot = if self.pano_views > 1 { eye as usize } else { 0 };

@@ -5,8 +5,9 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
+use super::formats::{COLOR_FORMAT, DEPTH_FORMAT};
 use super::shaders;
-use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, WallTargets, begin_scene_pass};
+use super::targets::{WallTargets, begin_scene_pass};
 use super::uniforms::ViewUniforms;
 use crate::cave::Eye;
 use crate::pano::{PanoSettings, PanoStereo};

@@ -288,7 +288,7 @@ impl PresentPass {
         right: &wgpu::Texture,
         params: PresentParams,
     ) -> Result<RgbaImage, RenderError> {
-        let format = targets::COLOR_FORMAT;
+        let format = super::formats::COLOR_FORMAT;
         self.ensure_pipeline(device, format);
         let binding = self.bind(device, left, right);
         let [w, h] = params.format.output_size(binding.eye_size);

@@ -3,7 +3,7 @@
 //!
 //! Why the samples are encoded by the shader: an sRGB attachment is converted by the
 //! rasteriser for every sample it stores, and on a CPU rasteriser (lavapipe) that is about an
-//! eighth of the desktop preview's frame with MSAA 4 (see the README's preview paragraph).
+//! eighth of the desktop preview's frame with MSAA 4 (see the book's performance page).
 //! Encoding once per fragment in the shader and storing plain bytes costs one conversion
 //! per pixel. The hardware resolve of plain bytes would average them in sRGB space, which
 //! darkens and shifts anti-aliased edges; this pass averages in linear light as the resolve
@@ -51,7 +51,7 @@ impl ResolvePass {
                     shader: &self.shader,
                     fragment: "fs_resolve",
                     constants: &constants,
-                    format: super::targets::ENCODED_FORMAT,
+                    format: super::formats::ENCODED_FORMAT,
                     blend: None,
                 },
             )
@@ -63,7 +63,7 @@ impl ResolvePass {
         self.pipelines_built
     }
 
-    /// Binds a multisampled image's encoded samples (a view in `targets::ENCODED_FORMAT`).
+    /// Binds a multisampled image's encoded samples (a view in `formats::ENCODED_FORMAT`).
     pub fn bind(&self, device: &wgpu::Device, samples: &wgpu::TextureView) -> wgpu::BindGroup {
         super::fullscreen::texture_bind_group(
             device,

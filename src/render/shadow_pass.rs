@@ -3,32 +3,16 @@
 //! drawing them again only when a light, the scene or the shadowed region changes.
 
 use bytemuck::{Pod, Zeroable};
-use glam::camera::rh::{proj, view};
-use glam::{Mat4, Vec3};
+use glam::Mat4;
 
+use super::bindings::{UNIFORM_STRIDE, storage_entry};
 use super::error::RenderError;
-use super::scene_pass::{GpuVertex, SceneGpu};
+use super::scene_gpu::{GpuVertex, SceneGpu};
 use super::shaders;
-use super::tessellator::storage_entry;
-use super::uniforms::UNIFORM_STRIDE;
-use crate::scene::{Light, LightKind};
-
-/// Shadow-map layers a frame holds at most (a directional or spot light takes one, a point
-/// light six). Keep in sync with `MAX_SHADOW_LAYERS` in shaders/common.wgsl.
-pub const MAX_SHADOW_LAYERS: usize = 8;
+use crate::scene::shadows::{LightShadow, MAX_SHADOW_LAYERS, SHADOW_TILE, range_tiles};
 
 /// Depth format of the shadow maps.
 const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-
-/// Side of a range tile, texels: the 3×3 filter reads the least and greatest depth it could
-/// gather from a point in the tile, and gathers only where the point's depth lies between
-/// them. Keep in sync with `SHADOW_TILE` in shaders/shadow.wgsl and shaders/scene.wgsl.
-pub const SHADOW_TILE: u32 = 4;
-
-/// Range tiles per side of a map of `map_size` texels.
-pub fn range_tiles(map_size: u32) -> u32 {
-    map_size.div_ceil(SHADOW_TILE)
-}
 
 /// A layout entry for the maps as a depth texture array.
 fn maps_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
@@ -47,180 +31,6 @@ fn maps_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLa
 /// The tiles' depth ranges for every layer: `range_tiles² × MAX_SHADOW_LAYERS` pairs of f32.
 fn ranges_size(map_size: u32) -> u64 {
     u64::from(range_tiles(map_size)).pow(2) * MAX_SHADOW_LAYERS as u64 * 8
-}
-
-/// How shadows are drawn (the config's `[shadows]`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ShadowSettings {
-    pub enabled: bool,
-    /// Side of each shadow map, texels.
-    pub map_size: u32,
-    /// Look-ups move this many texels along the surface normal (against shadow acne).
-    pub normal_offset_texels: f32,
-    /// 3×3 percentage-closer filtering (soft edges), else one comparison.
-    pub pcf: bool,
-    /// The filter first reads its tile's depth range and gathers only where the point's
-    /// depth lies within it (the same picture; false: it always gathers).
-    pub pcf_range_test: bool,
-    /// Directional lights shadow this far around the CAVE (metres, scene space).
-    pub distance_m: f32,
-}
-
-impl ShadowSettings {
-    /// Whether the filter reads the range tiles (shadows on, filtered, range test on).
-    pub fn range_test(&self) -> bool {
-        self.enabled && self.pcf && self.pcf_range_test
-    }
-}
-
-impl Default for ShadowSettings {
-    fn default() -> Self {
-        Self {
-            enabled: true,
-            map_size: 1024,
-            normal_offset_texels: 1.5,
-            pcf: true,
-            pcf_range_test: true,
-            distance_m: 25.0,
-        }
-    }
-}
-
-/// One light's shadow: its layers (consecutive) and how big a texel is.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LightShadow {
-    pub first_layer: usize,
-    /// Per layer: scene space → the layer's clip space.
-    pub shadow_from_world: Vec<Mat4>,
-    /// Texel size at 1 m from a perspective light (spot, point); 0 for directional.
-    pub texel_per_metre: f32,
-    /// Texel size of an orthographic (directional) map; 0 for the others.
-    pub texel: f32,
-}
-
-/// Where each light's shadow layers look from, in the light list's order, within
-/// [`MAX_SHADOW_LAYERS`]: a light that does not fit casts no shadow. `bounds` are the scene's
-/// (scene space); `centre` is the CAVE's centre in scene space, around which directional
-/// shadows cover `settings.distance_m` (snapped to a quarter of it, so that moving a little
-/// keeps the same maps).
-pub fn plan_shadows(
-    lights: &[Light],
-    bounds: Option<(Vec3, Vec3)>,
-    centre: Vec3,
-    settings: &ShadowSettings,
-) -> Vec<Option<LightShadow>> {
-    let Some((lo, hi)) = bounds.filter(|_| settings.enabled) else {
-        return vec![None; lights.len()];
-    };
-    let size = settings.map_size.max(1) as f32;
-    let scene_centre = 0.5 * (lo + hi);
-    let scene_radius = (0.5 * (hi - lo).length()).max(1e-3);
-    // Farthest any part of the scene is from `p`: the far plane that holds every caster.
-    let reach = |p: Vec3| (p - scene_centre).length() + scene_radius;
-    let mut next = 0;
-    lights
-        .iter()
-        .map(|light| {
-            if !light.casts_shadows {
-                return None;
-            }
-            let layers = match light.kind {
-                LightKind::Point => 6,
-                _ => 1,
-            };
-            if next + layers > MAX_SHADOW_LAYERS {
-                return None;
-            }
-            let first_layer = next;
-            next += layers;
-            Some(match light.kind {
-                LightKind::Directional => {
-                    let (c, r) = if scene_radius <= settings.distance_m {
-                        (scene_centre, scene_radius)
-                    } else {
-                        let step = settings.distance_m / 4.0;
-                        ((centre / step).round() * step, settings.distance_m)
-                    };
-                    let dir = light.direction.normalize_or(Vec3::NEG_Y);
-                    let back = reach(c);
-                    let eye = c - dir * back;
-                    let view = view::look_at_mat4(eye, c, any_perpendicular(dir));
-                    let projection = proj::directx::orthographic(-r, r, -r, r, 0.0, back + r);
-                    LightShadow {
-                        first_layer,
-                        shadow_from_world: vec![projection * view],
-                        texel_per_metre: 0.0,
-                        texel: 2.0 * r / size,
-                    }
-                }
-                LightKind::Spot { outer_cone, .. } => {
-                    let fov = (2.0 * outer_cone + 2f32.to_radians())
-                        .clamp(2f32.to_radians(), 170f32.to_radians());
-                    let far = light
-                        .range
-                        .unwrap_or_else(|| reach(light.position))
-                        .max(0.2);
-                    let dir = light.direction.normalize_or(Vec3::NEG_Y);
-                    let view = view::look_at_mat4(
-                        light.position,
-                        light.position + dir,
-                        any_perpendicular(dir),
-                    );
-                    LightShadow {
-                        first_layer,
-                        shadow_from_world: vec![
-                            proj::directx::perspective(fov, 1.0, near(far), far) * view,
-                        ],
-                        texel_per_metre: 2.0 * (0.5 * fov).tan() / size,
-                        texel: 0.0,
-                    }
-                }
-                LightKind::Point => {
-                    let far = light
-                        .range
-                        .unwrap_or_else(|| reach(light.position))
-                        .max(0.2);
-                    let projection = proj::directx::perspective(
-                        // A hair over 90° so that neighbouring faces overlap at the edges.
-                        91f32.to_radians(),
-                        1.0,
-                        near(far),
-                        far,
-                    );
-                    let faces = [
-                        (Vec3::X, Vec3::NEG_Y),
-                        (Vec3::NEG_X, Vec3::NEG_Y),
-                        (Vec3::Y, Vec3::Z),
-                        (Vec3::NEG_Y, Vec3::NEG_Z),
-                        (Vec3::Z, Vec3::NEG_Y),
-                        (Vec3::NEG_Z, Vec3::NEG_Y),
-                    ];
-                    LightShadow {
-                        first_layer,
-                        shadow_from_world: faces
-                            .iter()
-                            .map(|&(d, up)| {
-                                projection
-                                    * view::look_at_mat4(light.position, light.position + d, up)
-                            })
-                            .collect(),
-                        texel_per_metre: 2.0 * 45.5f32.to_radians().tan() / size,
-                        texel: 0.0,
-                    }
-                }
-            })
-        })
-        .collect()
-}
-
-/// A near plane for a perspective shadow map reaching `far` (depth precision).
-fn near(far: f32) -> f32 {
-    (far * 1e-4).clamp(0.01, 0.1)
-}
-
-/// A unit vector not parallel to `v` (an up vector for looking along it).
-fn any_perpendicular(v: Vec3) -> Vec3 {
-    if v.y.abs() > 0.9 { Vec3::Z } else { Vec3::Y }
 }
 
 /// One layer's matrix. Keep in sync with `ShadowLayerUniforms` in shaders/shadow.wgsl.
@@ -282,97 +92,10 @@ impl ShadowPass {
             compare: Some(wgpu::CompareFunction::LessEqual),
             ..Default::default()
         });
-        let layer_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("ShadowPass::layer_layout"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: true,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
-        let layer_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ShadowPass::layer_buffer"),
-            size: UNIFORM_STRIDE * MAX_SHADOW_LAYERS as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let layer_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("ShadowPass::layer_group"),
-            layout: &layer_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &layer_buffer,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(std::mem::size_of::<ShadowLayerUniforms>() as u64),
-                }),
-            }],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("ShadowPass::pipeline_layout"),
-            bind_group_layouts: &[Some(&layer_layout)],
-            immediate_size: 0,
-        });
+        let (layer_layout, layer_buffer, layer_group) = layer_uniforms(device);
         let module = shaders::module(device, "ShadowPass::shader", shaders::SHADOW);
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("ShadowPass::pipeline"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_shadow"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<GpuVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                })],
-            },
-            // Both faces cast: single-sided walls and thin panels must not leak light.
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: SHADOW_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                // Slope-scaled bias against acne on surfaces at grazing angles to the light
-                // (the look-up adds a normal offset for the rest).
-                bias: wgpu::DepthBiasState {
-                    constant: 2,
-                    slope_scale: 2.0,
-                    clamp: 0.0,
-                },
-            }),
-            multisample: Default::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
-        });
-        let ranges_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("ShadowPass::ranges_layout"),
-            entries: &[
-                maps_entry(1, wgpu::ShaderStages::COMPUTE),
-                storage_entry(2, false, wgpu::ShaderStages::COMPUTE),
-            ],
-        });
-        let ranges_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("ShadowPass::ranges_pipeline"),
-            layout: Some(
-                &device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("ShadowPass::ranges_pipeline_layout"),
-                    bind_group_layouts: &[Some(&ranges_layout)],
-                    immediate_size: 0,
-                }),
-            ),
-            module: &module,
-            entry_point: Some("cs_ranges"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = depth_pipeline(device, &module, &layer_layout);
+        let (ranges_layout, ranges_pipeline) = ranges_pipeline(device, &module);
         let maps = Self::maps(device, &layout, &ranges_layout, &sampler, map_size);
         Self {
             layout,
@@ -745,10 +468,125 @@ struct Maps {
     ranges_group: wgpu::BindGroup,
 }
 
+/// The layers' matrices: their layout, their buffer (one uniform slot a layer) and its bind
+/// group, bound at each layer's offset.
+fn layer_uniforms(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::Buffer, wgpu::BindGroup) {
+    let layer_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("ShadowPass::layer_layout"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: true,
+                min_binding_size: None,
+            },
+            count: None,
+        }],
+    });
+    let layer_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("ShadowPass::layer_buffer"),
+        size: UNIFORM_STRIDE * MAX_SHADOW_LAYERS as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let layer_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("ShadowPass::layer_group"),
+        layout: &layer_layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &layer_buffer,
+                offset: 0,
+                size: wgpu::BufferSize::new(std::mem::size_of::<ShadowLayerUniforms>() as u64),
+            }),
+        }],
+    });
+    (layer_layout, layer_buffer, layer_group)
+}
+
+/// The depth-only pipeline that draws the casters into one layer.
+fn depth_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layer_layout: &wgpu::BindGroupLayout,
+) -> wgpu::RenderPipeline {
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("ShadowPass::pipeline_layout"),
+        bind_group_layouts: &[Some(layer_layout)],
+        immediate_size: 0,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("ShadowPass::pipeline"),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_shadow"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<GpuVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+            })],
+        },
+        // Both faces cast: single-sided walls and thin panels must not leak light.
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: SHADOW_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            // Slope-scaled bias against acne on surfaces at grazing angles to the light
+            // (the look-up adds a normal offset for the rest).
+            bias: wgpu::DepthBiasState {
+                constant: 2,
+                slope_scale: 2.0,
+                clamp: 0.0,
+            },
+        }),
+        multisample: Default::default(),
+        fragment: None,
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The compute pipeline that writes each tile's depth range after the maps are drawn, with
+/// its layout.
+fn ranges_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
+    let ranges_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("ShadowPass::ranges_layout"),
+        entries: &[
+            maps_entry(1, wgpu::ShaderStages::COMPUTE),
+            storage_entry(2, false, wgpu::ShaderStages::COMPUTE),
+        ],
+    });
+    let ranges_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("ShadowPass::ranges_pipeline"),
+        layout: Some(
+            &device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("ShadowPass::ranges_pipeline_layout"),
+                bind_group_layouts: &[Some(&ranges_layout)],
+                immediate_size: 0,
+            }),
+        ),
+        module,
+        entry_point: Some("cs_ranges"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    (ranges_layout, ranges_pipeline)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::shadows::{ShadowSettings, plan_shadows};
     use crate::scene::{Light, LightKind};
+    use glam::Vec3;
 
     /// `light_visibility` (shaders/scene.wgsl) picks a point light's face from three clip
     /// w's: it takes the faces as +X, -X, +Y, -Y, +Z, -Z, each negative face's w as its

@@ -4,9 +4,9 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Mat4, Vec3};
 
+use super::bindings::UNIFORM_STRIDE;
+use super::formats::{COLOR_FORMAT, DEPTH_FORMAT, ENCODED_FORMAT};
 use super::shaders;
-use super::targets::{COLOR_FORMAT, DEPTH_FORMAT, ENCODED_FORMAT};
-use super::uniforms::UNIFORM_STRIDE;
 use crate::cave::omni::PoleMerge;
 use crate::cave::{Cave, ViewSetup};
 use crate::sky::cubemap::Texels;

@@ -3,15 +3,8 @@
 use image::RgbaImage;
 
 use super::error::RenderError;
+use super::formats::{COLOR_FORMAT, DEPTH_FORMAT, ENCODED_FORMAT};
 use super::resolve::ResolvePass;
-
-/// Colour format of every eye image: shading is linear, storage sRGB.
-pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
-/// The multisampled images' format: the same bytes as [`COLOR_FORMAT`], written either
-/// through an sRGB view (the hardware encodes each sample) or as bytes the shaders encoded
-/// (`render::resolve` says when and why).
-pub const ENCODED_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// The colour (+ optional MSAA) and depth attachments of one eye image.
 #[derive(Debug)]
@@ -167,17 +160,6 @@ pub fn read_staging(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec
     drop(data);
     staging.unmap();
     Ok(bytes)
-}
-
-/// GPU memory of one wall's targets (two eyes: colour, MSAA colour, depth), as
-/// `EyeTarget::new` allocates them (keep in sync); for the config's target budget.
-pub fn wall_target_bytes(size: [u32; 2], msaa: u32) -> u64 {
-    let pixels = u64::from(size[0]) * u64::from(size[1]);
-    let samples = u64::from(msaa.max(1));
-    let color = 4;
-    let msaa_color = if samples > 1 { 4 * samples } else { 0 };
-    let depth = 4 * samples; // Depth32Float
-    2 * pixels * (color + msaa_color + depth)
 }
 
 /// Refuses an image size the device cannot create (instead of wgpu's panic), naming it.

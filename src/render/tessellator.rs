@@ -6,6 +6,7 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
+use super::bindings::{UNIFORM_STRIDE, storage_entry, uniform_entry};
 use super::error::RenderError;
 pub use super::error::TessError;
 use super::frame_timer::TessMarks;
@@ -248,37 +249,6 @@ pub struct TessBuffers {
     needy_staging: Vec<[u32; 2]>,
 }
 
-/// A layout entry for a storage buffer.
-pub(super) fn storage_entry(
-    binding: u32,
-    read_only: bool,
-    visibility: wgpu::ShaderStages,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: dynamic,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl Tessellator {
     /// Layout of the tessellated output as the scene pass reads it (group 2 of `vs_tess`).
     pub fn draw_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
@@ -326,15 +296,7 @@ impl Tessellator {
             label: Some("Tessellator::args_layout"),
             entries: &[storage_entry(0, false, c)],
         });
-        let v = wgpu::ShaderStages::VERTEX;
-        let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("Tessellator::draw_layout"),
-            entries: &[
-                storage_entry(0, true, v),
-                storage_entry(1, true, v),
-                storage_entry(2, true, v),
-            ],
-        });
+        let draw_layout = Self::draw_layout(device);
         // Dispatches that are themselves indirect must not also bind the argument buffer as
         // storage, so the argument writers get a layout of their own.
         let work_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -392,20 +354,167 @@ impl Tessellator {
         capacity: u32,
         views: usize,
     ) -> Result<TessBuffers, TessError> {
-        let max_tris = 65_535 * WORKGROUP as usize;
-        if tri_info.len() > max_tris {
-            return Err(TessError::TooManyTriangles(tri_info.len(), max_tris));
+        let inputs = BoundInputs {
+            frame_buffer,
+            view_buffer,
+            view_binding_size,
+            vertex_buffer,
+            index_buffer,
+        };
+        check_inputs(device, tri_info.len(), &inputs)?;
+        let storage = TessStorage::allocate(device, tri_info, draws, clusters, capacity, views);
+        let shared_group = self.shared_group(device, &inputs, &storage);
+        let lists = |label, a: &wgpu::Buffer, b: &wgpu::Buffer, ca: &wgpu::Buffer, cb| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &self.lists_layout,
+                entries: &[whole(a, 0), whole(b, 1), whole(ca, 2), whole(cb, 3)],
+            })
+        };
+        let s = &storage;
+        let lists_ab = lists(
+            "TessBuffers::lists_ab",
+            &s.live_a,
+            &s.live_b,
+            &s.count_a,
+            &s.count_b,
+        );
+        let lists_ba = lists(
+            "TessBuffers::lists_ba",
+            &s.live_b,
+            &s.live_a,
+            &s.count_b,
+            &s.count_a,
+        );
+        let args_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("TessBuffers::args_group"),
+            layout: &self.args_layout,
+            entries: &[whole(&storage.args, 0)],
+        });
+        let draw_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("TessBuffers::draw_group"),
+            layout: &self.draw_layout,
+            entries: &[
+                whole(&storage.sorted, 0),
+                whole(vertex_buffer, 1),
+                whole(index_buffer, 2),
+            ],
+        });
+        Ok(TessBuffers {
+            capacity,
+            source_triangles: tri_info.len() as u32,
+            draws: draws as u32,
+            counters: storage.counters,
+            count_a: storage.count_a,
+            args: storage.args,
+            uniforms: storage.uniforms,
+            uniform_capacity: views.max(1),
+            shared_group,
+            lists_ab,
+            lists_ba,
+            args_group,
+            draw_group,
+            sorted: storage.sorted,
+            stats: storage.stats,
+            stats_capacity: views.max(1),
+            staging: Vec::with_capacity(views.max(1) * UNIFORM_STRIDE as usize),
+            needy: storage.needy,
+            needy_staging: Vec::with_capacity(storage.needy_capacity),
+        })
+    }
+
+    /// Group 0 of every stage: the frame's and views' uniforms, the scene and the lists
+    /// every round shares.
+    fn shared_group(
+        &self,
+        device: &wgpu::Device,
+        inputs: &BoundInputs<'_>,
+        s: &TessStorage,
+    ) -> wgpu::BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("TessBuffers::shared_group"),
+            layout: &self.shared_layout,
+            entries: &[
+                whole(inputs.frame_buffer, 0),
+                sized(inputs.view_buffer, 1, inputs.view_binding_size),
+                sized(&s.uniforms, 2, std::mem::size_of::<TessUniforms>() as u64),
+                whole(inputs.vertex_buffer, 3),
+                whole(inputs.index_buffer, 4),
+                whole(&s.tri_info, 5),
+                whole(&s.counters, 6),
+                whole(&s.output, 7),
+                whole(&s.sorted, 8),
+                whole(&s.needy, 9),
+            ],
+        })
+    }
+}
+
+/// What the tessellator binds that is not its own: the frame's and views' uniforms and the
+/// scene's vertices and indices.
+struct BoundInputs<'a> {
+    frame_buffer: &'a wgpu::Buffer,
+    view_buffer: &'a wgpu::Buffer,
+    view_binding_size: u64,
+    vertex_buffer: &'a wgpu::Buffer,
+    index_buffer: &'a wgpu::Buffer,
+}
+
+/// Refuses a scene the tessellator cannot dispatch over or bind, naming the limit.
+fn check_inputs(
+    device: &wgpu::Device,
+    triangles: usize,
+    inputs: &BoundInputs<'_>,
+) -> Result<(), TessError> {
+    let max_tris = 65_535 * WORKGROUP as usize;
+    if triangles > max_tris {
+        return Err(TessError::TooManyTriangles(triangles, max_tris));
+    }
+    let limit = device.limits().max_storage_buffer_binding_size;
+    for (what, buffer) in [
+        ("vertices", inputs.vertex_buffer),
+        ("indices", inputs.index_buffer),
+    ] {
+        if buffer.size() > limit {
+            return Err(TessError::BindingTooLarge {
+                what,
+                bytes: buffer.size(),
+                limit,
+            });
         }
-        let limit = device.limits().max_storage_buffer_binding_size;
-        for (what, buffer) in [("vertices", vertex_buffer), ("indices", index_buffer)] {
-            if buffer.size() > limit {
-                return Err(TessError::BindingTooLarge {
-                    what,
-                    bytes: buffer.size(),
-                    limit,
-                });
-            }
-        }
+    }
+    Ok(())
+}
+
+/// The tessellator's own buffers for one scene, before they are bound.
+struct TessStorage {
+    live_a: wgpu::Buffer,
+    live_b: wgpu::Buffer,
+    count_a: wgpu::Buffer,
+    count_b: wgpu::Buffer,
+    output: wgpu::Buffer,
+    sorted: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    args: wgpu::Buffer,
+    tri_info: wgpu::Buffer,
+    uniforms: wgpu::Buffer,
+    needy: wgpu::Buffer,
+    /// Entries `needy` holds: at most all clusters per view.
+    needy_capacity: usize,
+    stats: wgpu::Buffer,
+}
+
+impl TessStorage {
+    /// Allocates the lists (`capacity` triangles each), counters, indirect arguments and
+    /// per-view uniforms, needy lists and statistics.
+    fn allocate(
+        device: &wgpu::Device,
+        tri_info: &[u32],
+        draws: usize,
+        clusters: usize,
+        capacity: u32,
+        views: usize,
+    ) -> Self {
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let buffer = |label: &str, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -417,139 +526,72 @@ impl Tessellator {
         };
         let entry_bytes = std::mem::size_of::<GpuTessEntry>() as u64;
         let list_bytes = entry_bytes * u64::from(capacity);
-        let live_a = buffer("TessBuffers::live_a", list_bytes, storage);
-        let live_b = buffer("TessBuffers::live_b", list_bytes, storage);
-        let count_a = buffer("TessBuffers::count_a", 4, storage);
-        let count_b = buffer("TessBuffers::count_b", 4, storage);
-        let output = buffer("TessBuffers::output", list_bytes, storage);
-        let sorted = buffer(
-            "TessBuffers::sorted",
-            list_bytes,
-            storage | wgpu::BufferUsages::COPY_SRC,
-        );
-        let counters = buffer(
-            "TessBuffers::counters",
-            4 * (C_DRAWS + draws) as u64,
-            storage | wgpu::BufferUsages::COPY_SRC,
-        );
-        let args = buffer(
-            "TessBuffers::args",
-            4 * (ARGS_DRAWS + 4 * draws) as u64,
-            storage | wgpu::BufferUsages::INDIRECT,
-        );
         // wgpu refuses empty buffers; an empty scene gets one unused entry.
         let info: &[u32] = if tri_info.is_empty() { &[0] } else { tri_info };
-        let tri_info_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("TessBuffers::tri_info"),
-            contents: bytemuck::cast_slice(info),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let uniforms = buffer(
-            "TessBuffers::uniforms",
-            super::uniforms::UNIFORM_STRIDE * views.max(1) as u64,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        );
-        // Every view's needy clusters, one after the other: at most all clusters per view.
         let needy_capacity = clusters * views.max(1);
-        let needy = buffer(
-            "TessBuffers::needy",
-            8 * needy_capacity as u64,
-            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        );
-        let stats = buffer(
-            "TessBuffers::stats",
-            STATS_BYTES * views.max(1) as u64,
-            wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-        );
-        fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
-            wgpu::BindGroupEntry {
-                binding,
-                resource: b.as_entire_binding(),
-            }
+        Self {
+            live_a: buffer("TessBuffers::live_a", list_bytes, storage),
+            live_b: buffer("TessBuffers::live_b", list_bytes, storage),
+            count_a: buffer("TessBuffers::count_a", 4, storage),
+            count_b: buffer("TessBuffers::count_b", 4, storage),
+            output: buffer("TessBuffers::output", list_bytes, storage),
+            sorted: buffer(
+                "TessBuffers::sorted",
+                list_bytes,
+                storage | wgpu::BufferUsages::COPY_SRC,
+            ),
+            counters: buffer(
+                "TessBuffers::counters",
+                4 * (C_DRAWS + draws) as u64,
+                storage | wgpu::BufferUsages::COPY_SRC,
+            ),
+            args: buffer(
+                "TessBuffers::args",
+                4 * (ARGS_DRAWS + 4 * draws) as u64,
+                storage | wgpu::BufferUsages::INDIRECT,
+            ),
+            tri_info: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("TessBuffers::tri_info"),
+                contents: bytemuck::cast_slice(info),
+                usage: wgpu::BufferUsages::STORAGE,
+            }),
+            uniforms: buffer(
+                "TessBuffers::uniforms",
+                UNIFORM_STRIDE * views.max(1) as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            needy: buffer(
+                "TessBuffers::needy",
+                8 * needy_capacity as u64,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            ),
+            needy_capacity,
+            stats: buffer(
+                "TessBuffers::stats",
+                STATS_BYTES * views.max(1) as u64,
+                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            ),
         }
-        fn sized(b: &wgpu::Buffer, binding: u32, size: u64) -> wgpu::BindGroupEntry<'_> {
-            wgpu::BindGroupEntry {
-                binding,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: b,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(size),
-                }),
-            }
-        }
-        let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("TessBuffers::shared_group"),
-            layout: &self.shared_layout,
-            entries: &[
-                whole(frame_buffer, 0),
-                sized(view_buffer, 1, view_binding_size),
-                sized(&uniforms, 2, std::mem::size_of::<TessUniforms>() as u64),
-                whole(vertex_buffer, 3),
-                whole(index_buffer, 4),
-                whole(&tri_info_buffer, 5),
-                whole(&counters, 6),
-                whole(&output, 7),
-                whole(&sorted, 8),
-                whole(&needy, 9),
-            ],
-        });
-        let lists =
-            |label, a: &wgpu::Buffer, b: &wgpu::Buffer, ca: &wgpu::Buffer, cb: &wgpu::Buffer| {
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some(label),
-                    layout: &self.lists_layout,
-                    entries: &[whole(a, 0), whole(b, 1), whole(ca, 2), whole(cb, 3)],
-                })
-            };
-        let lists_ab = lists(
-            "TessBuffers::lists_ab",
-            &live_a,
-            &live_b,
-            &count_a,
-            &count_b,
-        );
-        let lists_ba = lists(
-            "TessBuffers::lists_ba",
-            &live_b,
-            &live_a,
-            &count_b,
-            &count_a,
-        );
-        let args_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("TessBuffers::args_group"),
-            layout: &self.args_layout,
-            entries: &[whole(&args, 0)],
-        });
-        let draw_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("TessBuffers::draw_group"),
-            layout: &self.draw_layout,
-            entries: &[
-                whole(&sorted, 0),
-                whole(vertex_buffer, 1),
-                whole(index_buffer, 2),
-            ],
-        });
-        Ok(TessBuffers {
-            capacity,
-            source_triangles: tri_info.len() as u32,
-            draws: draws as u32,
-            counters,
-            count_a,
-            args,
-            uniforms,
-            uniform_capacity: views.max(1),
-            shared_group,
-            lists_ab,
-            lists_ba,
-            args_group,
-            draw_group,
-            sorted,
-            stats,
-            stats_capacity: views.max(1),
-            staging: Vec::with_capacity(views.max(1) * super::uniforms::UNIFORM_STRIDE as usize),
-            needy,
-            needy_staging: Vec::with_capacity(needy_capacity),
-        })
+    }
+}
+
+/// A bind group entry for a whole buffer.
+fn whole(b: &wgpu::Buffer, binding: u32) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: b.as_entire_binding(),
+    }
+}
+
+/// A bind group entry for the first `size` bytes of a buffer (bound at dynamic offsets).
+fn sized(b: &wgpu::Buffer, binding: u32, size: u64) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: b,
+            offset: 0,
+            size: wgpu::BufferSize::new(size),
+        }),
     }
 }
 
@@ -584,7 +626,7 @@ impl TessBuffers {
                 ..u
             };
             self.staging.extend_from_slice(bytemuck::bytes_of(&u));
-            let stride = super::uniforms::UNIFORM_STRIDE as usize;
+            let stride = UNIFORM_STRIDE as usize;
             self.staging
                 .resize(self.staging.len().next_multiple_of(stride), 0);
         }
@@ -627,7 +669,7 @@ impl TessBuffers {
                 label: Some("Tessellator::pass"),
                 timestamp_writes: None,
             });
-            let offset = (view_index as u64 * super::uniforms::UNIFORM_STRIDE) as u32;
+            let offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
             pass.set_bind_group(0, &self.shared_group, &[offset, offset]);
             // cs_init appends to list A (the "out" side of the B→A group).
             pass.set_bind_group(1, &self.lists_ba, &[]);

@@ -3,16 +3,13 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
-use super::shadow_pass::{LightShadow, MAX_SHADOW_LAYERS, ShadowSettings};
 use crate::cave::ViewSetup;
 use crate::cave::omni::{OmniSettings, WarpVariant};
+use crate::scene::shadows::{LightShadow, MAX_SHADOW_LAYERS, ShadowSettings};
 use crate::scene::{
     AlphaMode, Light, LightKind, Lighting, Material, Shading, TEXTURE_SLOTS, UvTransform,
 };
 use crate::sky::irradiance::SkyIrradiance;
-
-/// Uniform slots are padded to this stride so each can be bound with a dynamic offset.
-pub const UNIFORM_STRIDE: u64 = 256;
 
 /// Lights a frame holds at most. Keep in sync with `MAX_LIGHTS` in shaders/common.wgsl.
 pub const MAX_LIGHTS: usize = 8;
@@ -82,7 +79,7 @@ pub struct FrameUniforms {
     pub light_count: u32,
     /// 0 physically based, 1 simple.
     pub shading: u32,
-    /// Shadow-map range tiles per side ([`super::shadow_pass::range_tiles`]); 0: the 3×3
+    /// Shadow-map range tiles per side ([`crate::scene::shadows::range_tiles`]); 0: the 3×3
     /// filter always gathers.
     pub shadow_tiles: u32,
     pub frame_pad: u32,
@@ -206,7 +203,7 @@ impl FrameUniforms {
             },
             shadow_tiles: match shadows {
                 Some(f) if f.settings.range_test() => {
-                    super::shadow_pass::range_tiles(f.settings.map_size)
+                    crate::scene::shadows::range_tiles(f.settings.map_size)
                 }
                 _ => 0,
             },

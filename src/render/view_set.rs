@@ -2,10 +2,11 @@
 //! faces): its frame and view uniforms and its own tessellation output, so that neither set
 //! can disturb the other's and no call order between them matters.
 
+use super::bindings::UNIFORM_STRIDE;
 use super::error::RenderError;
-use super::scene_pass::SceneGpu;
+use super::scene_gpu::SceneGpu;
 use super::tessellator::{TessBuffers, Tessellator};
-use super::uniforms::{FrameUniforms, UNIFORM_STRIDE, ViewUniforms};
+use super::uniforms::{FrameUniforms, ViewUniforms};
 use crate::tess::TessStats;
 
 /// Uniforms and tessellation output of one set of views.

@@ -1,7 +1,7 @@
 //! What one scene may cost (file size, mesh instances, vertices, triangles, texture size and
 //! memory), checked before anything is allocated for it; `[budgets]` in the config sets it.
 
-/// Limits on a scene (defaults: see [`SceneBudget::default`]; README "Budgets").
+/// Limits on a scene (defaults: see [`SceneBudget::default`]; the book's budgets reference).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SceneBudget {
     /// Largest scene file, and each external buffer or image it names.

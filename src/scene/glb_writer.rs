@@ -439,181 +439,9 @@ impl GlbWriter {
         let mut prims = Vec::new();
         for (mesh, material) in primitives {
             let n = mesh.vertices.len();
-            let step = quantization_step(mesh);
-            let mut lo = [f32::INFINITY; 3];
-            let mut hi = [f32::NEG_INFINITY; 3];
-            let mut pos = Vec::with_capacity(n * 12);
-            let mut nrm = Vec::with_capacity(n * 12);
-            let mut uv = Vec::with_capacity(n * 8);
-            let mut col = Vec::with_capacity(n * 16);
-            let mut tan = Vec::with_capacity(n * 16);
-            for v in &mesh.vertices {
-                // Re-normalise so the validator's unit-length check passes after round-off.
-                let unit = Vec3::from(v.normal).normalize_or(Vec3::Y);
-                if quantized {
-                    // Positions on the integer grid (the node scales by the step), padded to
-                    // 4-byte elements as the specification requires.
-                    let q = v.position.map(|c| (c / step).round() as i16);
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(f32::from(q[k]));
-                        hi[k] = hi[k].max(f32::from(q[k]));
-                    }
-                    pos.extend(q.iter().flat_map(|c| c.to_le_bytes()));
-                    pos.extend_from_slice(&[0, 0]);
-                    let b = unit.to_array().map(|c| (c * 127.0).round() as i8 as u8);
-                    nrm.extend_from_slice(&[b[0], b[1], b[2], 0]);
-                    uv.extend(v.uv.iter().flat_map(|c| {
-                        ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes()
-                    }));
-                    col.extend(
-                        v.color
-                            .iter()
-                            .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8),
-                    );
-                } else {
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(v.position[k]);
-                        hi[k] = hi[k].max(v.position[k]);
-                    }
-                    pos.extend(v.position.iter().flat_map(|c| c.to_le_bytes()));
-                    nrm.extend(unit.to_array().iter().flat_map(|c| c.to_le_bytes()));
-                    uv.extend(v.uv.iter().flat_map(|c| c.to_le_bytes()));
-                    col.extend(v.color.iter().flat_map(|c| c.to_le_bytes()));
-                }
-                tan.extend(v.tangent.iter().flat_map(|c| c.to_le_bytes()));
-            }
-            let mut attributes = serde_json::Map::new();
-            let pa = if quantized {
-                self.push_attribute(
-                    &pos,
-                    n,
-                    8,
-                    json!({
-                        "componentType": SHORT, "type": "VEC3", "min": lo, "max": hi,
-                    }),
-                    enc,
-                )
-            } else if enc == AttributeEncoding::Sparse {
-                self.push_sparse_positions(&pos, n, lo, hi)
-            } else {
-                self.push_attribute(
-                    &pos,
-                    n,
-                    12,
-                    json!({
-                        "componentType": FLOAT, "type": "VEC3", "min": lo, "max": hi,
-                    }),
-                    enc,
-                )
-            };
-            attributes.insert("POSITION".into(), json!(pa));
-            let na = if quantized {
-                self.push_attribute(
-                    &nrm,
-                    n,
-                    4,
-                    json!({
-                        "componentType": BYTE, "normalized": true, "type": "VEC3",
-                    }),
-                    enc,
-                )
-            } else {
-                self.push_attribute(
-                    &nrm,
-                    n,
-                    12,
-                    json!({ "componentType": FLOAT, "type": "VEC3" }),
-                    enc,
-                )
-            };
-            attributes.insert("NORMAL".into(), json!(na));
-            if options.uvs {
-                let ua = if quantized {
-                    self.push_attribute(
-                        &uv,
-                        n,
-                        4,
-                        json!({
-                            "componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC2",
-                        }),
-                        enc,
-                    )
-                } else {
-                    self.push_attribute(
-                        &uv,
-                        n,
-                        8,
-                        json!({ "componentType": FLOAT, "type": "VEC2" }),
-                        enc,
-                    )
-                };
-                attributes.insert("TEXCOORD_0".into(), json!(ua));
-            }
-            if options.colors {
-                let ca = if quantized {
-                    self.push_attribute(
-                        &col,
-                        n,
-                        4,
-                        json!({
-                            "componentType": UNSIGNED_BYTE, "normalized": true, "type": "VEC4",
-                        }),
-                        enc,
-                    )
-                } else {
-                    self.push_attribute(
-                        &col,
-                        n,
-                        16,
-                        json!({ "componentType": FLOAT, "type": "VEC4" }),
-                        enc,
-                    )
-                };
-                attributes.insert("COLOR_0".into(), json!(ca));
-            }
-            if options.tangents {
-                let ta = self.push_attribute(
-                    &tan,
-                    n,
-                    16,
-                    json!({ "componentType": FLOAT, "type": "VEC4" }),
-                    enc,
-                );
-                attributes.insert("TANGENT".into(), json!(ta));
-            }
-            // 16-bit indices where they fit: smaller files, and exercises both loader paths.
-            let (bytes, ctype, size): (Vec<u8>, u32, usize) =
-                if n <= u16::MAX as usize && enc != AttributeEncoding::Meshopt {
-                    (
-                        mesh.indices
-                            .iter()
-                            .flat_map(|&i| (i as u16).to_le_bytes())
-                            .collect(),
-                        UNSIGNED_SHORT,
-                        2,
-                    )
-                } else {
-                    (
-                        mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
-                        UNSIGNED_INT,
-                        4,
-                    )
-                };
-            let iv = if enc == AttributeEncoding::Meshopt {
-                self.push_meshopt_view(
-                    &bytes,
-                    mesh.indices.len(),
-                    size,
-                    "TRIANGLES",
-                    Some(ELEMENT_ARRAY_BUFFER),
-                )
-            } else {
-                self.push_view(&bytes, Some(ELEMENT_ARRAY_BUFFER))
-            };
-            let ia = self.push_accessor(json!({
-                "bufferView": iv, "componentType": ctype, "count": mesh.indices.len(),
-                "type": "SCALAR",
-            }));
+            let bytes = VertexBytes::encode(mesh, quantized);
+            let attributes = self.push_vertex_attributes(&bytes, n, options);
+            let ia = self.push_indices(mesh, enc);
             prims.push(json!({
                 "attributes": attributes,
                 "indices": ia,
@@ -623,6 +451,147 @@ impl GlbWriter {
         self.meshes
             .push(json!({ "name": name, "primitives": prims }));
         self.meshes.len() - 1
+    }
+
+    /// Pushes a mesh's vertex attributes (positions and normals, then the texture
+    /// coordinates, colours and tangents `options` asks for); returns the attribute map.
+    fn push_vertex_attributes(
+        &mut self,
+        v: &VertexBytes,
+        n: usize,
+        options: &MeshOptions,
+    ) -> serde_json::Map<String, Value> {
+        let enc = options.encoding;
+        let mut attributes = serde_json::Map::new();
+        let pa = if enc == AttributeEncoding::Quantized {
+            self.push_attribute(
+                &v.pos,
+                n,
+                8,
+                json!({
+                    "componentType": SHORT, "type": "VEC3", "min": v.lo, "max": v.hi,
+                }),
+                enc,
+            )
+        } else if enc == AttributeEncoding::Sparse {
+            self.push_sparse_positions(&v.pos, n, v.lo, v.hi)
+        } else {
+            self.push_attribute(
+                &v.pos,
+                n,
+                12,
+                json!({
+                    "componentType": FLOAT, "type": "VEC3", "min": v.lo, "max": v.hi,
+                }),
+                enc,
+            )
+        };
+        attributes.insert("POSITION".into(), json!(pa));
+        let na = self.push_quantized_or_float(
+            &v.nrm,
+            n,
+            (
+                4,
+                json!({ "componentType": BYTE, "normalized": true, "type": "VEC3" }),
+            ),
+            (12, json!({ "componentType": FLOAT, "type": "VEC3" })),
+            enc,
+        );
+        attributes.insert("NORMAL".into(), json!(na));
+        if options.uvs {
+            let ua = self.push_quantized_or_float(
+                &v.uv,
+                n,
+                (
+                    4,
+                    json!({ "componentType": UNSIGNED_SHORT, "normalized": true, "type": "VEC2" }),
+                ),
+                (8, json!({ "componentType": FLOAT, "type": "VEC2" })),
+                enc,
+            );
+            attributes.insert("TEXCOORD_0".into(), json!(ua));
+        }
+        if options.colors {
+            let ca = self.push_quantized_or_float(
+                &v.col,
+                n,
+                (
+                    4,
+                    json!({ "componentType": UNSIGNED_BYTE, "normalized": true, "type": "VEC4" }),
+                ),
+                (16, json!({ "componentType": FLOAT, "type": "VEC4" })),
+                enc,
+            );
+            attributes.insert("COLOR_0".into(), json!(ca));
+        }
+        if options.tangents {
+            let ta = self.push_attribute(
+                &v.tan,
+                n,
+                16,
+                json!({ "componentType": FLOAT, "type": "VEC4" }),
+                enc,
+            );
+            attributes.insert("TANGENT".into(), json!(ta));
+        }
+        attributes
+    }
+
+    /// Pushes one attribute with the quantized (stride, accessor) under
+    /// `KHR_mesh_quantization`, else the float one.
+    fn push_quantized_or_float(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        quantized: (usize, Value),
+        float: (usize, Value),
+        encoding: AttributeEncoding,
+    ) -> usize {
+        let (stride, accessor) = if encoding == AttributeEncoding::Quantized {
+            quantized
+        } else {
+            float
+        };
+        self.push_attribute(bytes, count, stride, accessor, encoding)
+    }
+
+    /// Pushes a primitive's indices (16-bit where they fit, except under meshopt) and their
+    /// accessor; returns the accessor.
+    fn push_indices(&mut self, mesh: &MeshData, enc: AttributeEncoding) -> usize {
+        let n = mesh.vertices.len();
+        // 16-bit indices where they fit: smaller files, and exercises both loader paths.
+        let (bytes, ctype, size): (Vec<u8>, u32, usize) =
+            if n <= u16::MAX as usize && enc != AttributeEncoding::Meshopt {
+                (
+                    mesh.indices
+                        .iter()
+                        .flat_map(|&i| (i as u16).to_le_bytes())
+                        .collect(),
+                    UNSIGNED_SHORT,
+                    2,
+                )
+            } else {
+                (
+                    mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+                    UNSIGNED_INT,
+                    4,
+                )
+            };
+        let iv = if enc == AttributeEncoding::Meshopt {
+            self.push_meshopt_view(
+                &bytes,
+                mesh.indices.len(),
+                size,
+                "TRIANGLES",
+                Some(ELEMENT_ARRAY_BUFFER),
+            )
+        } else {
+            self.push_view(&bytes, Some(ELEMENT_ARRAY_BUFFER))
+        };
+        self.push_accessor(json!({
+            "bufferView": iv, "componentType": ctype, "count": mesh.indices.len(),
+            "type": "SCALAR",
+        }))
     }
 
     /// A mesh whose primitives are Draco bitstreams; their accessors have no buffer views.
@@ -791,6 +760,78 @@ impl GlbWriter {
         out.extend_from_slice(b"BIN\0");
         out.extend_from_slice(&bin);
         out
+    }
+}
+
+/// A mesh's vertex attributes as buffer bytes (quantized or float), with the bounds of the
+/// stored positions.
+struct VertexBytes {
+    pos: Vec<u8>,
+    nrm: Vec<u8>,
+    uv: Vec<u8>,
+    col: Vec<u8>,
+    tan: Vec<u8>,
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl VertexBytes {
+    /// Encodes `mesh`'s vertices, quantized as `KHR_mesh_quantization` has them if asked.
+    fn encode(mesh: &MeshData, quantized: bool) -> Self {
+        let n = mesh.vertices.len();
+        let step = quantization_step(mesh);
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        let mut pos = Vec::with_capacity(n * 12);
+        let mut nrm = Vec::with_capacity(n * 12);
+        let mut uv = Vec::with_capacity(n * 8);
+        let mut col = Vec::with_capacity(n * 16);
+        let mut tan = Vec::with_capacity(n * 16);
+        for v in &mesh.vertices {
+            // Re-normalise so the validator's unit-length check passes after round-off.
+            let unit = Vec3::from(v.normal).normalize_or(Vec3::Y);
+            if quantized {
+                // Positions on the integer grid (the node scales by the step), padded to
+                // 4-byte elements as the specification requires.
+                let q = v.position.map(|c| (c / step).round() as i16);
+                for k in 0..3 {
+                    lo[k] = lo[k].min(f32::from(q[k]));
+                    hi[k] = hi[k].max(f32::from(q[k]));
+                }
+                pos.extend(q.iter().flat_map(|c| c.to_le_bytes()));
+                pos.extend_from_slice(&[0, 0]);
+                let b = unit.to_array().map(|c| (c * 127.0).round() as i8 as u8);
+                nrm.extend_from_slice(&[b[0], b[1], b[2], 0]);
+                uv.extend(
+                    v.uv.iter()
+                        .flat_map(|c| ((c.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes()),
+                );
+                col.extend(
+                    v.color
+                        .iter()
+                        .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8),
+                );
+            } else {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(v.position[k]);
+                    hi[k] = hi[k].max(v.position[k]);
+                }
+                pos.extend(v.position.iter().flat_map(|c| c.to_le_bytes()));
+                nrm.extend(unit.to_array().iter().flat_map(|c| c.to_le_bytes()));
+                uv.extend(v.uv.iter().flat_map(|c| c.to_le_bytes()));
+                col.extend(v.color.iter().flat_map(|c| c.to_le_bytes()));
+            }
+            tan.extend(v.tangent.iter().flat_map(|c| c.to_le_bytes()));
+        }
+        Self {
+            pos,
+            nrm,
+            uv,
+            col,
+            tan,
+            lo,
+            hi,
+        }
     }
 }
 

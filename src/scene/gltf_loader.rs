@@ -968,6 +968,49 @@ impl Loader<'_> {
                 None => self.accessor_attributes(primitive, label)?,
             };
         let n = positions.len();
+        self.check_decoded_counts(primitive, label, n, &raw_indices)?;
+        let mut indices = triangle_list(mode, &raw_indices);
+        if indices.is_empty() {
+            return Ok(());
+        }
+
+        let material = self.primitive_material(primitive, label)?;
+        let slots = self.scene.materials[material].texture_slots();
+        let mut dropped =
+            self.textures_without_coordinates(&slots, label, [uv0.is_some(), uv1.is_some()]);
+
+        let normals = normals.unwrap_or_else(|| generate_normals(&positions, &indices));
+        let attributes = FilledAttributes {
+            uvs: uv0.unwrap_or_else(|| vec![[0.0; 2]; n]),
+            uvs1: uv1.unwrap_or_else(|| vec![[0.0; 2]; n]),
+            colors: colors.unwrap_or_else(|| vec![[1.0; 4]; n]),
+            positions,
+            normals,
+        };
+        // A normal map needs tangents: the file's, else MikkTSpace's on the map's coordinates.
+        let normal_map = slots[NORMAL_SLOT].filter(|_| dropped & (1 << NORMAL_SLOT) == 0);
+        let tangents = match (tangents, normal_map) {
+            (Some(t), _) => t,
+            (None, Some(map)) => {
+                self.generated_tangents(&attributes, map, &indices, label, &mut dropped)
+            }
+            (None, None) => vec![[0.0; 4]; n],
+        };
+        let material = self.material_without(material, dropped);
+        let vertices = transformed_vertices(world, &attributes, &tangents, &mut indices);
+        self.scene.add_mesh(&vertices, &indices, material);
+        Ok(())
+    }
+
+    /// Refuses a primitive that decodes to more vertices or indices than its accessors
+    /// declare (what the budget counted), or whose indices point past its vertices.
+    fn check_decoded_counts(
+        &self,
+        primitive: &gltf::Primitive<'_>,
+        label: &str,
+        n: usize,
+        raw_indices: &[u32],
+    ) -> Result<(), SceneError> {
         // The budget counted what the accessors declare; a Draco bitstream decodes to what
         // it holds, which must not be more.
         let declared_vertices = primitive
@@ -986,29 +1029,41 @@ impl Loader<'_> {
                 "{label}: index {bad} is out of range for {n} vertices"
             )));
         }
-        let mut indices = triangle_list(mode, &raw_indices);
-        if indices.is_empty() {
-            return Ok(());
-        }
+        Ok(())
+    }
 
-        let material = match primitive.material().index() {
+    /// The scene material a primitive uses (the default material where it names none).
+    fn primitive_material(
+        &mut self,
+        primitive: &gltf::Primitive<'_>,
+        label: &str,
+    ) -> Result<usize, SceneError> {
+        Ok(match primitive.material().index() {
             Some(i) => *self
                 .material_index
                 .get(i)
                 .ok_or_else(|| self.invalid(format!("{label}: refers to missing material {i}")))?,
             None => self.default_material(),
-        };
-        // Textures whose coordinates this primitive lacks are not sampled at all (sampling
-        // one texel everywhere is not what the author made, and at constant coordinates
-        // some drivers return black).
+        })
+    }
+
+    /// The texture slots (bits) of `slots` whose coordinates the primitive lacks (`has_uv`:
+    /// whether it has `TEXCOORD_0` and `TEXCOORD_1`), with a warning naming them. Such
+    /// textures are not sampled at all (sampling one texel everywhere is not what the author
+    /// made, and at constant coordinates some drivers return black).
+    fn textures_without_coordinates(
+        &self,
+        slots: &[Option<TextureRef>; TEXTURE_SLOTS],
+        label: &str,
+        has_uv: [bool; 2],
+    ) -> u32 {
         let mut dropped = 0u32;
-        let slots = self.scene.materials[material].texture_slots();
         for (slot, texture) in slots.iter().enumerate() {
             if let Some(t) = texture {
                 let present = if t.tex_coord == 0 {
-                    uv0.is_some()
+                    has_uv[0]
                 } else {
-                    uv1.is_some()
+                    has_uv[1]
                 };
                 if !present {
                     dropped |= 1 << slot;
@@ -1032,69 +1087,86 @@ impl Loader<'_> {
                 if names.len() == 1 { "it" } else { "them" }
             ));
         }
+        dropped
+    }
 
-        let normals = normals.unwrap_or_else(|| generate_normals(&positions, &indices));
-        let uvs = uv0.unwrap_or_else(|| vec![[0.0; 2]; n]);
-        let uvs1 = uv1.unwrap_or_else(|| vec![[0.0; 2]; n]);
-        let colors = colors.unwrap_or_else(|| vec![[1.0; 4]; n]);
-        // A normal map needs tangents: the file's, else MikkTSpace's on the map's coordinates.
-        let normal_map = slots[NORMAL_SLOT].filter(|_| dropped & (1 << NORMAL_SLOT) == 0);
-        let tangents = match (tangents, normal_map) {
-            (Some(t), _) => t,
-            (None, Some(map)) => {
-                let coords = if map.tex_coord == 0 { &uvs } else { &uvs1 };
-                match generate_tangents(&positions, &normals, coords, &indices) {
-                    Some(t) => t,
-                    None => {
-                        self.warn(&format!(
-                            "{label}: tangents cannot be generated (degenerate texture \
-                             coordinates): drawn without its normal map"
-                        ));
-                        dropped |= 1 << NORMAL_SLOT;
-                        vec![[0.0; 4]; n]
-                    }
-                }
-            }
-            (None, None) => vec![[0.0; 4]; n],
-        };
-        let material = self.material_without(material, dropped);
-
-        // Normals transform with the inverse transpose; a mirroring transform flips winding
-        // and the bitangent's handedness.
-        let linear = Mat3::from_mat4(world);
-        let normal_matrix = linear.inverse().transpose();
-        let mirrored = linear.determinant() < 0.0;
-        if mirrored {
-            for tri in indices.chunks_exact_mut(3) {
-                tri.swap(1, 2);
+    /// MikkTSpace tangents on the normal map's coordinates; where they cannot be generated,
+    /// zero tangents and the normal map dropped (its bit set in `dropped`), with a warning.
+    fn generated_tangents(
+        &self,
+        a: &FilledAttributes,
+        map: TextureRef,
+        indices: &[u32],
+        label: &str,
+        dropped: &mut u32,
+    ) -> Vec<[f32; 4]> {
+        let coords = if map.tex_coord == 0 { &a.uvs } else { &a.uvs1 };
+        match generate_tangents(&a.positions, &a.normals, coords, indices) {
+            Some(t) => t,
+            None => {
+                self.warn(&format!(
+                    "{label}: tangents cannot be generated (degenerate texture \
+                     coordinates): drawn without its normal map"
+                ));
+                *dropped |= 1 << NORMAL_SLOT;
+                vec![[0.0; 4]; a.positions.len()]
             }
         }
-        let vertices: Vec<Vertex> = (0..n)
-            .map(|i| {
-                let t = Vec3::from_slice(&tangents[i][..3]);
-                let tangent = match (linear * t).try_normalize() {
-                    Some(t) => {
-                        let w = if tangents[i][3] < 0.0 { -1.0 } else { 1.0 };
-                        [t.x, t.y, t.z, if mirrored { -w } else { w }]
-                    }
-                    None => [0.0; 4],
-                };
-                Vertex {
-                    position: world.transform_point3(Vec3::from(positions[i])).to_array(),
-                    normal: (normal_matrix * Vec3::from(normals[i]))
-                        .try_normalize()
-                        .unwrap_or(Vec3::Y)
-                        .to_array(),
-                    uv: uvs[i],
-                    uv1: uvs1[i],
-                    color: colors[i],
-                    tangent,
-                }
-            })
-            .collect();
-        self.scene.add_mesh(&vertices, &indices, material);
-        Ok(())
     }
+}
+
+/// A primitive's vertex attributes with the missing ones filled in (generated normals,
+/// zero texture coordinates, white).
+struct FilledAttributes {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    uvs: Vec<[f32; 2]>,
+    uvs1: Vec<[f32; 2]>,
+    colors: Vec<[f32; 4]>,
+}
+
+/// The primitive's vertices placed by `world`. Normals transform with the inverse
+/// transpose; a mirroring transform flips winding (swapped in `indices`) and the
+/// bitangent's handedness.
+fn transformed_vertices(
+    world: Mat4,
+    a: &FilledAttributes,
+    tangents: &[[f32; 4]],
+    indices: &mut [u32],
+) -> Vec<Vertex> {
+    let linear = Mat3::from_mat4(world);
+    let normal_matrix = linear.inverse().transpose();
+    let mirrored = linear.determinant() < 0.0;
+    if mirrored {
+        for tri in indices.chunks_exact_mut(3) {
+            tri.swap(1, 2);
+        }
+    }
+    (0..a.positions.len())
+        .map(|i| {
+            let t = Vec3::from_slice(&tangents[i][..3]);
+            let tangent = match (linear * t).try_normalize() {
+                Some(t) => {
+                    let w = if tangents[i][3] < 0.0 { -1.0 } else { 1.0 };
+                    [t.x, t.y, t.z, if mirrored { -w } else { w }]
+                }
+                None => [0.0; 4],
+            };
+            Vertex {
+                position: world
+                    .transform_point3(Vec3::from(a.positions[i]))
+                    .to_array(),
+                normal: (normal_matrix * Vec3::from(a.normals[i]))
+                    .try_normalize()
+                    .unwrap_or(Vec3::Y)
+                    .to_array(),
+                uv: a.uvs[i],
+                uv1: a.uvs1[i],
+                color: a.colors[i],
+                tangent,
+            }
+        })
+        .collect()
 }
 
 /// A primitive's positions, normals, tangents, two sets of texture coordinates, colours and

@@ -11,11 +11,13 @@ mod gltf_draco;
 mod gltf_loader;
 mod lighting;
 pub mod pick;
+pub mod shadows;
 mod tangents;
 pub mod wand_mesh;
 
 pub use budget::SceneBudget;
-pub use gltf_data::MAX_DECODED_VIEW_BYTES;
+pub use gltf_data::{MAX_DECODED_VIEW_BYTES, MAX_SPARSE_BASE_ELEMENTS};
+pub use gltf_draco::MAX_DRACO_POINTS;
 pub use gltf_loader::{SceneError, load_gltf, load_gltf_bytes, load_gltf_within};
 pub use lighting::{Lighting, Shading};
 pub use tangents::generate_tangents;

@@ -495,7 +495,7 @@ impl ClusterSplit {
 mod tests {
     use super::*;
     use crate::cave::omni::OmniSettings;
-    use crate::cave::{Head, RenderMode, Wall, thesis_cave, view_setups};
+    use crate::cave::{Cave, Head, RenderMode, Wall, thesis_cave, view_setups};
     use crate::scene::{Draw, Vertex};
     use crate::tess::criteria::split_edge;
     use crate::tess::{Bary, tess_view};
@@ -567,14 +567,30 @@ mod tests {
         scene
     }
 
-    #[test]
-    fn fine_clusters_split_no_edge_in_the_cpu_twin() {
-        // The bound against the criteria themselves: over random clusters (near and far, small
-        // and large triangles), heads, scene placements, walls (three walls and a floor, at a
-        // quick and a full resolution), render modes and criteria, no edge of a cluster proven
-        // fine is split at depth 0 by the CPU twin, and the proof is not vacuous (a good share
-        // of clusters is proven fine, and some that are not do split).
-        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    /// One random situation of [`fine_clusters_split_no_edge_in_the_cpu_twin`]: a head, a
+    /// render mode, a scene placement, a cluster of 8 triangles and a criterion.
+    struct Trial {
+        trial: usize,
+        head: Head,
+        mode: RenderMode,
+        world_from_cave: Mat4,
+        scene: Scene,
+        clusters: Vec<Cluster>,
+        criterion: Criterion,
+    }
+
+    /// What the trials counted: cluster views proven fine, hidden and tested, and the edges
+    /// of fine clusters checked.
+    #[derive(Default)]
+    struct FineCounts {
+        fine: usize,
+        hidden: usize,
+        tested: usize,
+        edges: usize,
+    }
+
+    /// The thesis CAVE with a floor.
+    fn cave_with_floor() -> Cave {
         let mut cave = thesis_cave();
         cave.walls.push(Wall {
             name: "floor".into(),
@@ -583,7 +599,69 @@ mod tests {
             upper_left: Vec3::new(-1.65, 0.0, -1.65),
             resolution: [1280, 1280],
         });
-        let (mut fine, mut hidden, mut tested, mut edges) = (0usize, 0usize, 0usize, 0usize);
+        cave
+    }
+
+    /// Trial number `trial`, drawn from `rng`.
+    fn random_trial(rng: &mut Rng, trial: usize) -> Trial {
+        let head = Head::at(Vec3::new(
+            rng.range(-1.3, 1.3),
+            rng.range(0.8, 2.2),
+            rng.range(-1.3, 1.3),
+        ));
+        let mode = [
+            RenderMode::OmniOffAxis,
+            RenderMode::OmniOnAxis,
+            RenderMode::Stereo,
+        ][trial % 3];
+        let world_from_cave = Mat4::from_scale_rotation_translation(
+            Vec3::splat(rng.range(0.5, 2.0)),
+            Quat::from_rotation_y(rng.range(-3.0, 3.0)),
+            Vec3::new(
+                rng.range(-5.0, 5.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-5.0, 5.0),
+            ),
+        );
+        let distance = 10f32.powf(rng.range(-0.3, 1.8));
+        let centre_cave = head.position + distance * rng.direction();
+        let size = distance * 10f32.powf(rng.range(-3.0, -0.3));
+        let scene = random_cluster(
+            rng,
+            world_from_cave.transform_point3(centre_cave),
+            size,
+            size,
+            8,
+            trial % 5 < 2,
+        );
+        let clusters = build_clusters(&scene, [(0, 0, scene.indices.len() as u32)]);
+        let criterion = match trial % 4 {
+            0 => Criterion::Error(rng.range(0.25, 4.0)),
+            1 => Criterion::Edge(rng.range(8.0, 64.0)),
+            2 => Criterion::Sphere(rng.range(8.0, 64.0)),
+            _ => Criterion::Error(0.5),
+        };
+        Trial {
+            trial,
+            head,
+            mode,
+            world_from_cave,
+            scene,
+            clusters,
+            criterion,
+        }
+    }
+
+    #[test]
+    fn fine_clusters_split_no_edge_in_the_cpu_twin() {
+        // The bound against the criteria themselves: over random clusters (near and far, small
+        // and large triangles), heads, scene placements, walls (three walls and a floor, at a
+        // quick and a full resolution), render modes and criteria, no edge of a cluster proven
+        // fine is split at depth 0 by the CPU twin, and the proof is not vacuous (a good share
+        // of clusters is proven fine, and some that are not do split).
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let mut cave = cave_with_floor();
+        let mut counts = FineCounts::default();
         for trial in 0..400 {
             let resolution = if trial % 2 == 0 {
                 [192, 108]
@@ -593,91 +671,15 @@ mod tests {
             for wall in cave.walls.iter_mut().take(3) {
                 wall.resolution = resolution;
             }
-            let head = Head::at(Vec3::new(
-                rng.range(-1.3, 1.3),
-                rng.range(0.8, 2.2),
-                rng.range(-1.3, 1.3),
-            ));
-            let mode = [
-                RenderMode::OmniOffAxis,
-                RenderMode::OmniOnAxis,
-                RenderMode::Stereo,
-            ][trial % 3];
-            let world_from_cave = Mat4::from_scale_rotation_translation(
-                Vec3::splat(rng.range(0.5, 2.0)),
-                Quat::from_rotation_y(rng.range(-3.0, 3.0)),
-                Vec3::new(
-                    rng.range(-5.0, 5.0),
-                    rng.range(-1.0, 1.0),
-                    rng.range(-5.0, 5.0),
-                ),
-            );
-            let distance = 10f32.powf(rng.range(-0.3, 1.8));
-            let centre_cave = head.position + distance * rng.direction();
-            let size = distance * 10f32.powf(rng.range(-3.0, -0.3));
-            let scene = random_cluster(
-                &mut rng,
-                world_from_cave.transform_point3(centre_cave),
-                size,
-                size,
-                8,
-                trial % 5 < 2,
-            );
-            let clusters = build_clusters(&scene, [(0, 0, scene.indices.len() as u32)]);
-            let criterion = match trial % 4 {
-                0 => Criterion::Error(rng.range(0.25, 4.0)),
-                1 => Criterion::Edge(rng.range(8.0, 64.0)),
-                2 => Criterion::Sphere(rng.range(8.0, 64.0)),
-                _ => Criterion::Error(0.5),
-            };
-            let omni = mode.is_omni().then(OmniSettings::default);
-            for view in view_setups(&cave, &head, mode, 0.064) {
-                let wall = &cave.walls[view.wall];
-                let tv = tess_view(&view, wall, world_from_cave, omni);
-                let Some(test) = ClusterTest::new(&tv, Some(criterion)) else {
-                    continue;
-                };
-                for cluster in &clusters {
-                    tested += 1;
-                    let verdict = test.verdict(cluster);
-                    if verdict == Verdict::Hidden {
-                        hidden += 1;
-                        assert_invisible(&tv, &scene, cluster, trial);
-                        continue;
-                    }
-                    if verdict == Verdict::Needy {
-                        continue;
-                    }
-                    fine += 1;
-                    for t in cluster.first_triangle..cluster.first_triangle + cluster.triangle_count
-                    {
-                        let p = [0, 1, 2].map(|k| {
-                            Vec3::from(
-                                scene.vertices[scene.indices[3 * t as usize + k] as usize].position,
-                            )
-                        });
-                        let corners = [Bary::V0, Bary::V1, Bary::V2];
-                        for k in 0..3 {
-                            edges += 1;
-                            assert!(
-                                !split_edge(
-                                    &tv,
-                                    &criterion,
-                                    0,
-                                    p,
-                                    corners[k],
-                                    corners[(k + 1) % 3]
-                                ),
-                                "trial {trial}: {criterion} splits an edge of a cluster proven \
-                                 fine ({mode:?}, wall {}, head {:?}, cluster {cluster:?})",
-                                wall.name,
-                                head.position
-                            );
-                        }
-                    }
-                }
-            }
+            let t = random_trial(&mut rng, trial);
+            check_trial_views(&cave, &t, &mut counts);
         }
+        let FineCounts {
+            fine,
+            hidden,
+            tested,
+            edges,
+        } = counts;
         eprintln!(
             "{fine} of {tested} cluster views proven fine ({edges} edges checked), {hidden} \
              hidden"
@@ -695,6 +697,61 @@ mod tests {
             fine + hidden < tested,
             "every cluster proven: nothing was tested"
         );
+    }
+
+    /// Every view of trial `t`: hidden clusters are invisible, and no edge of a fine one
+    /// splits at depth 0.
+    fn check_trial_views(cave: &Cave, t: &Trial, counts: &mut FineCounts) {
+        let omni = t.mode.is_omni().then(OmniSettings::default);
+        for view in view_setups(cave, &t.head, t.mode, 0.064) {
+            let wall = &cave.walls[view.wall];
+            let tv = tess_view(&view, wall, t.world_from_cave, omni);
+            let Some(test) = ClusterTest::new(&tv, Some(t.criterion)) else {
+                continue;
+            };
+            for cluster in &t.clusters {
+                counts.tested += 1;
+                let verdict = test.verdict(cluster);
+                if verdict == Verdict::Hidden {
+                    counts.hidden += 1;
+                    assert_invisible(&tv, &t.scene, cluster, t.trial);
+                    continue;
+                }
+                if verdict == Verdict::Needy {
+                    continue;
+                }
+                counts.fine += 1;
+                counts.edges += assert_no_edge_splits(&tv, t, cluster, &wall.name);
+            }
+        }
+    }
+
+    /// No edge of any triangle of `cluster` splits at depth 0 in view `tv`; returns the
+    /// edges checked.
+    fn assert_no_edge_splits(
+        tv: &TessView<'_>,
+        t: &Trial,
+        cluster: &Cluster,
+        wall_name: &str,
+    ) -> usize {
+        let (scene, criterion, trial, mode) = (&t.scene, t.criterion, t.trial, t.mode);
+        let mut edges = 0;
+        for tri in cluster.first_triangle..cluster.first_triangle + cluster.triangle_count {
+            let p = [0, 1, 2].map(|k| {
+                Vec3::from(scene.vertices[scene.indices[3 * tri as usize + k] as usize].position)
+            });
+            let corners = [Bary::V0, Bary::V1, Bary::V2];
+            for k in 0..3 {
+                edges += 1;
+                assert!(
+                    !split_edge(tv, &criterion, 0, p, corners[k], corners[(k + 1) % 3]),
+                    "trial {trial}: {criterion} splits an edge of a cluster proven \
+                     fine ({mode:?}, wall {wall_name}, head {:?}, cluster {cluster:?})",
+                    t.head.position
+                );
+            }
+        }
+        edges
     }
 
     /// Every point of every triangle of `cluster` (corners, edge points and interior points

@@ -287,14 +287,15 @@ pub fn tessellate(
     settings: &TessSettings,
     capacity: usize,
 ) -> TessOutput {
-    let mut out = TessOutput::default();
-    let tri_count = scene.triangle_count();
-    out.stats.input = tri_count as u32;
-    let positions = |t: usize| -> [Vec3; 3] {
-        [0, 1, 2].map(|k| Vec3::from(scene.vertices[scene.indices[3 * t + k] as usize].position))
+    let mut run = TessRun {
+        scene,
+        tv,
+        settings,
+        capacity,
+        out: TessOutput::default(),
     };
-    let root = [Bary::V0, Bary::V1, Bary::V2];
-    let mut live: Vec<TessTriangle> = Vec::new();
+    let tri_count = scene.triangle_count();
+    run.out.stats.input = tri_count as u32;
     let verdicts = cluster_verdicts(scene, tv, settings);
     // Triangles added by splitting; a split happens only if they and every source triangle
     // that may be kept (reserved up front, as cs_init splits before every triangle is kept:
@@ -309,20 +310,102 @@ pub fn tessellate(
         })
         .count();
     let room = capacity.saturating_sub(root_bound);
-    let mut added = 0usize;
-    for t in 0..tri_count {
-        // Triangles without a (valid) draw are never drawn (mirrors cs_init).
-        let Some(&Some(double_sided_t)) = double_sided.get(t) else {
-            continue;
-        };
-        let verdict = verdicts.get(t).copied().unwrap_or(clusters::Verdict::Needy);
-        if verdict == clusters::Verdict::Hidden {
-            // Provably invisible in this view: neither drawn nor tessellated.
-            continue;
+    let live = run.seed(double_sided, &verdicts);
+
+    let Some(criterion) = settings.criterion else {
+        run.out.stats.emitted = run.out.triangles.len() as u32;
+        return run.out;
+    };
+    let live = run.refine(live, &criterion, room);
+    for tri in live {
+        run.emit(tri);
+    }
+    run.out.stats.emitted = run.out.triangles.len() as u32;
+    run.out
+}
+
+/// The CPU tessellator's state for one view: its inputs and the output so far.
+struct TessRun<'a> {
+    scene: &'a Scene,
+    tv: &'a TessView<'a>,
+    settings: &'a TessSettings,
+    capacity: usize,
+    out: TessOutput,
+}
+
+impl TessRun<'_> {
+    /// Scene-space corners of source triangle `t`.
+    fn positions(&self, t: usize) -> [Vec3; 3] {
+        let scene = self.scene;
+        [0, 1, 2].map(|k| Vec3::from(scene.vertices[scene.indices[3 * t + k] as usize].position))
+    }
+
+    /// Appends a finished triangle (see [`emit`]).
+    fn emit(&mut self, tri: TessTriangle) {
+        emit(&mut self.out, tri, self.capacity);
+    }
+
+    /// The first pass over the source triangles (mirrors cs_init): leaves out the hidden,
+    /// sets aside the fine, counts the culled, emits the rest without a criterion and
+    /// returns the triangles to refine.
+    fn seed(
+        &mut self,
+        double_sided: &[Option<bool>],
+        verdicts: &[clusters::Verdict],
+    ) -> Vec<TessTriangle> {
+        let settings = self.settings;
+        let root = [Bary::V0, Bary::V1, Bary::V2];
+        let mut live: Vec<TessTriangle> = Vec::new();
+        for t in 0..self.scene.triangle_count() {
+            // Triangles without a (valid) draw are never drawn (mirrors cs_init).
+            let Some(&Some(double_sided_t)) = double_sided.get(t) else {
+                continue;
+            };
+            let verdict = verdicts.get(t).copied().unwrap_or(clusters::Verdict::Needy);
+            if verdict == clusters::Verdict::Hidden {
+                // Provably invisible in this view: neither drawn nor tessellated.
+                continue;
+            }
+            let (backfacing, outside) = self.cull(self.positions(t), double_sided_t);
+            if verdict == clusters::Verdict::Fine {
+                // Drawn directly: the rasteriser, not the tessellator, drops what the culling
+                // tests find invisible (kept out of the tessellator's counts, as on the GPU).
+                if !(backfacing || outside) {
+                    self.out.fine.push(t as u32);
+                }
+                continue;
+            }
+            if backfacing {
+                self.out.stats.culled_backface += 1;
+                continue;
+            }
+            if outside {
+                self.out.stats.culled_frustum += 1;
+                continue;
+            }
+            let tri = TessTriangle {
+                source: t as u32,
+                corners: root,
+            };
+            if settings.criterion.is_none() || settings.max_depth == 0 {
+                self.emit(tri);
+            } else if live.len() < self.capacity {
+                live.push(tri);
+            } else {
+                self.out.stats.overflowed = true;
+                self.emit(tri);
+            }
         }
-        let p = positions(t);
+        live
+    }
+
+    /// The culling tests on a source triangle (scene-space corners `p`): whether it faces
+    /// away from every eye, and (if not) whether it lies outside the view.
+    fn cull(&self, p: [Vec3; 3], double_sided: bool) -> (bool, bool) {
+        let (tv, settings) = (self.tv, self.settings);
+        let root = [Bary::V0, Bary::V1, Bary::V2];
         let backfacing = settings.backface_cull
-            && !double_sided_t
+            && !double_sided
             && is_backfacing(tv, p.map(|q| tv.cave_from_world.transform_point3(q)));
         let outside = !backfacing && settings.frustum_cull && {
             let mut pts = [Vec4::ZERO; 6];
@@ -333,77 +416,54 @@ pub fn tessellate(
             }
             all_outside_by(&pts, tv.near, CULL_MARGIN)
         };
-        if verdict == clusters::Verdict::Fine {
-            // Drawn directly: the rasteriser, not the tessellator, drops what the culling
-            // tests find invisible (kept out of the tessellator's counts, as on the GPU).
-            if !(backfacing || outside) {
-                out.fine.push(t as u32);
-            }
-            continue;
-        }
-        if backfacing {
-            out.stats.culled_backface += 1;
-            continue;
-        }
-        if outside {
-            out.stats.culled_frustum += 1;
-            continue;
-        }
-        let tri = TessTriangle {
-            source: t as u32,
-            corners: root,
-        };
-        if settings.criterion.is_none() || settings.max_depth == 0 {
-            emit(&mut out, tri, capacity);
-        } else if live.len() < capacity {
-            live.push(tri);
-        } else {
-            out.stats.overflowed = true;
-            emit(&mut out, tri, capacity);
-        }
+        (backfacing, outside)
     }
 
-    let Some(criterion) = settings.criterion else {
-        out.stats.emitted = out.triangles.len() as u32;
-        return out;
-    };
-    let max_depth = settings.max_depth.min(MAX_DEPTH_LIMIT);
-    for depth in 0..max_depth {
-        if live.is_empty() {
-            break;
-        }
-        let mut next = Vec::with_capacity(live.len() * 2);
-        for tri in live {
-            let p = positions(tri.source as usize);
-            let c = tri.corners;
-            let split = [0, 1, 2]
-                .map(|k| criteria::split_edge(tv, &criterion, depth, p, c[k], c[(k + 1) % 3]));
-            let n_split = split.iter().filter(|&&s| s).count();
-            if n_split == 0 {
-                emit(&mut out, tri, capacity);
-                continue;
+    /// The rounds of splitting: each live triangle splits the edges `criterion` asks for
+    /// while the `room` for added triangles lasts, or is emitted; returns the triangles
+    /// still live after the deepest round.
+    fn refine(
+        &mut self,
+        mut live: Vec<TessTriangle>,
+        criterion: &Criterion,
+        room: usize,
+    ) -> Vec<TessTriangle> {
+        let mut added = 0usize;
+        let max_depth = self.settings.max_depth.min(MAX_DEPTH_LIMIT);
+        for depth in 0..max_depth {
+            if live.is_empty() {
+                break;
             }
-            let kids = children(c, split, p);
-            let extra = kids.len() - 1;
-            if added + extra > room {
-                // Budget: stop refining this triangle and draw it as it is.
-                out.stats.overflowed = true;
-                emit(&mut out, tri, capacity);
-                continue;
+            let mut next = Vec::with_capacity(live.len() * 2);
+            for tri in live {
+                let p = self.positions(tri.source as usize);
+                let c = tri.corners;
+                let split = [0, 1, 2].map(|k| {
+                    criteria::split_edge(self.tv, criterion, depth, p, c[k], c[(k + 1) % 3])
+                });
+                let n_split = split.iter().filter(|&&s| s).count();
+                if n_split == 0 {
+                    self.emit(tri);
+                    continue;
+                }
+                let kids = children(c, split, p);
+                let extra = kids.len() - 1;
+                if added + extra > room {
+                    // Budget: stop refining this triangle and draw it as it is.
+                    self.out.stats.overflowed = true;
+                    self.emit(tri);
+                    continue;
+                }
+                added += extra;
+                next.extend(kids.into_iter().map(|corners| TessTriangle {
+                    source: tri.source,
+                    corners,
+                }));
             }
-            added += extra;
-            next.extend(kids.into_iter().map(|corners| TessTriangle {
-                source: tri.source,
-                corners,
-            }));
+            live = next;
         }
-        live = next;
+        live
     }
-    for tri in live {
-        emit(&mut out, tri, capacity);
-    }
-    out.stats.emitted = out.triangles.len() as u32;
-    out
 }
 
 /// Appends a finished triangle, or drops it (flagging overflow) when the output is full.

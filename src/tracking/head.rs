@@ -207,18 +207,7 @@ impl HeadTracker {
             return None;
         };
         self.last_seq = Some(sample.seq);
-
-        let latency = now.saturating_duration_since(sample.arrived);
-        let latency_ms = latency.as_secs_f64() * 1e3;
-        self.stats.latency_last_ms = latency_ms;
-        self.window.samples += 1;
-        self.window.latency_sum_ms += latency_ms;
-        self.window.latency_max_ms = self.window.latency_max_ms.max(latency_ms);
-        if let Some(interval) = frame_interval.filter(|i| !i.is_zero()) {
-            let waited = now.saturating_duration_since(sample.stored);
-            let frames = waited.as_secs_f64() / interval.as_secs_f64();
-            self.window.latency_max_frames = self.window.latency_max_frames.max(frames);
-        }
+        self.record_latency(&sample, now, frame_interval);
 
         if sample.tracked == Some(false) {
             self.set_status(TrackingStatus::NotVisible, now);
@@ -227,53 +216,13 @@ impl HeadTracker {
         let Some(raw_position) = sample.position else {
             return None; // orientation without any position yet: nothing to place
         };
-        let cal = &self.settings.calibration;
-        let position = cal.position(raw_position);
-        let orientation = sample.orientation.map(|o| match o {
-            TrackedOrientation::Tracker(q) => cal.orientation(q),
-            TrackedOrientation::CaveAxes(q) => cal.orientation_in_cave_axes(q),
-        });
-        let orientation = match orientation {
-            Some(q) => match super::plausibility::unit_quaternion(q) {
-                Some(unit) => Some(unit),
-                None => Some(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 0.0)), // refused below
-            },
-            None => None,
-        };
-        if let Some(q) = orientation.filter(|q| q.is_finite() && position.is_finite()) {
-            self.body = Some((position, q));
-        }
-        // The tracked body's origin is not between the eyes: move to them along the body's
-        // own axes (unrotated while the tracker sends positions only).
-        let position = position + orientation.unwrap_or(Quat::IDENTITY) * self.settings.eye_offset;
+        let (position, orientation) = self.calibrated_eyes(raw_position, sample.orientation);
         let candidate = Candidate {
             position,
             orientation,
             arrived: sample.arrived,
         };
-        let verdict = self
-            .gate
-            .judge(candidate, bounds, &self.settings.plausibility);
-        let jump = match verdict {
-            Verdict::Accept => false,
-            Verdict::AcceptJump => true,
-            Verdict::Refuse(why) => {
-                self.stats.implausible += 1;
-                if let Some(held) = self.implausible_log.allow(now, LOG_INTERVAL) {
-                    tracing::warn!(
-                        "tracking: refused an implausible sample ({}) at ({:.3e}, {:.3e}, \
-                         {:.3e}) m{}",
-                        why.describe(),
-                        position.x,
-                        position.y,
-                        position.z,
-                        held_back(held)
-                    );
-                }
-                self.check_timeout(now);
-                return None;
-            }
-        };
+        let jump = self.judge(candidate, bounds, now)?;
         let dt = self.last_accepted_arrival.map_or(0.0, |t| {
             sample.arrived.saturating_duration_since(t).as_secs_f32()
         });
@@ -294,32 +243,124 @@ impl HeadTracker {
                 .truncate();
             orientation = orientation.map(|q| self.orientation_filter.filter_quat(q, dt, &params));
         }
-        if let Some((min, max)) = bounds {
-            let clamped = position.clamp(min, max.max(min));
-            if clamped != position {
-                self.stats.clamped += 1;
-                if let Some(held) = self.clamp_log.allow(now, LOG_INTERVAL) {
-                    tracing::warn!(
-                        "tracked head ({:.3}, {:.3}, {:.3}) m is outside the CAVE: clamped to \
-                         ({:.3}, {:.3}, {:.3}){}",
-                        position.x,
-                        position.y,
-                        position.z,
-                        clamped.x,
-                        clamped.y,
-                        clamped.z,
-                        held_back(held)
-                    );
-                }
-                position = clamped;
-            }
-        }
+        let position = self.clamped(position, bounds, now);
         let pose = HeadPose {
             position,
             orientation: orientation.or(self.pose.and_then(|p| p.orientation)),
         };
         self.pose = Some(pose);
         Some(pose)
+    }
+
+    /// Counts a fresh sample's latency (arrival to this frame, and the wait from its being
+    /// stored in frames of `frame_interval`) into the window's figures.
+    fn record_latency(
+        &mut self,
+        sample: &TrackerSample,
+        now: Instant,
+        frame_interval: Option<Duration>,
+    ) {
+        let latency = now.saturating_duration_since(sample.arrived);
+        let latency_ms = latency.as_secs_f64() * 1e3;
+        self.stats.latency_last_ms = latency_ms;
+        self.window.samples += 1;
+        self.window.latency_sum_ms += latency_ms;
+        self.window.latency_max_ms = self.window.latency_max_ms.max(latency_ms);
+        if let Some(interval) = frame_interval.filter(|i| !i.is_zero()) {
+            let waited = now.saturating_duration_since(sample.stored);
+            let frames = waited.as_secs_f64() / interval.as_secs_f64();
+            self.window.latency_max_frames = self.window.latency_max_frames.max(frames);
+        }
+    }
+
+    /// The eyes' position and the orientation in CAVE space from a raw sample (a
+    /// non-unit orientation is made non-finite, for the gate to refuse); remembers the
+    /// tracked body's pose.
+    fn calibrated_eyes(
+        &mut self,
+        raw_position: Vec3,
+        raw_orientation: Option<TrackedOrientation>,
+    ) -> (Vec3, Option<Quat>) {
+        let cal = &self.settings.calibration;
+        let position = cal.position(raw_position);
+        let orientation = raw_orientation.map(|o| match o {
+            TrackedOrientation::Tracker(q) => cal.orientation(q),
+            TrackedOrientation::CaveAxes(q) => cal.orientation_in_cave_axes(q),
+        });
+        let orientation = match orientation {
+            Some(q) => match super::plausibility::unit_quaternion(q) {
+                Some(unit) => Some(unit),
+                None => Some(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 0.0)), // refused below
+            },
+            None => None,
+        };
+        if let Some(q) = orientation.filter(|q| q.is_finite() && position.is_finite()) {
+            self.body = Some((position, q));
+        }
+        // The tracked body's origin is not between the eyes: move to them along the body's
+        // own axes (unrotated while the tracker sends positions only).
+        let position = position + orientation.unwrap_or(Quat::IDENTITY) * self.settings.eye_offset;
+        (position, orientation)
+    }
+
+    /// The plausibility gate's verdict on `candidate`: whether it is a confirmed jump, or
+    /// `None` where it is refused (counted, logged, and tracking maybe lost).
+    fn judge(
+        &mut self,
+        candidate: Candidate,
+        bounds: Option<(Vec3, Vec3)>,
+        now: Instant,
+    ) -> Option<bool> {
+        let position = candidate.position;
+        let verdict = self
+            .gate
+            .judge(candidate, bounds, &self.settings.plausibility);
+        match verdict {
+            Verdict::Accept => Some(false),
+            Verdict::AcceptJump => Some(true),
+            Verdict::Refuse(why) => {
+                self.stats.implausible += 1;
+                if let Some(held) = self.implausible_log.allow(now, LOG_INTERVAL) {
+                    tracing::warn!(
+                        "tracking: refused an implausible sample ({}) at ({:.3e}, {:.3e}, \
+                         {:.3e}) m{}",
+                        why.describe(),
+                        position.x,
+                        position.y,
+                        position.z,
+                        held_back(held)
+                    );
+                }
+                self.check_timeout(now);
+                None
+            }
+        }
+    }
+
+    /// `position` clamped into `bounds` (counted, with a warning, where it was outside).
+    fn clamped(&mut self, position: Vec3, bounds: Option<(Vec3, Vec3)>, now: Instant) -> Vec3 {
+        let Some((min, max)) = bounds else {
+            return position;
+        };
+        let clamped = position.clamp(min, max.max(min));
+        if clamped != position {
+            self.stats.clamped += 1;
+            if let Some(held) = self.clamp_log.allow(now, LOG_INTERVAL) {
+                tracing::warn!(
+                    "tracked head ({:.3}, {:.3}, {:.3}) m is outside the CAVE: clamped to \
+                     ({:.3}, {:.3}, {:.3}){}",
+                    position.x,
+                    position.y,
+                    position.z,
+                    clamped.x,
+                    clamped.y,
+                    clamped.z,
+                    held_back(held)
+                );
+            }
+            return clamped;
+        }
+        position
     }
 
     /// Lost once the newest accepted sample is older than the timeout (a stream of refused
