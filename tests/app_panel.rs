@@ -3,7 +3,7 @@
 //! switched from the panel renders what the same settings render headless, on one device and
 //! one renderer, and no pipeline is built after start-up.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -170,13 +170,9 @@ fn differing(a: &[WallImages], b: &[WallImages]) -> f64 {
     off as f64 / total.max(1) as f64
 }
 
-/// Whether at most `limit` of the pixels differ (printing the share when any do).
+/// Whether at most `limit` of the pixels differ.
 fn same_within(a: &[WallImages], b: &[WallImages], limit: f64) -> bool {
-    let share = differing(a, b);
-    if share > 0.0 {
-        println!("{:.4}% of pixels differ", share * 100.0);
-    }
-    share <= limit
+    differing(a, b) <= limit
 }
 
 /// Untessellated frames are deterministic: the same settings give the same pixels, exactly
@@ -424,7 +420,7 @@ fn the_panel_shows_tracking_status_and_switches_tracking_filter_and_sticks() {
     assert!(state.frame_params().wand_ray.is_none(), "the ray is off");
 }
 
-/// Issue 19: the eye offset's helper. A viewer whose eyes are at E looks straight at the front
+/// The eye offset's helper. A viewer whose eyes are at E looks straight at the front
 /// wall's centre; the marker tree sits 8 cm above, 1 cm right of and 5 cm behind the eyes. One
 /// click (with the offset's forward part already right) finds the offset back, so that the
 /// eyes lie on that line of sight (to 0.1 mm).
@@ -468,10 +464,9 @@ fn the_eye_offset_helper_puts_the_eyes_on_the_line_of_sight() {
         off_line < 1e-4,
         "the eyes are {off_line} m off the line of sight"
     );
-    println!("eye offset {o}: {off_line:.2e} m off the line of sight");
 }
 
-/// Issue 19: the panel plots the last frames' times and tracking latencies.
+/// The panel plots the last frames' times and tracking latencies.
 #[test]
 fn the_panel_plots_frame_times_and_tracking_latency() {
     let mut state = AppState::new(config());
@@ -598,10 +593,6 @@ fn the_preview_renders_each_wall_at_the_size_it_is_shown() {
         }
     }
     let share = off as f64 / total as f64;
-    println!(
-        "shown size vs full size averaged: {:.2} % of pixels off",
-        share * 100.0
-    );
     assert!(share < 0.06, "{share}");
 
     // Larger than the wall's resolution, or full resolution asked: the configured size.

@@ -1,7 +1,7 @@
 //! The real application under Xvfb: CAVE mode (three wall windows and the operator window) and
 //! the desktop preview, checked from screenshots of the virtual screen; quit by SIGTERM.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -416,11 +416,6 @@ fn cave_mode_shows_each_wall_in_its_window_and_the_panel_and_quits_on_request() 
         // reference lets the sRGB texture format encode: rounding may differ by one level.
         // Anything else (wrong wall, eye, format or placement) moves most pixels by far more.
         let (mean, share) = difference(&got, &expected, 2);
-        println!(
-            "wall {name} ({}): mean |Δ| {mean:.3}, {:.3}% pixels off by > 2",
-            format.name(),
-            share * 100.0
-        );
         assert!(
             mean < 0.5 && share < 0.001,
             "wall {name}: mean {mean}, share {share}"
@@ -482,9 +477,6 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
     // Three 3.3 m walls 2.9 m high: aspect 9.9/2.9. One pixel of rounding per side.
     let aspect = w as f32 / h as f32;
     let expected_aspect = 9.9 / 2.9;
-    println!(
-        "preview strip {w}×{h} at ({x0}, {y0}), aspect {aspect:.3} (expected {expected_aspect:.3})"
-    );
     assert!((aspect - expected_aspect).abs() < expected_aspect * 2.0 / h as f32 + 0.02);
     let strip = crop(&window, x0, y0, w, h);
     let unmatched = |reference: &RgbaImage| unmatched_share(&strip, reference);
@@ -493,16 +485,18 @@ fn preview_unfolds_the_walls_beside_the_docked_panel() {
     // differs from the anaglyph only where the eyes see different things.
     let lefts: Vec<&RgbaImage> = images.iter().map(|w| &w.left).collect();
     let wrong = unmatched(&omnicave::output::unfold(&lefts));
-    println!(
-        "preview strip vs the headless unfolded anaglyph: {:.2}% pixels unmatched (vs the left \
-         eyes alone: {:.2}%)",
-        share * 100.0,
-        wrong * 100.0
-    );
     assert!(
         share < 0.01,
         "{:.2}% of the strip does not match",
         share * 100.0
+    );
+    // The 1 % tolerance tells the right output from a wrong one: the left eyes alone miss a
+    // quarter of the strip (measured 25 %); 10 % leaves room for another scene or rasteriser.
+    assert!(
+        wrong > 0.1,
+        "the strip matches the left eyes alone but for {:.2}%: the comparison cannot tell \
+         the output formats apart",
+        wrong * 100.0
     );
 }
 
@@ -614,13 +608,6 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     let matches_tracked = unmatched_share(&tracked, &at_tracked);
     let matches_start = unmatched_share(&tracked, &at_start);
     let before_vs_start = unmatched_share(&before, &at_start);
-    println!(
-        "before tracking vs headless at the config's head: {:.2}% unmatched; tracked: {:.2}% \
-         vs headless at the tracked head, {:.2}% vs at the config's head",
-        before_vs_start * 100.0,
-        matches_tracked * 100.0,
-        matches_start * 100.0
-    );
     // The same tolerance as the preview test; the other head must differ by far more.
     assert!(before_vs_start < 0.01 && matches_tracked < 0.01);
     assert!(matches_start > 0.2, "the head did not move the image");
@@ -636,10 +623,6 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
     });
     let held = strip(&x, "lost");
     let held_share = unmatched_share(&held, &at_tracked);
-    println!(
-        "while lost: {:.2}% unmatched vs the tracked head",
-        held_share * 100.0
-    );
     assert!(held_share < 0.01);
 
     // Packets resume on a circle: tracking recovers and the head follows it (the log is read
@@ -675,7 +658,6 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
         .lines()
         .filter_map(tracked_stats)
         .collect();
-    println!("{} stats lines while tracking the circle", on_circle.len());
     assert!(on_circle.len() >= 3, "{log}");
     for (head, _) in &on_circle {
         let r = glam::Vec2::new(head.x, head.z).length();
@@ -695,7 +677,6 @@ fn track_sim_moves_the_head_and_loss_of_tracking_is_reported_and_recovers() {
         .filter_map(tracked_stats)
         .map(|(_, f)| f)
         .fold(0.0, f64::max);
-    println!("largest packet-to-frame latency: {worst:.2} frame");
     assert!(worst <= 1.0, "latency {worst} frames");
 }
 
@@ -741,17 +722,12 @@ fn the_operator_window_shows_the_panorama_beside_the_panel() {
     let (y0, y1) = (column[0], column[column.len() - 1]);
     let (w, h) = (x1 - x0 + 1, y1 - y0 + 1);
     let aspect = w as f32 / h as f32;
-    println!("operator panorama {w}×{h} at ({x0}, {y0}), aspect {aspect:.3} (2:1)");
     // 2:1 as configured, within a pixel of rounding on each side.
     assert!(
         (aspect - 2.0).abs() < 2.0 * 2.0 / h as f32 + 0.02,
         "aspect {aspect}"
     );
     let share = unmatched_share(&crop(&window, x0, y0, w, h), &reference);
-    println!(
-        "operator panorama vs the headless panorama: {:.2}% pixels unmatched",
-        share * 100.0
-    );
     // The same image (mono, so its anaglyph is itself), scaled by the present pass.
     assert!(
         share < 0.01,
@@ -787,13 +763,12 @@ fn x_windows(display: &str) -> (x11rb::rust_connection::RustConnection, Vec<XWin
     (conn, windows)
 }
 
-/// Issue 18, cases 4 and 5: a wall window stretched past 16 384 pixels panicked in
-/// `Surface::configure`; a window destroyed by another client (XDestroyWindow, as
-/// `xdotool windowclose` does) panicked in winit's size query. Now the surface is clamped
-/// (and the clamp logged), a destroyed wall window goes while the others keep rendering, and
+/// A wall window stretched past 16 384 pixels has its surface clamped (and the clamp logged)
+/// instead of failing in `Surface::configure`; a window destroyed by another client
+/// (XDestroyWindow, as `xdotool windowclose` does) goes while the others keep rendering, and
 /// the operator window's loss ends the program with status 0. The server runs without MIT-SHM
 /// (as CI's does): there the frame's present to the destroyed window comes back as a
-/// `BadDrawable`, which winit took for its own failure and panicked on (src/app/x11_errors.rs).
+/// `BadDrawable`, which must not be taken for winit's own failure (src/app/x11_errors.rs).
 #[test]
 fn windows_stretched_or_destroyed_from_outside_are_handled() {
     use x11rb::connection::Connection;
@@ -821,7 +796,7 @@ fn windows_stretched_or_destroyed_from_outside_are_handled() {
     let left = find(WALLS[0].1);
     let operator = find(OPERATOR_POS);
 
-    // Case 4: the front wall's window stretched to 20 000 pixels wide.
+    // The front wall's window stretched to 20 000 pixels wide.
     conn.configure_window(front, &ConfigureWindowAux::new().width(20_000).height(300))
         .unwrap();
     conn.flush().unwrap();
@@ -853,7 +828,7 @@ fn windows_stretched_or_destroyed_from_outside_are_handled() {
     app.wait_frames(before + 4);
     assert!(recoveries(&app) <= settled + 1, "{}", app.log());
 
-    // Case 5: the left wall's window destroyed from outside; the others go on.
+    // The left wall's window destroyed from outside; the others go on.
     conn.destroy_window(left).unwrap();
     conn.flush().unwrap();
     app.wait_for_line("the destroyed wall", Duration::from_secs(60), |l| {
@@ -878,7 +853,7 @@ fn windows_stretched_or_destroyed_from_outside_are_handled() {
     // may hold its message: the exit status and the loss's line are what count.)
 }
 
-/// Issue 18, case 5: the preview window destroyed from outside ends the program with 0.
+/// The preview window destroyed from outside ends the program with 0.
 #[test]
 fn the_preview_window_destroyed_from_outside_ends_the_program_cleanly() {
     use x11rb::connection::Connection;
@@ -900,8 +875,8 @@ fn the_preview_window_destroyed_from_outside_ends_the_program_cleanly() {
     assert!(log.contains("destroyed from outside"), "{log}");
 }
 
-/// Issue 18, case 8: SIGTERM in the first moments (while the config and scene load) killed
-/// the process by the signal; the handler is now installed first, and the program exits 0.
+/// SIGTERM in the first moments (while the config and scene load) ends the program with 0,
+/// not by the signal: the handler is installed first.
 /// (The signal is sent once the process has logged its first line, i.e. once `main` runs: a
 /// signal before the program's first instruction cannot be caught by it.)
 #[test]
@@ -977,7 +952,7 @@ fn shifted(img: &RgbaImage, offset: [i32; 2]) -> RgbaImage {
     })
 }
 
-/// Issue 19: a passive wall fed by two projectors. Three walls with two outputs each open six
+/// A passive wall fed by two projectors. Three walls with two outputs each open six
 /// windows, each showing exactly its eye (as the headless render composes it), with a
 /// projector's offset and crop applied; the eyes are still rendered once each per frame.
 #[test]
@@ -1047,10 +1022,6 @@ fn two_outputs_per_wall_open_six_windows_each_showing_its_eye() {
                 .expect("save");
             // As the CAVE-mode test: one level of sRGB rounding between the two paths.
             let (mean, share) = difference(&got, &expected, 2);
-            println!(
-                "wall {name}, {eye} eye: mean |Δ| {mean:.3}, {:.3}% off",
-                share * 100.0
-            );
             assert!(
                 mean < 0.5 && share < 0.001,
                 "wall {name} {eye}: mean {mean}, share {share}"
@@ -1078,7 +1049,7 @@ fn two_outputs_per_wall_open_six_windows_each_showing_its_eye() {
     }
 }
 
-/// Issue 19: frame-sequential windows take their eye from one shared frame counter. Every
+/// Frame-sequential windows take their eye from one shared frame counter. Every
 /// window presents the same eye in every frame; a window stalled from outside (resized, so
 /// its surface goes out of date and it misses presents) is counted as a re-sync and presents
 /// the others' eye from its next frame on.
@@ -1190,10 +1161,6 @@ fn frame_sequential_windows_share_one_eye_phase_even_after_a_stall() {
             .any(|(_, p)| p.iter().any(|(w, _)| w.contains("Wall(1)"))),
         "the stalled window never presented again"
     );
-    println!(
-        "{} frames logged, {all_three} with all three windows; re-syncs at {resynced_windows:?}",
-        by_frame.len()
-    );
 }
 
 /// The head pose and orientation (x, y, z, w) from a stats line, with the mode and the count
@@ -1223,7 +1190,7 @@ fn tracked_pose(line: &str) -> Option<(glam::Vec3, glam::Quat, u64)> {
     })
 }
 
-/// Issue 19: `omnicave run` in the preview, tracked by the real VRPN server (built from
+/// `omnicave run` in the preview, tracked by the real VRPN server (built from
 /// ../shared/peers), whose DTrack driver we feed: the head follows the pose the server reports
 /// through the calibration (1 mm, 0.1°), and a flystick button press triggers its action.
 #[test]
@@ -1309,7 +1276,6 @@ enabled = false
     let forward = orientation * glam::Vec3::NEG_Z;
     let yaw = (-forward.x).atan2(-forward.z).to_degrees();
     let error_mm = (head - want).length() * 1e3;
-    println!("preview head {head} ({error_mm:.3} mm off), yaw {yaw:.4}°");
     // The stats line prints 0.1 mm and 1e-5 of a quaternion: well inside 1 mm and 0.1°.
     assert!(error_mm < 1.0, "head {head}, want {want}");
     assert!((yaw - 120.0).abs() < 0.1, "yaw {yaw}");
@@ -1332,7 +1298,6 @@ enabled = false
     let selected = app.wait_for_line("the selection", Duration::from_secs(60), |l| {
         l.split("selected: ").nth(1).map(str::to_owned)
     });
-    println!("selected: {selected}");
     // What the CPU pick says for that ray. The flystick's rotation is the identity, so, as a
     // head with that pose would look, it points along the calibration's 90° turn of the
     // CAVE's −z: −x, level, from (0.1, 1.0, −0.2) m; through the config's placement of the
@@ -1358,7 +1323,7 @@ enabled = false
     assert!(log.contains("VRPN 127.0.0.1:"), "{log}");
 }
 
-/// Issue 19: F12 writes every wall's eye images and the settings beside them. The key comes
+/// F12 writes every wall's eye images and the settings beside them. The key comes
 /// from another X client (XTEST), as a keyboard would send it.
 #[test]
 fn f12_writes_every_walls_eye_images_and_the_settings() {

@@ -2,7 +2,7 @@
 //! sane — every method for every case, errors finite and ordered, the recommended
 //! configuration within its error target, the report's answers and a readable chart.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -164,7 +164,6 @@ fn quick_bench_writes_complete_and_sane_results() {
     for ((s, h), _) in cases.iter().filter(|((s, _), _)| s != "sky only") {
         let reference = p99_of(s, h, "omni-offaxis + tess error:0.5");
         let stereo = p99_of(s, h, "stereo");
-        println!("{s}, {h}: p99 error:0.5 {reference:.3} px, stereo {stereo:.3} px");
         assert!(
             reference <= f64::from(TARGET_P99_PX),
             "{s}, {h}: {reference}"
@@ -183,9 +182,6 @@ fn quick_bench_writes_complete_and_sane_results() {
         let reference = off_of(s, h, "omni-offaxis + tess error:0.5");
         let plain = off_of(s, h, "omni-offaxis");
         let stereo = off_of(s, h, "stereo");
-        println!(
-            "{s}, {h}: pixels off: error:0.5 {reference:.3} %, plain {plain:.2} %, stereo {stereo:.2} %"
-        );
         assert!(reference < 0.5, "{s}, {h}: {reference}");
         if s == "living-room" {
             assert!(plain > 4.0 * reference && stereo > 4.0 * reference, "{h}");
@@ -243,10 +239,6 @@ fn quick_bench_writes_complete_and_sane_results() {
         let (stereo, crossings) = seam_of(s, h, "stereo");
         let (plain, _) = seam_of(s, h, "omni-offaxis");
         let (tess, _) = seam_of(s, h, "omni-offaxis + tess error:0.5");
-        println!(
-            "{s}, {h}: seam jump max stereo {stereo:.3} px, plain warp {plain:.2} px, \
-             error:0.5 {tess:.3} px over {crossings} crossings"
-        );
         assert!(
             crossings > 10.0,
             "{s}, {h}: only {crossings} edges cross a seam"
@@ -348,7 +340,6 @@ fn quick_bench_writes_complete_and_sane_results() {
         let median: f64 = r[col("median_ms")].parse().expect("median");
         let off: f64 = r[col("pixels_off_pct")].parse().expect("off");
         let away: f64 = r[col("off_away_from_edges_pct")].parse().expect("away");
-        println!("panorama {what}: {median:.2} ms, {off:.3} % off, {away:.4} % away from edges");
         assert!(median > 0.0 && median.is_finite(), "{what}: {median}");
         assert!((0.0..=100.0).contains(&off) && away <= off, "{what}");
         // Every route shows the scene the ray caster sees: differences lie at colour edges
@@ -448,7 +439,6 @@ fn stability_sweep_writes_its_table_and_the_failing_methods_fail() {
     };
     let num = |r: &[&str], c: &str| -> f64 { r[col(c)].parse().expect(c) };
     for r in &rows {
-        println!("{}", r.join(" | "));
         // Every ninth of the 144 grid heads.
         assert_eq!(num(r, "frames"), 16.0, "{r:?}");
         assert!(num(r, "edge_points") > 10_000.0, "{r:?}");

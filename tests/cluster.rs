@@ -1,4 +1,4 @@
-//! Issue 21: cluster mode, for real: `mpirun -np 3` of the omnicave binary under Xvfb, one
+//! Cluster mode, for real: `mpirun -np 3` of the omnicave binary under Xvfb, one
 //! wall window per process. Every recorded frame of the three processes is compared per
 //! pixel with the single-process renderer given the same state; the processes present the
 //! same frames on the same eye; a stalled or killed node is reported and handled as

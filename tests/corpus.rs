@@ -65,10 +65,6 @@ fn every_corpus_model_loads_with_what_its_exporter_wrote() {
         .iter()
         .filter(|v| v.tangent[3] != 0.0)
         .count();
-    println!(
-        "DamagedHelmet: {with_tangents} of {} vertices have tangents",
-        helmet.vertices.len()
-    );
     // One vertex that no triangle uses gets none (MikkTSpace works per face corner).
     assert!(with_tangents + 1 >= helmet.vertices.len());
 
@@ -99,7 +95,6 @@ fn every_corpus_model_loads_with_what_its_exporter_wrote() {
     let dir = corpus.join("SimpleSparseAccessor");
     let sparse = load_gltf(&dir.join("SimpleSparseAccessor.gltf")).unwrap();
     let (lo, hi) = sparse.bounds().unwrap();
-    println!("SimpleSparseAccessor bounds {lo} .. {hi}");
     assert_eq!(hi.y, 4.0, "the sparse substitution lifts vertices to y = 4");
     assert_eq!(lo.y, 0.0);
 }
@@ -152,11 +147,6 @@ fn every_corpus_model_renders_as_a_model_in_stereo_and_tessellated_omnistereo() 
                 .map(|c| c.iter().map(|&v| f32::from(v)).sum::<f32>() / 3.0)
                 .sum::<f32>()
                 / model_pixels.len().max(1) as f32;
-            println!(
-                "{name} {mode:?}: {} model pixels, {} colour buckets, mean level {mean:.0}",
-                model_pixels.len(),
-                buckets.len()
-            );
             keep(&format!("{name}-{}", mode.name()), image);
             assert!(
                 model_pixels.len() > 2000,

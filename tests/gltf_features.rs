@@ -2,13 +2,15 @@
 //! into a real file by the test, loaded back and rendered on the walls, through the
 //! tessellated omnistereo path and in the panorama, and the pixels are checked where the
 //! feature says they must change (and against the CPU twin of the shading where it lights).
-//! Every generated file is also checked by the Khronos glTF validator.
+//! Every generated file is also checked by the Khronos glTF validator. A minimal file without
+//! normals gets them from its winding, and `extras` of any JSON type load.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
 mod common;
 
 use std::path::{Path, PathBuf};
 
+use common::gltf_files::{with_json, write_triangle_gltf};
 use common::*;
 use glam::{Vec2, Vec3};
 use image::RgbaImage;
@@ -25,6 +27,7 @@ use omnicave::scene::glb_writer::{
 };
 use omnicave::scene::{Lighting, Scene, Shading, load_gltf};
 use omnicave::tess::{Criterion, TessSettings};
+use serde_json::json;
 
 const HEAD: Vec3 = Vec3::new(0.0, 1.6, 0.0);
 
@@ -504,20 +507,12 @@ fn a_primitive_without_texture_coordinates_is_its_colour_not_black() {
             let a = route.at(&cave, left);
             let b = route.at(&cave, right);
             let want = twin(left);
-            println!(
-                "{} ({}): left {a:?}, right {b:?}, CPU twin {want:?}",
-                route.name,
-                if cad {
-                    "CAD export"
-                } else {
-                    "texture without coordinates"
-                }
-            );
             // Lit orange as the CPU twin shades it (4 levels: the pixel's point is not
             // exactly the one the twin shades), and both squares alike (2 levels: they are
             // seen at slightly different angles).
-            assert!(close(a, want, 4), "{}: {a:?} vs twin {want:?}", route.name);
-            assert!(close(a, b, 2), "{}: {a:?} vs {b:?}", route.name);
+            let what = format!("{} (CAD export: {cad})", route.name);
+            assert!(close(a, want, 4), "{what}: {a:?} vs twin {want:?}");
+            assert!(close(a, b, 2), "{what}: {a:?} vs {b:?}");
         }
     }
 }
@@ -560,7 +555,6 @@ fn a_texture_transform_moves_the_texture_where_the_extension_says() {
         // Offset u by one half: the left half shows the texture's right (blue) half.
         let left = route.at(&cave, Vec3::new(-0.2, 1.6, -1.0));
         let right = route.at(&cave, Vec3::new(0.2, 1.6, -1.0));
-        println!("{}: left {left:?}, right {right:?}", route.name);
         assert!(close(left, [0, 0, 255], 2), "{}: {left:?}", route.name);
         assert!(close(right, [255, 0, 0], 2), "{}: {right:?}", route.name);
     }
@@ -614,7 +608,6 @@ fn quantized_sparse_meshopt_and_draco_attributes_land_where_their_float_twins_do
             .zip(float_image.pixels())
             .filter(|(a, b)| a.0.iter().zip(b.0).any(|(x, y)| x.abs_diff(y) > 8))
             .count();
-        println!("{encoding:?}: {differing} pixels differ from the float file by more than 8");
         match encoding {
             // 8-bit (Draco: 10-bit) normals shade within a few levels; an edge pixel may flip.
             AttributeEncoding::Quantized | AttributeEncoding::Draco => {
@@ -644,11 +637,6 @@ fn a_normal_map_bends_the_shading_as_the_cpu_twin_says() {
         let f = route.at(&cave, flat);
         let want_bent = expected(file_tangents, bent);
         let want_flat = expected(flat, Vec3::Z);
-        println!(
-            "{}: file tangents {a:?}, MikkTSpace {b:?} (twin {want_bent:?}); flat {f:?} (twin \
-             {want_flat:?})",
-            route.name
-        );
         // 4 levels: the map's 8-bit texel, and the pixel's point is not exactly the one the
         // twin shades (a matte surface: the shade varies by less than a level across it).
         assert!(
@@ -678,7 +666,6 @@ fn an_emissive_map_glows_only_where_it_is_bright() {
     for route in routes(&scene, dark()) {
         let bright = route.at(&cave, Vec3::new(-0.2, 1.6, -1.0));
         let dark_half = route.at(&cave, Vec3::new(0.2, 1.6, -1.0));
-        println!("{}: glowing {bright:?}, dark {dark_half:?}", route.name);
         assert!(
             close(bright, [255, 255, 255], 2),
             "{}: {bright:?}",
@@ -699,6 +686,7 @@ fn blended_quads_compose_back_to_front_in_every_eye() {
     let front = cave.wall_index("front").unwrap();
     // Over the black background: blue at alpha ½, then red at ½ over it (linear light).
     let want = srgb(Vec3::new(0.5, 0.0, 0.25));
+    // Front to back instead: red at ½, then blue at ½ over it.
     let wrong = srgb(Vec3::new(0.25, 0.0, 0.5));
     // A point where the near square hides part of the far one, as each eye sees it.
     let overlap = Vec3::new(0.05, 1.6, -1.0);
@@ -724,10 +712,9 @@ fn blended_quads_compose_back_to_front_in_every_eye() {
             let p = cave.walls[front].pixel_of_ray(HEAD, overlap).unwrap();
             let px = image.get_pixel(p.x as u32, p.y as u32);
             let got = [px[0], px[1], px[2]];
-            println!("{mode:?} {eye}: overlap {got:?} (back to front {want:?}, wrong {wrong:?})");
             assert!(
                 close(got, want, 3),
-                "{mode:?} {eye}: {got:?}, want {want:?}"
+                "{mode:?} {eye}: {got:?}, want {want:?} (front to back gives {wrong:?})"
             );
         }
     }
@@ -751,10 +738,6 @@ fn a_spot_light_from_the_file_lights_its_cone_only() {
         let under = route.at(&cave, Vec3::new(0.0, 0.8, -1.3));
         // 0.9 m aside: 24° off the axis, outside the 20° cone.
         let aside = route.at(&cave, Vec3::new(0.9, 0.8, -1.3));
-        println!(
-            "{}: under the spot {under:?}, outside its cone {aside:?}",
-            route.name
-        );
         assert!(under[0] > 100, "{}: {under:?}", route.name);
         assert!(aside[0] <= 2, "{}: {aside:?}", route.name);
     }
@@ -784,7 +767,6 @@ fn every_light_up_to_the_limit_lights_its_spot_and_the_one_past_it_none() {
         let between: Vec<[u8; 3]> = (0..count - 1)
             .map(|k| route.at(&cave, Vec3::new(spot_row_x(k) + 0.0875, 0.8, -1.3)))
             .collect();
-        println!("{name}: spots {spots:?}, between {between:?}");
         for (k, got) in spots.iter().enumerate() {
             if k < MAX_LIGHTS {
                 // Lit as brightly as the single spot of the test above (> 100 of 255).
@@ -814,7 +796,6 @@ fn unknown_required_extensions_and_broken_draco_are_refused_by_name() {
     let broken = dir.join("broken-draco.glb");
     std::fs::write(&broken, bytes).unwrap();
     let err = load_gltf(&broken).unwrap_err().to_string();
-    println!("{err}");
     assert!(
         err.contains("KHR_draco_mesh_compression") || err.contains("Draco"),
         "{err}"
@@ -825,7 +806,6 @@ fn unknown_required_extensions_and_broken_draco_are_refused_by_name() {
     let path = dir.join("EXT_made_up.gltf");
     std::fs::write(&path, json).unwrap();
     let err = load_gltf(&path).unwrap_err().to_string();
-    println!("{err}");
     assert!(
         err.contains("EXT_made_up") && err.contains(&*path.to_string_lossy()),
         "{err}"
@@ -869,7 +849,6 @@ fn every_generated_file_passes_the_khronos_validator() {
         .output()
         .expect("node runs");
     let report = String::from_utf8_lossy(&out.stdout);
-    println!("{report}");
     assert!(
         out.status.success(),
         "{report}{}",
@@ -903,6 +882,58 @@ fn only_the_images_materials_use_are_decoded() {
     let scene = load_gltf(&build(false)).unwrap();
     assert!(scene.textures.is_empty());
     let err = load_gltf(&build(true)).unwrap_err().to_string();
-    println!("{err}");
     assert!(err.contains("image 0"), "{err}");
+}
+
+#[test]
+fn a_well_formed_triangle_loads_with_generated_normals() {
+    let scene = load_gltf(&write_triangle_gltf(&out_dir(), "good", |_, _| {})).unwrap();
+    assert_eq!(scene.triangle_count(), 1);
+    // No NORMAL attribute: generated from the winding (counter-clockwise seen from +z).
+    for v in &scene.vertices {
+        assert!((v.normal[2] - 1.0).abs() < 1e-6, "{:?}", v.normal);
+    }
+}
+
+/// `extras` may be any JSON value (an array, a string, a number, null, a boolean) on every
+/// object that has it.
+#[test]
+fn gltf_extras_of_any_json_type_load() {
+    for extras in [
+        json!([1, 2, 3]),
+        json!("text"),
+        json!(4.5),
+        json!(null),
+        json!(true),
+    ] {
+        let mut w = GlbWriter::new();
+        let material = w.add_material(&MaterialDesc::plain("m", [1.0; 3], 1.0));
+        let quad = grid(Vec3::ZERO, Vec3::X, Vec3::Y, 1, 1, 1.0);
+        let mesh = w.add_mesh("q", &[(&quad, material)]);
+        let node = w.add_node(NodeDesc::new("n").with_mesh(mesh));
+        let mut doc = w.json(&[node]);
+        for key in [
+            "asset",
+            "nodes",
+            "meshes",
+            "materials",
+            "scenes",
+            "accessors",
+        ] {
+            match &mut doc[key] {
+                serde_json::Value::Array(items) => {
+                    for item in items {
+                        item["extras"] = extras.clone();
+                    }
+                }
+                other => other["extras"] = extras.clone(),
+            }
+        }
+        doc["extras"] = extras.clone();
+        let out = with_json(&w.to_glb(&[node]), &doc);
+        let path = out_dir().join("extras.glb");
+        std::fs::write(&path, &out).unwrap();
+        let scene = load_gltf(&path).unwrap_or_else(|e| panic!("extras {extras}: {e}"));
+        assert_eq!(scene.triangle_count(), 2);
+    }
 }

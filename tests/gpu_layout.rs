@@ -1,18 +1,70 @@
-//! Every Rust struct shared with WGSL has its WGSL twin's layout: the same size and every WGSL
-//! member at the offset the Rust struct puts it, as naga (the compiler wgpu uses) lays them
-//! out. A field added, dropped, reordered or retyped on one side only fails here.
+//! Every WGSL file in shaders/ parses and validates with naga (the compiler wgpu uses), composed
+//! exactly as the renderer composes it, and none is left out of the renderer's list; and every
+//! Rust struct and constant shared with WGSL matches its WGSL twin: the same size and every
+//! WGSL member at the offset the Rust struct puts it, as naga lays them out. A field added,
+//! dropped, reordered or retyped on one side only fails here.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::mem::{offset_of, size_of};
+use std::path::Path;
 
 use omnicave::render::panorama::ResolveUniforms;
 use omnicave::render::present::PresentUniforms;
-use omnicave::render::scene_pass::GpuVertex;
-use omnicave::render::shaders::{self, compose};
+use omnicave::render::scene_gpu::GpuVertex;
+use omnicave::render::shaders::{self, COMMON, FEATURES, SHARED, compose};
 use omnicave::render::shadow_pass::ShadowLayerUniforms;
 use omnicave::render::sky_pass::SkyUniforms;
 use omnicave::render::tessellator::{GpuTessEntry, TessUniforms};
 use omnicave::render::uniforms::{FrameUniforms, GpuLight, MaterialUniforms, ViewUniforms};
+
+/// Parses and validates one WGSL source with naga, panicking with its diagnostics.
+fn validate(name: &str, source: &str) {
+    let module = naga::front::wgsl::parse_str(source)
+        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
+}
+
+#[test]
+fn every_wgsl_file_validates() {
+    validate("common.wgsl", COMMON);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("wgsl") {
+            continue;
+        }
+        let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
+        let text = std::fs::read_to_string(&path).unwrap();
+        if let Some((_, shared)) = SHARED.iter().find(|(name, _)| *name == stem) {
+            assert_eq!(
+                text, *shared,
+                "{stem}.wgsl differs from the compiled-in copy"
+            );
+            continue;
+        }
+        let feature = FEATURES
+            .iter()
+            .find(|f| f.stem == stem)
+            .unwrap_or_else(|| panic!("shaders/{stem}.wgsl is not in render::shaders::FEATURES"));
+        assert_eq!(
+            feature.source, text,
+            "{stem}.wgsl differs from the compiled-in copy"
+        );
+        validate(&format!("{stem}.wgsl"), &compose(*feature));
+        seen += 1;
+    }
+    assert_eq!(
+        seen,
+        FEATURES.len(),
+        "a feature shader listed in FEATURES has no file"
+    );
+}
 
 /// A Rust struct's size and, for each WGSL member by name, the Rust offset of its data.
 struct RustLayout {
@@ -270,46 +322,6 @@ fn a_mismatch_is_caught() {
     );
 }
 
-/// A `const NAME: u32` of a composed shader, as naga evaluates it.
-fn wgsl_u32_const(source: &str, name: &str) -> u32 {
-    let module = naga::front::wgsl::parse_str(source).expect("WGSL parses");
-    let (_, constant) = module
-        .constants
-        .iter()
-        .find(|(_, c)| c.name.as_deref() == Some(name))
-        .unwrap_or_else(|| panic!("no WGSL constant {name}"));
-    match module.global_expressions[constant.init] {
-        naga::Expression::Literal(naga::Literal::U32(v)) => v,
-        ref other => panic!("{name} is {other:?}"),
-    }
-}
-
-#[test]
-fn the_vertex_stride_and_light_count_match() {
-    // The tessellator and the tessellated draws read scene vertices as f32 storage with the
-    // stride VERTEX_FLOATS; the vertex buffer is written as GpuVertex.
-    let source = compose(shaders::SCENE);
-    assert_eq!(
-        4 * wgsl_u32_const(&source, "VERTEX_FLOATS") as usize,
-        size_of::<GpuVertex>()
-    );
-    assert_eq!(
-        wgsl_u32_const(&source, "MAX_LIGHTS") as usize,
-        omnicave::render::uniforms::MAX_LIGHTS
-    );
-    assert_eq!(
-        wgsl_u32_const(&source, "MAX_SHADOW_LAYERS") as usize,
-        omnicave::render::shadow_pass::MAX_SHADOW_LAYERS
-    );
-    // Each attribute where the storage reads expect it (offsets in floats).
-    let floats = |bytes: usize| bytes / 4;
-    assert_eq!(floats(offset_of!(GpuVertex, normal)), 3);
-    assert_eq!(floats(offset_of!(GpuVertex, uv)), 6);
-    assert_eq!(floats(offset_of!(GpuVertex, uv1)), 8);
-    assert_eq!(floats(offset_of!(GpuVertex, color)), 10);
-    assert_eq!(floats(offset_of!(GpuVertex, tangent)), 14);
-}
-
 /// The value of the WGSL `const NAME: u32` in `source`, as naga evaluates it.
 fn wgsl_u32_constant(source: &str, name: &str) -> Option<u32> {
     let module = naga::front::wgsl::parse_str(source).expect("WGSL parses");
@@ -321,6 +333,33 @@ fn wgsl_u32_constant(source: &str, name: &str) -> Option<u32> {
         naga::Expression::Literal(naga::Literal::U32(v)) => Some(v),
         _ => None,
     }
+}
+
+#[test]
+fn the_vertex_stride_and_light_count_match() {
+    // The tessellator and the tessellated draws read scene vertices as f32 storage with the
+    // stride VERTEX_FLOATS; the vertex buffer is written as GpuVertex.
+    let source = compose(shaders::SCENE);
+    let constant = |name| wgsl_u32_constant(&source, name).map(|v| v as usize);
+    assert_eq!(
+        constant("VERTEX_FLOATS").map(|floats| 4 * floats),
+        Some(size_of::<GpuVertex>())
+    );
+    assert_eq!(
+        constant("MAX_LIGHTS"),
+        Some(omnicave::render::uniforms::MAX_LIGHTS)
+    );
+    assert_eq!(
+        constant("MAX_SHADOW_LAYERS"),
+        Some(omnicave::scene::shadows::MAX_SHADOW_LAYERS)
+    );
+    // Each attribute where the storage reads expect it (offsets in floats).
+    let floats = |bytes: usize| bytes / 4;
+    assert_eq!(floats(offset_of!(GpuVertex, normal)), 3);
+    assert_eq!(floats(offset_of!(GpuVertex, uv)), 6);
+    assert_eq!(floats(offset_of!(GpuVertex, uv1)), 8);
+    assert_eq!(floats(offset_of!(GpuVertex, color)), 10);
+    assert_eq!(floats(offset_of!(GpuVertex, tangent)), 14);
 }
 
 #[test]

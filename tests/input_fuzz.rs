@@ -1,4 +1,4 @@
-//! Property-based fuzzing of the config loader and the glTF loader (issue 18), bounded so it
+//! Property-based fuzzing of the config loader and the glTF loader, bounded so it
 //! runs on every CI run beside the OSC fuzzers: mutated bundled configs (lines dropped,
 //! doubled or cut, numbers replaced by huge, negative, NaN or non-numbers, arrays lengthened,
 //! random bytes) and mutated glTF files (bytes flipped in the JSON and the binary chunk,
@@ -8,7 +8,7 @@
 //! Deterministic seeds (a CI failure reproduces locally); `OMNICAVE_FUZZ_CASES` raises the
 //! number of cases for a longer run.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -171,9 +171,8 @@ fn the_config_loader_never_panics_or_hangs_on_mutated_configs() {
         .iter()
         .map(|f| std::fs::read_to_string(repo.join(f)).unwrap())
         .collect();
-    let (refused, accepted) = within(Duration::from_secs(600), move || {
+    let refused = within(Duration::from_secs(600), move || {
         let refused = Cell::new(0u32);
-        let accepted = Cell::new(0u32);
         runner(n)
             .run(
                 &(0..bases.len(), vec(config_edit(), 1..4)),
@@ -183,7 +182,7 @@ fn the_config_loader_never_panics_or_hangs_on_mutated_configs() {
                         text = apply(&text, e);
                     }
                     match Config::from_toml(&text, Path::new("fuzz.toml")) {
-                        Ok(_) => accepted.set(accepted.get() + 1),
+                        Ok(_) => {}
                         Err(e) => {
                             let message = e.to_string();
                             prop_assert!(message.contains("fuzz.toml"), "{}", message);
@@ -196,9 +195,8 @@ fn the_config_loader_never_panics_or_hangs_on_mutated_configs() {
             )
             .map_err(|e| e.to_string())
             .unwrap();
-        (refused.get(), accepted.get())
+        refused.get()
     });
-    println!("config fuzz: {n} cases, {refused} refused, {accepted} accepted");
     assert!(refused > n / 4, "the mutations should break most configs");
     if let Some(peak) = peak_rss() {
         assert!(peak < PEAK_RSS_LIMIT, "peak memory {peak} bytes");
@@ -324,8 +322,8 @@ fn the_gltf_loader_never_panics_or_hangs_on_mutated_files() {
         max_texture_bytes: 64 << 20,
     };
     load_gltf_bytes(&seed, Path::new("seed.glb"), &budget).expect("seed loads");
-    let (refused, loaded, caught) = within(Duration::from_secs(600), move || {
-        let (refused, loaded, caught) = (Cell::new(0u32), Cell::new(0u32), Cell::new(0u32));
+    let (refused, caught) = within(Duration::from_secs(600), move || {
+        let (refused, caught) = (Cell::new(0u32), Cell::new(0u32));
         runner(n)
             .run(&vec(glb_edit(), 1..4), |edits| {
                 let mut bytes = seed.clone();
@@ -335,14 +333,13 @@ fn the_gltf_loader_never_panics_or_hangs_on_mutated_files() {
                 match load_gltf_bytes(&bytes, Path::new("fuzz.glb"), &budget) {
                     Ok(scene) => {
                         prop_assert!(scene.vertices.len() <= 1 << 20);
-                        loaded.set(loaded.get() + 1);
                     }
                     Err(e) => {
                         let message = e.to_string();
                         prop_assert!(message.contains("fuzz.glb"), "{}", message);
                         prop_assert!(message.len() < 8192, "{} bytes", message.len());
                         // The loader's last net: a panic inside a dependency turned into an
-                        // error. Counted (and printed) so that a new one is seen.
+                        // error. Counted so that a new one is seen.
                         if message.contains("the glTF parser failed") {
                             caught.set(caught.get() + 1);
                         }
@@ -353,11 +350,8 @@ fn the_gltf_loader_never_panics_or_hangs_on_mutated_files() {
             })
             .map_err(|e| e.to_string())
             .unwrap();
-        (refused.get(), loaded.get(), caught.get())
+        (refused.get(), caught.get())
     });
-    println!(
-        "glTF fuzz: {n} cases, {refused} refused ({caught} by the panic guard), {loaded} loaded"
-    );
     assert!(refused > n / 4, "the mutations should break most files");
     // Every panic of the gltf crate the fuzzer found is checked for before it is reached.
     assert_eq!(

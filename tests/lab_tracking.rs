@@ -4,7 +4,7 @@
 //! calibration, the eye offset and the head tracker to the head and eyes the renderer is given,
 //! with the tracked device's buttons triggering their actions.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -181,7 +181,6 @@ fn a_turned_and_tilted_head_puts_the_eyes_where_the_cave_says() {
                 "yaw {yaw}, pitch {pitch}: eye at {eye}, hand-worked {want} ({error_mm:.4} mm)"
             );
         }
-        println!("yaw {yaw:+}°, pitch {pitch:+}°: eyes {:?}", eyes);
     }
 }
 
@@ -270,7 +269,6 @@ fn dtrack_frames_drive_the_head_and_the_flystick_buttons() {
         moved.z < -0.1 && moved.x.abs() < 1e-3 && moved.y.abs() < 1e-3,
         "moved {moved}"
     );
-    println!("flew {moved} in 0.5 s");
     let counters = rig.info().counters;
     assert!(
         counters.adds_up() && counters.malformed == 0,
@@ -328,10 +326,6 @@ fn the_real_vrpn_server_drives_the_calibrated_head_and_a_button_action() {
         head.position
     );
     assert!((yaw - 120.0).abs() < 0.1, "yaw {yaw}°");
-    println!(
-        "VRPN head: {} ({error_mm:.4} mm off), yaw {yaw:.4}°",
-        head.position
-    );
     rig.frames_until(
         "VRPN button action",
         Duration::from_secs(10),
@@ -477,7 +471,6 @@ fn natnet_from_motive_drives_the_head_and_the_wand() {
     assert!((rig.state.head_position() - want).length() < 1e-5);
     let c = rig.info().counters;
     assert!(c.adds_up() && c.malformed == 0 && c.accepted > 100, "{c:?}");
-    println!("NatNet: head {want}, yaw {yaw:.3}°, {c:?}");
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! puts them in every projection and route (and, in stereo, for each eye); triangles across
 //! the rear meridian and over a pole are drawn in pieces inside their true footprint; the two
 //! routes agree on the living room; a 360° equirectangular render matches the CPU ray caster.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -91,9 +91,9 @@ const MARKERS: [(f32, f32); 7] = [
 ];
 
 /// Every marker of `pano` within 1 px of the CPU projection (those in view and at least
-/// 8 px inside the image, where a cut-off marker's centroid would be biased). Returns the
-/// largest error and how many markers were checked.
-fn check_markers(pano: &PanoSettings, tess: TessSettings, what: &str) -> (f32, usize) {
+/// 8 px inside the image, where a cut-off marker's centroid would be biased). Returns how
+/// many markers were checked.
+fn check_markers(pano: &PanoSettings, tess: TessSettings, what: &str) -> usize {
     let points: Vec<Vec3> = MARKERS
         .iter()
         .map(|&(lon, lat)| point_at(pano, lon, lat, 3.0))
@@ -102,7 +102,6 @@ fn check_markers(pano: &PanoSettings, tess: TessSettings, what: &str) -> (f32, u
     let scene = marker_scene(&points, HEAD, 0.02);
     let [image, _] = render(&scene, pano, tess);
     let found = centroids(&image);
-    let mut worst = 0f32;
     let mut checked = 0;
     for (i, &(lon, lat)) in MARKERS.iter().enumerate() {
         let dir = direction(lon.to_radians(), lat.to_radians());
@@ -124,10 +123,9 @@ fn check_markers(pano: &PanoSettings, tess: TessSettings, what: &str) -> (f32, u
             err <= 1.0,
             "{what}: marker {i} ({lon}°, {lat}°) drawn at {got}, expected {expected} ({err:.2} px)"
         );
-        worst = worst.max(err);
         checked += 1;
     }
-    (worst, checked)
+    checked
 }
 
 #[test]
@@ -172,8 +170,7 @@ fn markers_land_where_the_cpu_projection_puts_them_in_every_projection_and_route
             fov[0],
             fov[1]
         );
-        let (worst, checked) = check_markers(&pano, tess, &what);
-        println!("{what}: {checked} markers, largest error {worst:.2} px");
+        let checked = check_markers(&pano, tess, &what);
         // All seven around the full sphere; the narrower views see at least the two ahead.
         let needed = if fov[0] >= 360.0 { MARKERS.len() } else { 2 };
         assert!(checked >= needed, "{what}: only {checked} markers checked");
@@ -310,12 +307,6 @@ fn triangles_across_the_rear_meridian_and_over_a_pole_are_drawn_in_pieces_in_the
                 *columns.iter().max().expect("drawn"),
             );
             let spread: std::collections::BTreeSet<usize> = columns.iter().copied().collect();
-            println!(
-                "{} triangle {t}: {area} px in the CPU footprint, {outside} lit outside and \
-                 {missing} missing (all on the outline), columns {min_x}..={max_x}, {} distinct",
-                projection.name(),
-                spread.len()
-            );
             let name = projection.name();
             if t == 0 {
                 // Two pieces, at the left and right ends of the image; the middle stays
@@ -395,7 +386,6 @@ fn msaa_antialiases_the_geometric_route_along_the_exact_outline_only() {
             partial += 1;
         }
     }
-    println!("4× MSAA rear triangle: {partial} blended pixels on the outline");
     // The outline is ~500 px long: most of its pixels are partly covered.
     assert!(
         partial > 200,
@@ -436,18 +426,6 @@ fn a_360_equirectangular_render_matches_the_cpu_ray_caster() {
         keep(&format!("raycaster-check-{}", route.name()), &image);
         let pixels: Vec<[u8; 3]> = image.pixels().map(|p| [p[0], p[1], p[2]]).collect();
         let c = compare(&pixels, &reference, pano.size[0] as usize, [0, 0, 0]);
-        println!(
-            "equirectangular 360°×180° {}×{}, {} route against the CPU ray caster: {} of {} \
-             pixels differ ({:.3} %), {} of them away from a colour edge ({:.4} %)",
-            pano.size[0],
-            pano.size[1],
-            route.name(),
-            c.differ,
-            c.pixels,
-            c.differ_pct(),
-            c.away_from_edges,
-            c.away_pct(),
-        );
         // Away from edges the two must show the same surface. 0.01 % (13 pixels here): the
         // geometric route decides coverage by the same ray as the reference, so only a ray
         // that passes exactly between two triangles (rounding on a shared edge) can differ.
@@ -502,11 +480,6 @@ fn the_geometric_and_image_routes_agree_on_the_living_room_except_for_sampling_b
         }
     }
     let mean = sum as f64 / total as f64;
-    println!(
-        "living room, equirectangular 720×360: geometric against image route: mean largest \
-         channel difference {mean:.2} levels, {large} pixels ({:.2} %) differ by more than 48",
-        100.0 * large as f64 / total as f64
-    );
     // Sampling blur: the image route filters the cube faces bilinearly and the geometric
     // route samples textures with mipmaps at the panorama's own density, so textures and
     // edges differ slightly everywhere (a mean of a few levels) and strongly only along
@@ -594,11 +567,6 @@ fn omnistereo_and_volume_stereo_put_each_eye_where_their_models_say() {
                     (left.y - right.y).abs() <= 1.0,
                     "{}: marker {i} rows differ",
                     stereo.name()
-                );
-                println!(
-                    "{} marker {i}: disparity {:.2} px",
-                    stereo.name(),
-                    right.x - left.x
                 );
             }
         }
@@ -741,11 +709,6 @@ fn the_sky_shows_behind_the_panorama_where_its_beacons_are() {
             // its centre is unfiltered) within the sky's 8-bit rounding and the lookup's
             // bilinear filtering, 24 levels.
             let expected = if i == 0 { [255, 0, 0] } else { beacon.rgb };
-            println!(
-                "{} route: beacon {} at {at}: {got:?}, expected {expected:?}",
-                route.name(),
-                beacon.name
-            );
             assert!(
                 channel_diff(got, expected) <= 24,
                 "{} route: beacon {} at {at} shows {got:?}, expected {expected:?}",

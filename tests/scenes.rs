@@ -1,6 +1,6 @@
 //! The bundled scenes match their generator and load; glTF features (node hierarchy, unlit,
 //! emissive, textures) survive the whole path from file to pixels.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -38,13 +38,6 @@ fn bundled_scenes_load_with_textures_and_surround_the_cave() {
     for (name, min_tris, min_textures) in [("living-room.glb", 5_000, 4), ("city.glb", 5_000, 2)] {
         let scene = load_gltf(&repo(&format!("assets/{name}"))).unwrap();
         let (lo, hi) = scene.bounds().unwrap();
-        println!(
-            "{name}: {} triangles, {} draws, {} materials, {} textures, bounds {lo} .. {hi}",
-            scene.triangle_count(),
-            scene.draws.len(),
-            scene.materials.len(),
-            scene.textures.len()
-        );
         assert!(scene.triangle_count() >= min_tris, "{name}");
         assert!(scene.textures.len() >= min_textures, "{name}");
         // The CAVE (±1.65 m, 0..2.9 m) stands inside the scene's horizontal extent.
@@ -123,8 +116,7 @@ fn gltf_node_hierarchy_unlit_and_emissive_render_where_and_how_expected() {
     let expected = cave.walls[front]
         .pixel_of_ray(head.position, centre)
         .unwrap();
-    let (got, n) = centroid_of(img, [0, 255, 0]).expect("unlit marker drawn in exactly its colour");
-    println!("glTF marker at {got} ({n} px), expected {expected}");
+    let (got, _) = centroid_of(img, [0, 255, 0]).expect("unlit marker drawn in exactly its colour");
     assert!((got - expected).length() <= 1.0);
 
     // The emissive panel (black base colour) shows its emission: saturated red. Green and blue
@@ -134,7 +126,6 @@ fn gltf_node_hierarchy_unlit_and_emissive_render_where_and_how_expected() {
         .pixel_of_ray(head.position, Vec3::new(-0.8, 1.2, -2.99))
         .unwrap();
     let px = img.get_pixel(p.x as u32, p.y as u32);
-    println!("emissive panel pixel {px:?}");
     assert!(px[0] >= 250 && px[1] <= 90 && px[2] <= 90, "{px:?}");
 }
 
@@ -196,10 +187,6 @@ fn textured_floor_is_sampled_and_lit() {
         .collect();
     let bright = lum.iter().filter(|&&l| l > 150).count();
     let dark = lum.iter().filter(|&&l| l < 80).count();
-    println!(
-        "floor pixels: {bright} bright, {dark} dark of {}",
-        lum.len()
-    );
     assert!(
         bright > lum.len() / 5 && dark > lum.len() / 5,
         "checker not visible"
@@ -276,7 +263,6 @@ fn a_camera_of_the_file_gives_the_start_viewpoint() {
         let world_from_cave = settings.world_from_cave();
         let head = world_from_cave.transform_point3(Vec3::from(settings.head.position));
         let ahead = world_from_cave.transform_vector3(Vec3::NEG_Z);
-        println!("camera {name}: head at {head}, front wall towards {ahead}");
         assert!((head - Vec3::new(3.0, 1.6, -4.0)).length() < 1e-5, "{head}");
         assert!((ahead - Vec3::NEG_X).length() < 1e-5, "{ahead}");
     }

@@ -3,7 +3,7 @@
 //! floor under the cube is shaded as the CPU twin shades it with that light blocked, the floor
 //! beside the shadow as the twin shades it lit — on the walls, through tessellated
 //! omnistereo and in the panorama. Switching shadows off lights the floor under the cube.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -14,10 +14,10 @@ use omnicave::cave::{Head, RenderMode};
 use omnicave::pano::raycast::RayCaster;
 use omnicave::pano::{PanoRoute, Projection};
 use omnicave::render::pbr::{SurfacePoint, shade_pbr};
-use omnicave::render::shadow_pass::ShadowSettings;
 use omnicave::render::uniforms::{FrameLights, FrameUniforms, MAX_LIGHTS};
 use omnicave::render::{FrameParams, Renderer};
 use omnicave::scene::build::{cuboid, grid};
+use omnicave::scene::shadows::ShadowSettings;
 use omnicave::scene::{Lighting, Material, Scene, Shading};
 use omnicave::tess::{Criterion, TessSettings};
 
@@ -194,11 +194,6 @@ fn a_shadow_falls_where_the_lights_geometry_says_in_every_render_mode() {
                 [px[0], px[1], px[2]]
             };
             let (dark, lit) = (at(under), at(beside));
-            println!(
-                "{} light, {name}: under the cube {dark:?} (twin, shadowed {want_dark:?}), beside \
-                 {lit:?} (twin, lit {want_lit:?})",
-                if point { "point" } else { "sun" }
-            );
             // 4 levels: the pixel's point is not exactly the one the twin shades.
             assert!(
                 close(dark, want_dark, 4),
@@ -235,11 +230,10 @@ fn a_shadow_falls_where_the_lights_geometry_says_in_every_render_mode() {
     }
 }
 
-/// Every pixel of `a` within `tolerance` levels of `b`'s; returns how many differ at all.
+/// Every pixel of `a` within `tolerance` levels of `b`'s.
 /// (`a`: the picture under test, `b`: the one it must equal.)
-fn differing(name: &str, a: &image::RgbaImage, b: &image::RgbaImage, tolerance: u8) -> usize {
+fn assert_within(name: &str, a: &image::RgbaImage, b: &image::RgbaImage, tolerance: u8) {
     assert_eq!(a.dimensions(), b.dimensions(), "{name}");
-    let mut count = 0;
     for (x, y, p) in a.enumerate_pixels() {
         let q = b.get_pixel(x, y);
         let worst = (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap_or(0);
@@ -247,9 +241,7 @@ fn differing(name: &str, a: &image::RgbaImage, b: &image::RgbaImage, tolerance: 
             worst <= tolerance,
             "{name}: pixel ({x}, {y}) {p:?} against {q:?}"
         );
-        count += usize::from(worst > 0);
     }
-    count
 }
 
 #[test]
@@ -291,10 +283,9 @@ fn the_filters_range_test_leaves_the_picture_as_it_was() {
         );
         for (((name, a, _), (_, b, _)), (_, c, _)) in with.iter().zip(&without).zip(&shadowless) {
             let name = format!("{what}, {name}");
-            let changed = differing(&name, a, b, 1);
+            assert_within(&name, a, b, 1);
             // The picture has a shadow for the test to keep: it differs from no shadows.
             let shadowed = a.pixels().zip(c.pixels()).filter(|(p, q)| p != q).count();
-            println!("{name}: {changed} pixels off by 1 level; {shadowed} pixels in shadow");
             assert!(shadowed > 100, "{name}: no shadow in the picture");
         }
     }
@@ -395,7 +386,7 @@ fn the_range_tiles_follow_the_settings_and_the_map_size() {
         ("then on again", resized),
     ] {
         let got = picture(&mut renderer, settings);
-        differing(name, &got, &fresh(settings), 1);
+        assert_within(name, &got, &fresh(settings), 1);
     }
 }
 
@@ -522,10 +513,6 @@ fn a_point_lights_shadows_fall_right_through_five_faces_of_its_cube() {
             }
         }
     }
-    println!(
-        "pixels tested (shadowed, lit) per face +X, -X, +Y, -Y, +Z, -Z: {tested:?}; \
-         shadowed where two faces overlap: {at_seams}"
-    );
     // Shadows and light through each side face (the front wall sees the floor around the
     // light on every side) and the bottom one, and shadows where faces overlap.
     for face in [0, 1, 3, 4, 5] {

@@ -3,7 +3,7 @@
 //! the head the renderer is given; bad and foreign packets are counted and dropped; the newest
 //! pose wins a burst; loss of tracking holds the head and recovers.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -321,10 +321,6 @@ fn the_newest_pose_wins_a_burst_of_ten_thousand_packets() {
     assert_eq!(c.received + drops, sent, "{c:?}, kernel drops {drops}");
     // The packet index, back from the head's z.
     let index = ((-0.2 - rig.head().position.z) / 0.0001).round() as i64;
-    println!(
-        "burst of {BURST}: {} received, {drops} dropped by the kernel, head from packet {index}",
-        c.received
-    );
     if drops == 0 {
         assert_eq!(index, i64::from(BURST) - 1);
     } else {
@@ -506,7 +502,7 @@ fn bad_tracking_config_is_named() {
             "tracking.calibration.scale",
         ),
         ("[tracking.filter]\nbeta = nan\n", "tracking.filter.beta"),
-        // Issue 19's settings: each bad value named by its field.
+        // The tracking settings: each bad value named by its field.
         ("[tracking]\nsource = \"artrack\"\n", "tracking.source"),
         (
             "[tracking]\neye_offset = [0.0, 3.0, 0.0]\n",

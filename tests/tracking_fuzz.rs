@@ -6,7 +6,7 @@
 //! Deterministic seeds (a CI failure reproduces locally); `OMNICAVE_FUZZ_CASES` raises the
 //! number of cases for a longer run.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -206,10 +206,6 @@ fn the_decoder_never_panics_or_hangs() {
         Ok::<_, String>(counts.get())
     })
     .expect("fuzz failure");
-    println!(
-        "decoder: {n} cases: {} pose, {} ignored, {} malformed, {} non-finite",
-        outcomes[0], outcomes[1], outcomes[2], outcomes[3]
-    );
     // The generators must reach every outcome, or the fuzzing is weaker than it looks.
     assert!(outcomes.iter().all(|&c| c > 0), "{outcomes:?}");
 }
@@ -307,10 +303,6 @@ fn the_receiver_survives_a_stream_of_bad_packets_and_keeps_working() {
             std::thread::sleep(Duration::from_millis(5));
         }
         let c = feed.counters();
-        println!(
-            "receiver: {sent} datagrams sent, {} dropped by the kernel: {c:?}",
-            drops()
-        );
         assert_eq!(
             c.received + drops(),
             sent,
@@ -397,11 +389,10 @@ fn position_packet(x: f32, y: f32, z: f32) -> Vec<u8> {
     ))
 }
 
-/// Issue 18, case 1: one huge but finite coordinate (a flipped exponent bit: 0.3 → 1.02e38)
-/// pinned the head at the wall for as long as valid packets kept coming, because the filter
-/// ran before the clamp and its state overflowed to NaN. Now such a sample is refused before
-/// the filter: once or in bursts, the head never leaves the CAVE and the very next valid
-/// sample gives the pose a clean stream gives.
+/// One huge but finite coordinate (a flipped exponent bit: 0.3 → 1.02e38) cannot pin the
+/// head at the wall: such a sample is refused before the filter (whose state would overflow
+/// to NaN), so that, once or in bursts, the head never leaves the CAVE and the very next
+/// valid sample gives the pose a clean stream gives.
 #[test]
 fn a_huge_or_broken_coordinate_cannot_pin_the_head() {
     let ticks = 240;
@@ -561,7 +552,7 @@ fn dtrack_text() -> impl Strategy<Value = String> {
         })
 }
 
-/// Issue 19: DTrack frames, random, valid and mutated (bytes and numbers), through the frame
+/// DTrack frames, random, valid and mutated (bytes and numbers), through the frame
 /// sink: never a panic or a hang, every frame counted once, and what reaches the feed finite.
 #[test]
 fn dtrack_frames_never_panic_and_are_counted_once() {
@@ -596,13 +587,12 @@ fn dtrack_frames_never_panic_and_are_counted_once() {
         let c = feed.counters();
         assert!(c.adds_up(), "{c:?}");
         assert!(c.accepted > 0 && c.malformed > 0, "{c:?}");
-        println!("dtrack: {n} cases: {c:?}");
         Ok::<_, String>(())
     })
     .expect("fuzz failure");
 }
 
-/// Issue 19: VRPN messages off the wire (random, valid and mutated): the framing and payload
+/// VRPN messages off the wire (random, valid and mutated): the framing and payload
 /// parsers never panic and never read past what arrived.
 #[test]
 fn vrpn_messages_never_panic() {

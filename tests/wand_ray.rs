@@ -2,7 +2,7 @@
 //! omnistereo included) its tip lands within 1 px of where the CPU model puts it (the ray
 //! from the eye that sees it, through the wall) and the beam runs along the projected ray.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -133,7 +133,7 @@ fn the_wand_ray_lands_where_the_cpu_model_says_in_every_mode() {
         (RenderMode::OmniOffAxis, None),
         (RenderMode::OmniOffAxis, Some(Criterion::Edge(8.0))),
     ];
-    let (mut tips, mut beams, mut worst_tip, mut worst_beam) = (0, 0, 0.0f32, 0.0f32);
+    let (mut tips, mut beams) = (0, 0);
     let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
     renderer.set_scene(&Scene::default()).expect("empty scene");
     for (mode, criterion) in modes {
@@ -163,7 +163,6 @@ fn the_wand_ray_lands_where_the_cpu_model_says_in_every_mode() {
                             err <= 1.0,
                             "{what}: tip at {got}, expected {expected} ({n} px)"
                         );
-                        worst_tip = worst_tip.max(err);
                         tips += 1;
                     }
                     // The beam: every beam pixel lies within 1 px of the image of one of the
@@ -201,7 +200,6 @@ fn the_wand_ray_lands_where_the_cpu_model_says_in_every_mode() {
                             d <= 1.0,
                             "{what}: a beam pixel at {q} is {d:.2} px off the beam"
                         );
-                        worst_beam = worst_beam.max(d);
                         beams += 1;
                     }
                     for p in line.iter().filter(|p| inside(**p, size, 12.0)) {
@@ -221,9 +219,7 @@ fn the_wand_ray_lands_where_the_cpu_model_says_in_every_mode() {
             }
         }
     }
-    println!(
-        "wand ray: {tips} tips within 1 px (worst {worst_tip:.3} px); {beams} beam pixels, \
-         farthest {worst_beam:.2} px from the projected ray"
-    );
     assert!(tips >= 30, "only {tips} tips checked");
+    // The check of every beam pixel above is not vacuous: beams were drawn.
+    assert!(beams > 0, "no beam pixel drawn");
 }

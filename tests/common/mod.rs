@@ -2,10 +2,12 @@
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
 pub mod fuzz;
+pub mod gltf_files;
 pub mod vrpn_peer;
 pub mod xvfb;
 
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use glam::{Mat4, Vec2, Vec3};
@@ -137,7 +139,7 @@ pub fn test_frame<'a>(
         world_from_cave: Mat4::IDENTITY,
         lighting: Lighting::default(),
         shading: omnicave::scene::Shading::Pbr,
-        shadows: omnicave::render::shadow_pass::ShadowSettings::default(),
+        shadows: omnicave::scene::shadows::ShadowSettings::default(),
         background: BACKGROUND_SRGB,
         omni,
         tess,
@@ -274,19 +276,37 @@ pub fn udp_kernel_drops(port: u16) -> Option<u64> {
     })
 }
 
-/// Runs the `omnicave` binary from the repository root with `args` (log level warn); whether
-/// it succeeded, its standard output and its standard error.
-pub fn run_omnicave(args: &[&str]) -> (bool, String, String) {
+/// The path of `rel` in the repository.
+pub fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// A folder under the build's scratch directory (`target/tmp/<name>`), created if missing,
+/// for the files a test writes.
+pub fn tmp_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs the `omnicave` binary from the repository root with `args` (log level warn, no
+/// colour); its exit code (-1 when a signal ended it), standard output and standard error.
+/// Panics if the binary panicked (exit code 101): bad input must never panic.
+pub fn run_omnicave(args: &[&str]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_omnicave"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .env("RUST_LOG", "warn")
+        .env("NO_COLOR", "1")
         .output()
         .unwrap();
+    let code = out.status.code().unwrap_or(-1);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_ne!(code, 101, "omnicave {args:?} panicked:\n{stderr}");
     (
-        out.status.success(),
+        code,
         String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
+        stderr,
     )
 }
 
