@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Regenerates the README's rendered images in docs/images from the bundled scenes and, for the
+# Regenerates the book's rendered images in docs/src/images from the bundled scenes and, for the
 # helmets, the Khronos models in ../shared/corpus (skipped, saying so, without it). The preview
-# screenshot, the bench chart and the sky images are made by their own commands (see README).
+# screenshot, the bench chart and the sky images are made by their own commands (see the book's release checklist).
 #
-#   bash scripts/readme-images.sh            # with the release build
-#   OMNICAVE=target/debug/omnicave bash scripts/readme-images.sh
+#   bash scripts/book-images.sh            # with the release build
+#   OMNICAVE=target/debug/omnicave bash scripts/book-images.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -18,11 +18,11 @@ render() { "$OMNICAVE" render --config config/cave.toml "$@" >/dev/null 2>&1 || 
 
 echo "living room: stereo, omnistereo, omnistereo tessellated"
 render --scene assets/living-room.glb --mode stereo --out "$out/stereo"
-cp "$out/stereo/unfolded-anaglyph.png" docs/images/living-room-stereo.png
+cp "$out/stereo/unfolded-anaglyph.png" docs/src/images/living-room-stereo.png
 render --scene assets/living-room.glb --mode omni-onaxis --out "$out/omni"
-cp "$out/omni/unfolded-anaglyph.png" docs/images/living-room-omni-onaxis.png
+cp "$out/omni/unfolded-anaglyph.png" docs/src/images/living-room-omni-onaxis.png
 render --scene assets/living-room.glb --mode omni-onaxis --tess error:0.5 --out "$out/tess"
-cp "$out/tess/unfolded-anaglyph.png" docs/images/living-room-omni-tessellated.png
+cp "$out/tess/unfolded-anaglyph.png" docs/src/images/living-room-omni-tessellated.png
 
 echo "warp variants 0.3 m from the left wall"
 for warp in similar-triangles intersection-point; do
@@ -31,14 +31,14 @@ for warp in similar-triangles intersection-point; do
 done
 convert "$out/warp-similar-triangles/unfolded-anaglyph.png" \
   "$out/warp-intersection-point/unfolded-anaglyph.png" -append +repage \
-  docs/images/warp-variants-near-wall.png
+  docs/src/images/warp-variants-near-wall.png
 
 echo "panoramas"
 for scene in living-room city; do
   for projection in equirectangular hammer; do
     render --view panorama --scene "assets/$scene.glb" --projection "$projection" \
       --tess error:0.5 --pano-size 1024x512 --out "$out/pano-$scene-$projection"
-    cp "$out/pano-$scene-$projection/panorama.png" "docs/images/panorama-$scene-$projection.png"
+    cp "$out/pano-$scene-$projection/panorama.png" "docs/src/images/panorama-$scene-$projection.png"
   done
 done
 
@@ -52,9 +52,9 @@ if [ -d "$corpus" ]; then
         --size 960x840 --out "$out/$model-$mode"
     done
     convert "$out/$model-stereo/front-left.png" "$out/$model-omni-offaxis/front-left.png" \
-      +append -resize 50% +repage "docs/images/$model.png"
+      +append -resize 50% +repage "docs/src/images/$model.png"
   done
 else
   echo "SKIPPED helmets: $corpus not found"
 fi
-echo "docs/images regenerated"
+echo "docs/src/images regenerated"

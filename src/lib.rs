@@ -13,6 +13,7 @@ pub mod bench;
 pub mod cave;
 pub mod cluster;
 pub mod config;
+pub mod docs;
 pub mod gamepad;
 pub mod headless;
 pub mod messages;

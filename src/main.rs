@@ -61,6 +61,20 @@ enum Command {
     /// Config file tools.
     #[command(subcommand)]
     Config(ConfigCommand),
+    /// Regenerate the book's reference pages (docs/src) from the code, or with --check say
+    /// which committed page is stale. For developers; run in the repository.
+    #[command(hide = true)]
+    Docs(DocsArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct DocsArgs {
+    /// Compare instead of writing: fail, naming each page that differs from the code.
+    #[arg(long)]
+    check: bool,
+    /// The repository's root.
+    #[arg(long, default_value = ".")]
+    repo: PathBuf,
 }
 
 #[derive(Debug, Subcommand)]
@@ -270,7 +284,8 @@ struct BenchArgs {
     /// CAVE configuration (TOML): walls, resolution, MSAA, head.
     #[arg(long, default_value = "config/cave.toml")]
     config: PathBuf,
-    /// A scene to measure (repeatable); default: the config's scene and the bundled city.
+    /// A scene to measure (repeatable); default: the config's scene, the bundled city and the
+    /// bundled atrium.
     #[arg(long)]
     scene: Vec<PathBuf>,
     /// Sky for the sky methods; default: the config's, else the bundled one.
@@ -742,81 +757,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         })
     });
     match command {
-        Command::Run(args) => {
-            let mode = if args.preview {
-                Some(AppMode::Preview)
-            } else if args.cave {
-                Some(AppMode::Cave)
-            } else {
-                None
-            };
-            omnicave::app::run(omnicave::app::RunOptions {
-                config: args.config,
-                scene: args.scene,
-                mode,
-                stats_every: args.stats_every,
-                quit_after: args.quit_after,
-                osc_listen: args.osc_listen,
-                cluster: args.cluster,
-                record: args.record,
-                record_every: args.record_every,
-            })
-            .context("omnicave stopped")?;
-            Ok(())
-        }
+        Command::Run(args) => run_app(args),
         Command::Bench(args) if args.cluster => cluster_bench(args),
-        Command::Bench(args) if args.stability => {
-            let mut bar = Progress::new("stability sweep");
-            let files = omnicave::bench::run_stability(
-                &omnicave::bench::StabilityOptions {
-                    config: args.config,
-                    out: args.out,
-                    quick: args.quick,
-                    size: args.size,
-                },
-                &mut |done, total, what| bar.show(done, total, what),
-            )
-            .context("stability sweep failed")?;
-            for f in files {
-                tracing::info!("wrote {}", f.display());
-            }
-            Ok(())
-        }
-        Command::Bench(args) => {
-            let mut bar = Progress::new("bench");
-            let report = omnicave::bench::run(
-                &omnicave::bench::BenchOptions {
-                    config: args.config,
-                    scenes: args.scene,
-                    sky: args.skybox,
-                    out: args.out,
-                    quick: args.quick,
-                    frames: args.frames.map(|f| f as usize),
-                    size: args.size,
-                    panorama_only: args.panorama_only,
-                    methods: args.methods,
-                },
-                &mut |done, total, what| bar.show(done, total, what),
-            )
-            .context("bench failed")?;
-            tracing::info!("adapter: {}", report.adapter);
-            for f in &report.files {
-                tracing::info!("wrote {}", f.display());
-            }
-            Ok(())
-        }
+        Command::Bench(args) if args.stability => bench_stability(args),
+        Command::Bench(args) => bench(args),
         Command::TrackSim(args) => track_sim(args),
-        Command::Monitors => {
-            let monitors = omnicave::app::monitors::list_monitors()?;
-            let mut text = String::new();
-            for m in &monitors {
-                text.push_str(&format!("{m}\n"));
-            }
-            if monitors.is_empty() {
-                text.push_str("no monitors\n");
-            }
-            write_stdout(text.as_bytes())
-        }
+        Command::Monitors => monitors(),
         Command::Completions { shell } => {
             // Into memory first: clap_complete panics on a failed write (a closed pipe).
             let mut script = Vec::new();
@@ -828,45 +774,153 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             write_stdout(omnicave::config::schema::json_schema_text().as_bytes())
         }
         Command::Config(ConfigCommand::Import(args)) => import_walls(&args),
-        Command::Render(args) => {
-            let overrides = Overrides {
-                scene: args.scene,
-                mode: args.mode,
-                shading: args.shading,
-                fit: args.fit,
-                size_m: args.size_m,
-                offset_m: args.scene_offset,
-                double_sided: args.double_sided,
-                camera: args.camera,
-                head: args.head,
-                head_yaw_degrees: args.head_yaw,
-                eye_separation: args.ipd,
-                size: args.size,
-                msaa: args.msaa,
-                wireframe: args.wireframe,
-                warp: args.warp,
-                pole_merge: args.pole_merge.map(|p| p.0),
-                tess: args.tess.map(|t| t.0),
-                tess_max_depth: args.tess_max_depth,
-                sky: args.skybox.map(|s| s.0),
-                sky_mode: args.skybox_mode,
-                panorama: args.view == ViewArg::Panorama,
-                pano_projection: args.projection,
-                pano_route: args.pano_route,
-                pano_stereo: args.pano_stereo,
-                pano_fov_degrees: args.fov,
-                pano_yaw_degrees: args.pano_yaw,
-                pano_size: args.pano_size,
-            };
-            let written =
-                headless::render_to_dir(&args.config, &overrides, &args.out, &args.formats)
-                    .context("render failed")?;
-            for f in &written.files {
-                tracing::info!("wrote {}", f.display());
-            }
-            Ok(())
-        }
+        Command::Render(args) => render(args),
+        Command::Docs(args) => docs(&args),
     }
+}
+
+/// `run`: the application.
+fn run_app(args: RunArgs) -> anyhow::Result<()> {
+    let mode = if args.preview {
+        Some(AppMode::Preview)
+    } else if args.cave {
+        Some(AppMode::Cave)
+    } else {
+        None
+    };
+    omnicave::app::run(omnicave::app::RunOptions {
+        config: args.config,
+        scene: args.scene,
+        mode,
+        stats_every: args.stats_every,
+        quit_after: args.quit_after,
+        osc_listen: args.osc_listen,
+        cluster: args.cluster,
+        record: args.record,
+        record_every: args.record_every,
+    })
+    .context("omnicave stopped")?;
+    Ok(())
+}
+
+/// `bench --stability`: the stability sweep.
+fn bench_stability(args: BenchArgs) -> anyhow::Result<()> {
+    let mut bar = Progress::new("stability sweep");
+    let files = omnicave::bench::run_stability(
+        &omnicave::bench::StabilityOptions {
+            config: args.config,
+            out: args.out,
+            quick: args.quick,
+            size: args.size,
+        },
+        &mut |done, total, what| bar.show(done, total, what),
+    )
+    .context("stability sweep failed")?;
+    for f in files {
+        tracing::info!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// `bench`: every method's cost and accuracy.
+fn bench(args: BenchArgs) -> anyhow::Result<()> {
+    let mut bar = Progress::new("bench");
+    let report = omnicave::bench::run(
+        &omnicave::bench::BenchOptions {
+            config: args.config,
+            scenes: args.scene,
+            sky: args.skybox,
+            out: args.out,
+            quick: args.quick,
+            frames: args.frames.map(|f| f as usize),
+            size: args.size,
+            panorama_only: args.panorama_only,
+            methods: args.methods,
+        },
+        &mut |done, total, what| bar.show(done, total, what),
+    )
+    .context("bench failed")?;
+    tracing::info!("adapter: {}", report.adapter);
+    for f in &report.files {
+        tracing::info!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// `monitors`: the monitors a wall can name.
+fn monitors() -> anyhow::Result<()> {
+    let monitors = omnicave::app::monitors::list_monitors()?;
+    let mut text = String::new();
+    for m in &monitors {
+        text.push_str(&format!("{m}\n"));
+    }
+    if monitors.is_empty() {
+        text.push_str("no monitors\n");
+    }
+    write_stdout(text.as_bytes())
+}
+
+/// `docs`: the book's generated reference pages, written or checked.
+fn docs(args: &DocsArgs) -> anyhow::Result<()> {
+    use omnicave::docs;
+    let cli = <Cli as clap::CommandFactory>::command();
+    let pages = docs::all_pages(&cli, &args.repo)?;
+    let book_src = args.repo.join("docs/src");
+    if !args.check {
+        docs::write_pages(&pages, &book_src)?;
+        for page in &pages {
+            tracing::info!("wrote docs/src/{}", page.path);
+        }
+        return Ok(());
+    }
+    let stale = docs::stale_pages(&pages, &book_src);
+    if stale.is_empty() {
+        return Ok(());
+    }
+    anyhow::bail!(
+        "{} differ from the code: run `{}` and commit the result",
+        stale.join(", "),
+        docs::REGENERATE
+    )
+}
+
+/// `render`: one frame of every wall, headless.
+fn render(args: RenderArgs) -> anyhow::Result<()> {
+    let overrides = Overrides {
+        scene: args.scene,
+        mode: args.mode,
+        shading: args.shading,
+        fit: args.fit,
+        size_m: args.size_m,
+        offset_m: args.scene_offset,
+        double_sided: args.double_sided,
+        camera: args.camera,
+        head: args.head,
+        head_yaw_degrees: args.head_yaw,
+        eye_separation: args.ipd,
+        size: args.size,
+        msaa: args.msaa,
+        wireframe: args.wireframe,
+        warp: args.warp,
+        pole_merge: args.pole_merge.map(|p| p.0),
+        tess: args.tess.map(|t| t.0),
+        tess_max_depth: args.tess_max_depth,
+        sky: args.skybox.map(|s| s.0),
+        sky_mode: args.skybox_mode,
+        panorama: args.view == ViewArg::Panorama,
+        pano_projection: args.projection,
+        pano_route: args.pano_route,
+        pano_stereo: args.pano_stereo,
+        pano_fov_degrees: args.fov,
+        pano_yaw_degrees: args.pano_yaw,
+        pano_size: args.pano_size,
+    };
+    let written = headless::render_to_dir(&args.config, &overrides, &args.out, &args.formats)
+        .context("render failed")?;
+    for f in &written.files {
+        tracing::info!("wrote {}", f.display());
+    }
+    Ok(())
 }
 
 fn track_sim(args: TrackSimArgs) -> anyhow::Result<()> {

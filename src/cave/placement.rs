@@ -80,8 +80,8 @@ impl FileFrame {
 }
 
 /// The rotation of a wall given by yaw, pitch and roll in degrees, in CAVE axes: yaw about the
-/// up axis (+ turns left), then pitch about the wall's horizontal axis (+ tilts its top back,
-/// away from the viewer), then roll about its normal — the head's convention. A wall at
+/// up axis (+ turns left), then pitch about the wall's horizontal axis (+ tilts its top
+/// towards the viewer: +90 faces down, a ceiling; −90 faces up, a floor), then roll about its normal — the head's convention. A wall at
 /// (0, 0, 0) is a front wall: its right edge runs along +x, its top along +y, and it faces the
 /// viewer (+z).
 pub fn wall_rotation(yaw_pitch_roll_degrees: [f64; 3]) -> DQuat {

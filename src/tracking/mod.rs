@@ -63,7 +63,7 @@ pub const DEFAULT_OSC_PORT: u16 = 7000;
 /// Everything that can go wrong in tracking, named by address or file.
 #[derive(Debug, thiserror::Error)]
 pub enum TrackingError {
-    #[error("cannot listen for OSC on {address}: {source}")]
+    #[error("cannot listen for tracking data (UDP) on {address}: {source}")]
     Bind {
         address: SocketAddr,
         source: std::io::Error,

@@ -59,6 +59,87 @@ impl QuaternionOrder {
     }
 }
 
+/// One message form the decoder accepts: the `[tracking]` key naming its address, its
+/// arguments, what it sets, and an example message's arguments (numbers with a `.` are floats,
+/// others integers, `"…"` strings). The reference page `docs/src/reference/osc.md` is this
+/// table; a test decodes every example.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OscForm {
+    /// The config key whose value is the address (`tracking.<key>`).
+    pub config_key: &'static str,
+    /// The arguments, as a user writes them.
+    pub arguments: &'static str,
+    /// What the message sets.
+    pub meaning: &'static str,
+    /// An example message's arguments.
+    pub example: &'static str,
+}
+
+/// Every message form the decoder accepts, in the order the reference lists them.
+pub const OSC_FORMS: &[OscForm] = &[
+    OscForm {
+        config_key: "position_address",
+        arguments: "`x y z`",
+        meaning: "head position (tracker frame and units)",
+        example: "0.1 1.7 -0.2",
+    },
+    OscForm {
+        config_key: "position_address",
+        arguments: "`x y z` `qa qb qc qd`",
+        meaning: "position and orientation (quaternion in `quaternion_order`)",
+        example: "0.1 1.7 -0.2 1.0 0.0 0.0 0.0",
+    },
+    OscForm {
+        config_key: "position_address",
+        arguments: "`x y z` `yaw pitch roll`",
+        meaning: "position and orientation in degrees (CAVE axes; + yaw turns left)",
+        example: "0.1 1.7 -0.2 30.0 0.0 0.0",
+    },
+    OscForm {
+        config_key: "orientation_address",
+        arguments: "`qa qb qc qd`",
+        meaning: "orientation: a quaternion in `quaternion_order` (`wxyz` or `xyzw`)",
+        example: "1.0 0.0 0.0 0.0",
+    },
+    OscForm {
+        config_key: "euler_address",
+        arguments: "`yaw pitch roll`",
+        meaning: "orientation in degrees (CAVE axes; + yaw turns left)",
+        example: "30.0 0.0 0.0",
+    },
+    OscForm {
+        config_key: "natnet_address",
+        arguments: "`<id> \"position\" x y z`",
+        meaning: "position of rigid body `<id>` (the head when it is `natnet_rigid_body`)",
+        example: "1 \"position\" 0.1 1.7 -0.2",
+    },
+    OscForm {
+        config_key: "natnet_address",
+        arguments: "`<id> \"quat\" qx qy qz qw`",
+        meaning: "orientation of rigid body `<id>`",
+        example: "1 \"quat\" 0.0 0.0 0.0 1.0",
+    },
+    OscForm {
+        config_key: "natnet_address",
+        arguments: "`<id> \"tracked\" 0|1`",
+        meaning: "whether the tracker sees rigid body `<id>`",
+        example: "1 \"tracked\" 1",
+    },
+];
+
+impl OscMapping {
+    /// The address this mapping gives the form whose address is the config key `key`.
+    pub fn address_of(&self, key: &str) -> Option<&str> {
+        match key {
+            "position_address" => Some(&self.position_address),
+            "orientation_address" => Some(&self.orientation_address),
+            "euler_address" => Some(&self.euler_address),
+            "natnet_address" => Some(&self.natnet_address),
+            _ => None,
+        }
+    }
+}
+
 /// Which OSC messages carry the head pose.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OscMapping {
@@ -481,6 +562,33 @@ pub mod encode {
 
 #[cfg(test)]
 mod tests {
+    /// Every form the reference documents decodes as a pose with its default address.
+    #[test]
+    fn every_documented_form_is_decoded() {
+        let mapping = OscMapping::default();
+        for form in OSC_FORMS {
+            let args = form
+                .example
+                .split_whitespace()
+                .map(|t| {
+                    if let Some(s) = t.strip_prefix('"') {
+                        OscType::String(s.trim_end_matches('"').to_string())
+                    } else if t.contains('.') {
+                        OscType::Float(t.parse().unwrap())
+                    } else {
+                        OscType::Int(t.parse().unwrap())
+                    }
+                })
+                .collect();
+            let address = mapping.address_of(form.config_key).unwrap();
+            let packet = rosc::encoder::encode(&encode::message(address, args)).unwrap();
+            assert!(
+                matches!(decode_packet(&packet, &mapping), PacketOutcome::Pose(_)),
+                "{form:?} is documented but not decoded"
+            );
+        }
+    }
+
     use super::encode::{bundle, bytes, doubles, floats, message, natnet, orientation};
     use super::*;
 
