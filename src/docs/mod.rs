@@ -124,5 +124,17 @@ pub(crate) fn cell(text: &str) -> String {
         .filter(|l| !l.is_empty())
         .collect::<Vec<_>>()
         .join(" ");
-    joined.replace('|', "\\|")
+    // `<` outside code spans would open an HTML tag in mdBook (overlay:<wall>).
+    let escaped: Vec<String> = joined
+        .split('`')
+        .enumerate()
+        .map(|(i, part)| {
+            if i % 2 == 0 {
+                part.replace('<', "&lt;")
+            } else {
+                part.to_string()
+            }
+        })
+        .collect();
+    escaped.join("`").replace('|', "\\|")
 }
