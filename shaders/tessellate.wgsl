@@ -5,8 +5,10 @@
 // deep; beyond that depth, each round cs_prepare sizes the next indirect dispatch and cs_split
 // splits every live triangle's edges by the criterion, SPLIT_LEVELS levels deep (what is left
 // to split to the other live list, finished triangles and those at the maximum depth to the
-// output, so the last round leaves nothing); cs_prefix and
-// cs_scatter sort the output by draw (material) and write one indirect draw per draw. No CPU read-back anywhere.
+// output, so the last round leaves nothing); cs_fallback refines the view again, shallower,
+// if the budget ran out (a second cs_init, indirect, with no workgroups otherwise); cs_prefix
+// and cs_scatter sort the output by draw (material) and write one indirect draw per draw. No
+// CPU read-back anywhere.
 
 // Keep in sync with `TessUniforms` in src/render/tessellator.rs (tests/gpu_layout.rs checks).
 struct TessUniforms {
@@ -53,13 +55,32 @@ const C_OUT: u32 = 0u;
 const C_BACK: u32 = 1u;
 const C_FRUSTUM: u32 = 2u;
 const C_OVERFLOW: u32 = 3u;
+// 0, or 1 + the maximum depth of the fallback refinement (see cs_fallback).
+const C_FALLBACK: u32 = 4u;
 // Triangles added by splits: a split happens only if they and every source triangle cs_init
 // may keep (tess.root_bound, reserved up front since cs_init splits before all are kept) still
-// fit the output, so running out of budget means "less refined", never "missing" (though a
-// triangle left unrefined next to a refined neighbour can show a T-junction: conformity holds
-// only within the budget).
-const C_BUDGET: u32 = 4u;
-const C_DRAWS: u32 = 5u; // per-draw counts from here
+// fit the output, so running out of budget means "less refined", never "missing". A refused
+// split can leave a T-junction, so a view whose budget ran out is refined again by cs_fallback.
+const C_BUDGET: u32 = 5u;
+// Source triangles cs_init kept for splitting, and those of them the criterion left whole (the
+// fallback's depth comes from them).
+const C_ROOTS: u32 = 6u;
+const C_FLAT_ROOTS: u32 = 7u;
+const C_DRAWS: u32 = 8u; // per-draw counts from here
+
+// Argument slots: [0..3) split dispatch, [3..6) scatter dispatch, [6..9) fallback refinement,
+// then 4 per draw (keep in sync with src/render/tessellator.rs).
+const ARGS_FALLBACK: u32 = 6u;
+const ARGS_DRAWS: u32 = 9u;
+
+// Deepest a fallback refinement goes: cs_init's own levels, so that it needs no split dispatch
+// (keep in sync with tess::FALLBACK_DEPTH_LIMIT; tests/gpu_layout.rs checks).
+const FALLBACK_DEPTH_LIMIT: u32 = 12u;
+
+// The refinement this invocation does (set by begin_refinement): the maximum depth, and the
+// triangles splits may add.
+var<private> depth_cap: u32;
+var<private> split_room: u32;
 
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<uniform> view: ViewUniforms;
@@ -348,6 +369,36 @@ fn outside_all(pts: array<vec4<f32>, 6>, near: f32, margin: f32) -> bool {
     return px || nx || py || ny;
 }
 
+// Whether this is the fallback refinement of a view whose budget ran out (see cs_fallback).
+fn in_fallback() -> bool {
+    return atomicLoad(&counters[C_FALLBACK]) != 0u;
+}
+
+// Sets this invocation's maximum depth and split room: the view's, or the fallback's (a depth
+// at which every kept triangle fits the output fully refined, so no split is ever refused:
+// the flat roots stay one triangle each, the others become at most 4^depth).
+fn begin_refinement() {
+    let fallback = atomicLoad(&counters[C_FALLBACK]);
+    if fallback != 0u {
+        depth_cap = fallback - 1u;
+        split_room = tess.output_capacity - min(atomicLoad(&counters[C_ROOTS]), tess.output_capacity);
+    } else {
+        depth_cap = tess.rounds;
+        split_room = tess.output_capacity - min(tess.root_bound, tess.output_capacity);
+    }
+}
+
+// The deepest depth d <= most at which `roots` triangles, each split into at most 4^d, fit
+// `capacity` (mirrors tess::fallback_depth; called with the roots the criterion splits and
+// the capacity the others leave).
+fn fallback_depth(roots: u32, capacity: u32, most: u32) -> u32 {
+    var d = 0u;
+    while d < most && 2u * (d + 1u) < 32u && roots <= (capacity >> (2u * (d + 1u))) {
+        d += 1u;
+    }
+    return d;
+}
+
 // Largest workgroup count of one dispatch dimension (keep in sync with
 // src/render/tessellator.rs).
 const MAX_GROUPS_X: u32 = 65535u;
@@ -358,6 +409,7 @@ fn cs_init(
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(local_invocation_index) lane: u32,
 ) {
+    begin_refinement();
     var t = id.x;
     if tess.cluster_mode != 0u {
         let c = group.y * MAX_GROUPS_X + group.x;
@@ -412,6 +464,9 @@ fn cs_init(
         emit(e);
         return;
     }
+    if !in_fallback() {
+        atomicAdd(&counters[C_ROOTS], 1u);
+    }
     // Split here, SPLIT_LEVELS levels deep, rather than in a dispatch of its own: what is
     // left goes to the live list (list A) for the split dispatches beyond that depth.
     split_tree(e);
@@ -456,7 +511,10 @@ fn cut_from_corner(p: array<vec3<f32>, 3>, a: vec2<u32>, m0: vec2<u32>, m1: vec2
 }
 
 // Splits `e` once by the criterion into `kids` and returns how many there are: 0 when no
-// edge splits or the budget refuses (then `e` is finished as it is and the overflow flagged).
+// edge splits, REFUSED when the budget refuses (then `e` is finished as it is and the overflow
+// flagged).
+const REFUSED: u32 = 0xffffffffu;
+
 fn split_once(e: TessEntry) -> u32 {
     let p = source_positions(e.source);
     let c = array<vec2<u32>, 3>(e.c0, e.c1, e.c2);
@@ -514,12 +572,11 @@ fn split_once(e: TessEntry) -> u32 {
         }
     }
     let extra = count - 1u;
-    let room = tess.output_capacity - min(tess.root_bound, tess.output_capacity);
-    if atomicAdd(&counters[C_BUDGET], extra) + extra > room {
+    if atomicAdd(&counters[C_BUDGET], extra) + extra > split_room {
         // Budget: draw this triangle unrefined and report it.
         atomicSub(&counters[C_BUDGET], extra);
         atomicStore(&counters[C_OVERFLOW], 1u);
-        return 0u;
+        return REFUSED;
     }
     return count;
 }
@@ -543,6 +600,7 @@ fn cs_split(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= n {
         return;
     }
+    begin_refinement();
     split_tree(live_in[id.x]);
 }
 
@@ -559,7 +617,7 @@ fn split_tree(root: TessEntry) {
         top -= 1u;
         let e = stack[top];
         let l = level[top];
-        if e.depth >= tess.rounds {
+        if e.depth >= depth_cap {
             // At the maximum depth: finished here, so the last split dispatch leaves nothing
             // for another dispatch to flush.
             emit(e);
@@ -570,7 +628,11 @@ fn split_tree(root: TessEntry) {
             continue;
         }
         let count = split_once(e);
-        if count == 0u {
+        if count == 0u || count == REFUSED {
+            if count == 0u && e.depth == 0u && !in_fallback() {
+                // Finished at depth 0 by the criterion alone: one triangle at any depth.
+                atomicAdd(&counters[C_FLAT_ROOTS], 1u);
+            }
             emit(e);
             continue;
         }
@@ -582,6 +644,41 @@ fn split_tree(root: TessEntry) {
     }
 }
 
+// One thread, after the split rounds: if the budget refused a split (or the live list ran
+// out), the view's output may hold T-junctions, since a refused triangle keeps an edge whole
+// that its neighbour halved. Then the view is refined again from scratch (args ARGS_FALLBACK
+// size a second cs_init), with the same criterion but a maximum depth at which every kept
+// triangle fits fully refined: no split is refused, neighbours agree on every edge, and the
+// picture is conforming, only less refined. Otherwise the second cs_init has no workgroups.
+@compute @workgroup_size(1)
+fn cs_fallback() {
+    args[ARGS_FALLBACK] = 0u;
+    args[ARGS_FALLBACK + 1u] = 1u;
+    args[ARGS_FALLBACK + 2u] = 1u;
+    if atomicLoad(&counters[C_OVERFLOW]) == 0u {
+        return;
+    }
+    let most = min(tess.rounds, FALLBACK_DEPTH_LIMIT);
+    let roots = atomicLoad(&counters[C_ROOTS]);
+    let flat = min(atomicLoad(&counters[C_FLAT_ROOTS]), roots);
+    let depth = fallback_depth(roots - flat, tess.output_capacity - min(flat, tess.output_capacity), most);
+    atomicStore(&counters[C_OUT], 0u);
+    atomicStore(&counters[C_BACK], 0u);
+    atomicStore(&counters[C_FRUSTUM], 0u);
+    atomicStore(&counters[C_BUDGET], 0u);
+    for (var d = 0u; d < tess.draws; d++) {
+        atomicStore(&counters[C_DRAWS + d], 0u);
+    }
+    atomicStore(&counters[C_FALLBACK], depth + 1u);
+    if tess.cluster_mode != 0u {
+        let n = tess.needy_count;
+        args[ARGS_FALLBACK] = min(n, MAX_GROUPS_X);
+        args[ARGS_FALLBACK + 1u] = (n + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
+    } else {
+        args[ARGS_FALLBACK] = (tess.source_triangles + WORKGROUP - 1u) / WORKGROUP;
+    }
+}
+
 // One thread: per-draw offsets (prefix sum), indirect draw arguments, and the scatter
 // dispatch size. Draw counts become cursors for cs_scatter.
 @compute @workgroup_size(1)
@@ -589,7 +686,7 @@ fn cs_prefix() {
     var offset = 0u;
     for (var d = 0u; d < tess.draws; d++) {
         let n = atomicLoad(&counters[C_DRAWS + d]);
-        let a = 6u + 4u * d;
+        let a = ARGS_DRAWS + 4u * d;
         args[a] = 3u * n;
         args[a + 1u] = 1u;
         args[a + 2u] = 3u * offset;

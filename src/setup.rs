@@ -237,25 +237,27 @@ pub fn render_frame(
 ) -> Result<Renderer, RenderError> {
     let mut renderer = renderer_for(gpu, config, scene, sky, config.settings.render.wireframe)?;
     renderer.render(&frame_params(config))?;
+    let tess = config.settings.tess();
     for (view, stats) in renderer
         .last_views()
         .iter()
         .zip(renderer.read_tess_stats()?)
     {
+        let wall = &config.cave.walls[view.wall].name;
+        let eye = view.eye.map_or("mono", |e| e.name());
         tracing::info!(
-            "tessellation {} {}: {} input, {} back-face culled, {} frustum culled, {} emitted{}",
-            config.cave.walls[view.wall].name,
-            view.eye.map_or("mono", |e| e.name()),
+            "tessellation {wall} {eye}: {} input, {} back-face culled, {} frustum culled, {} emitted",
             stats.input,
             stats.culled_backface,
             stats.culled_frustum,
             stats.emitted,
-            if stats.overflowed {
-                " (budget exceeded: less refined than asked)"
-            } else {
-                ""
-            }
         );
+        if let Some(note) = stats.shortfall(&tess, renderer.tess_capacity()) {
+            let view_name = view
+                .eye
+                .map_or("mono".to_string(), |e| format!("{} eye", e.name()));
+            tracing::warn!("tessellation, wall {wall}, {view_name}: {note}");
+        }
     }
     Ok(renderer)
 }
@@ -296,18 +298,17 @@ pub fn render_panorama(
         pano.size[0],
         pano.size[1]
     );
+    let tess = config.settings.tess();
     for stats in renderer.read_panorama_tess_stats()? {
         tracing::info!(
-            "panorama tessellation: {} input, {} back-face culled, {} emitted{}",
+            "panorama tessellation: {} input, {} back-face culled, {} emitted",
             stats.input,
             stats.culled_backface,
             stats.emitted,
-            if stats.overflowed {
-                " (budget exceeded: less refined than asked)"
-            } else {
-                ""
-            }
         );
+        if let Some(note) = stats.shortfall(&tess, renderer.tess_capacity()) {
+            tracing::warn!("panorama tessellation: {note}");
+        }
     }
     Ok(renderer)
 }

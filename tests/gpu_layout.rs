@@ -371,6 +371,29 @@ fn shared_constants_match_their_wgsl_twins() {
         Some(SPLIT_LEVELS),
         "split levels per dispatch: shaders/tessellate.wgsl and src/render/tessellator.rs"
     );
+    // The counter and argument slots the GPU writes and the renderer reads back, and the
+    // deepest fallback refinement (the CPU twin must fall back to the same depth).
+    use omnicave::render::tessellator as t;
+    for (name, rust) in [
+        ("C_OUT", t::C_OUT),
+        ("C_BACK", t::C_BACK),
+        ("C_FRUSTUM", t::C_FRUSTUM),
+        ("C_OVERFLOW", t::C_OVERFLOW),
+        ("C_FALLBACK", t::C_FALLBACK),
+        ("C_DRAWS", t::C_DRAWS),
+        ("ARGS_FALLBACK", t::ARGS_FALLBACK),
+        ("ARGS_DRAWS", t::ARGS_DRAWS),
+        (
+            "FALLBACK_DEPTH_LIMIT",
+            omnicave::tess::FALLBACK_DEPTH_LIMIT as usize,
+        ),
+    ] {
+        assert_eq!(
+            wgsl_u32_constant(&source, name).map(|v| v as usize),
+            Some(rust),
+            "{name}: shaders/tessellate.wgsl and src/render/tessellator.rs or src/tess/mod.rs"
+        );
+    }
     // The checker itself reads constants: one that is not there is not found.
     assert_eq!(wgsl_u32_constant(&source, "NO_SUCH_CONSTANT"), None);
     // The margin by which a two-edge split's other diagonal must be shorter: the GPU and the

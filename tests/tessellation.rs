@@ -10,6 +10,8 @@ use common::*;
 use glam::{Mat4, Vec3, Vec3Swizzles};
 use omnicave::cave::omni::OmniSettings;
 use omnicave::cave::{Cave, Head, RenderMode, ViewSetup, view_setups};
+use omnicave::render::tessellator::GpuTessEntry;
+use omnicave::render::{Renderer, WallImages};
 use omnicave::scene::build::grid;
 use omnicave::scene::{Scene, load_gltf};
 use omnicave::tess::error::{ErrorStats, drawn_point, edge_errors};
@@ -27,6 +29,19 @@ fn settings(criterion: Option<Criterion>) -> TessSettings {
     }
 }
 
+/// The GPU's output entries as the twin's triangles, sorted (the GPU's order is not fixed).
+fn sorted_triangles(entries: &[GpuTessEntry]) -> Vec<TessTriangle> {
+    let mut triangles: Vec<TessTriangle> = entries
+        .iter()
+        .map(|e| TessTriangle {
+            source: e.source,
+            corners: e.corners.map(|[b1, b2]| Bary { b1, b2 }),
+        })
+        .collect();
+    triangles.sort();
+    triangles
+}
+
 /// The CPU twin for every view of a frame: (view, output).
 fn cpu_views(
     cave: &Cave,
@@ -34,6 +49,18 @@ fn cpu_views(
     mode: RenderMode,
     scene: &Scene,
     tess: &TessSettings,
+) -> Vec<(ViewSetup, TessOutput)> {
+    cpu_views_in(cave, head, mode, scene, tess, CAPACITY)
+}
+
+/// [`cpu_views`] with an output budget of `capacity`.
+fn cpu_views_in(
+    cave: &Cave,
+    head: Vec3,
+    mode: RenderMode,
+    scene: &Scene,
+    tess: &TessSettings,
+    capacity: usize,
 ) -> Vec<(ViewSetup, TessOutput)> {
     let flags = double_sided_flags(scene);
     view_setups(cave, &Head::at(head), mode, 0.064)
@@ -45,7 +72,7 @@ fn cpu_views(
                 Mat4::IDENTITY,
                 Some(OmniSettings::default()),
             );
-            let out = tessellate(scene, &flags, &tv, tess, CAPACITY);
+            let out = tessellate(scene, &flags, &tv, tess, capacity);
             (v, out)
         })
         .collect()
@@ -135,14 +162,7 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
         );
         let cpu = cpu_views(&cave, head, RenderMode::OmniOnAxis, scene, &tess);
         let (_, last) = cpu.last().unwrap();
-        let mut gpu: Vec<TessTriangle> = entries
-            .iter()
-            .map(|e| TessTriangle {
-                source: e.source,
-                corners: e.corners.map(|[b1, b2]| Bary { b1, b2 }),
-            })
-            .collect();
-        gpu.sort();
+        let gpu = sorted_triangles(&entries);
         let mut expected = last.triangles.clone();
         expected.sort();
         let gpu_stats = stats.last().unwrap();
@@ -179,39 +199,120 @@ fn gpu_and_cpu_subdivision_agree_exactly() {
     }
 }
 
+/// Background pixels (cracks) in every wall's eye images of a scene that surrounds the viewer.
+fn background_pixels(images: &[WallImages]) -> usize {
+    images
+        .iter()
+        .flat_map(|wall| [&wall.left, &wall.right])
+        .map(|img| {
+            img.pixels()
+                .filter(|p| p[0] == 0 && p[1] == 0 && p[2] == 0)
+                .count()
+        })
+        .sum()
+}
+
+/// No crack at any criterion and depth, whether the output budget holds the refinement or not:
+/// the room surrounds the viewer, so every pixel of every wall and eye lies inside its
+/// silhouette and any background pixel is a crack (the tolerance is zero pixels). Every
+/// criterion runs in a budget of 2¹⁶ triangles a view, which `uniform:7` and deeper overflow;
+/// the adaptive ones also in budgets of 3 000 and 40, which they overflow; `uniform:10` and
+/// `uniform:16` also in the default budget (2²⁰), where they cracked before the fallback
+/// existed. A view whose budget ran out must say so, with the depth it fell back to, and its
+/// triangles must be exactly the CPU twin's (the fallback refuses no split: deterministic).
 #[test]
-fn a_closed_room_has_no_cracks_with_any_criterion() {
+fn a_closed_room_has_no_cracks_with_any_criterion_in_or_over_budget() {
     let cave = cave_at(480, 270);
     let scene = box_room();
-    for head in [Vec3::new(0.0, 1.7, 0.0), Vec3::new(1.2, 1.0, -1.3)] {
-        for criterion in [
-            None,
-            Some(Criterion::Uniform(4)),
-            Some(Criterion::Edge(12.0)),
-            Some(Criterion::Sphere(20.0)),
-            Some(Criterion::Error(0.5)),
-        ] {
-            let (images, _, _) = render_tess(
-                &cave,
-                Head::at(head),
-                RenderMode::OmniOnAxis,
-                &scene,
-                settings(criterion),
-                None,
-            );
-            // The room surrounds the viewer: every pixel of every wall lies inside its
-            // silhouette, so any background pixel is a crack.
-            let mut holes = 0;
-            for wall in &images {
-                for img in [&wall.left, &wall.right] {
-                    holes += img
-                        .pixels()
-                        .filter(|p| p[0] == 0 && p[1] == 0 && p[2] == 0)
-                        .count();
-                }
-            }
-            assert_eq!(holes, 0, "cracks with {criterion:?} from {head}");
+    let uniform = |n| Some(Criterion::Uniform(n));
+    let adaptive = [
+        Some(Criterion::Edge(12.0)),
+        Some(Criterion::Sphere(20.0)),
+        Some(Criterion::Error(0.5)),
+    ];
+    let mut medium = vec![None];
+    medium.extend((1..=16).map(uniform));
+    medium.extend(adaptive);
+    let budgets: [(u32, Vec<Option<Criterion>>); 4] = [
+        (CAPACITY as u32, vec![uniform(10), uniform(16)]),
+        (1 << 16, medium),
+        (3_000, adaptive.to_vec()),
+        (40, adaptive.to_vec()),
+    ];
+    let mut overflowed = Vec::new();
+    for (budget, criteria) in &budgets {
+        // One renderer per budget (building one costs more than a frame).
+        let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).unwrap();
+        renderer.set_tess_capacity(*budget);
+        renderer.set_scene(&scene).unwrap();
+        // The centre, 0.35 m from the front wall, and (outside the long medium sweep) 5 cm
+        // from the right wall, where the warp bends hardest.
+        let mut heads = vec![Vec3::new(0.0, 1.7, 0.0), Vec3::new(1.2, 1.0, -1.3)];
+        if *budget != 1 << 16 {
+            heads.push(Vec3::new(1.6, 1.6, 0.3));
         }
+        for head in heads {
+            for &criterion in criteria {
+                let mut tess = settings(criterion);
+                if let Some(Criterion::Uniform(n)) = criterion {
+                    tess.max_depth = n;
+                }
+                let mode = RenderMode::OmniOnAxis;
+                let frame = test_frame(&cave, Head::at(head), mode, OmniSettings::default(), tess);
+                renderer.render(&frame).unwrap();
+                let label = format!("{criterion:?} in a budget of {budget} from {head}");
+                let cracks = background_pixels(&renderer.read_images().unwrap());
+                assert_eq!(cracks, 0, "cracks with {label}");
+                let stats = renderer.read_tess_stats().unwrap();
+                for s in &stats {
+                    assert!(s.emitted <= *budget, "{label}: {} emitted", s.emitted);
+                    assert_eq!(s.overflowed, s.fallback_depth.is_some(), "{label}: {s:?}");
+                }
+                if stats.iter().any(|s| s.overflowed) {
+                    overflowed.push((criterion, *budget));
+                }
+                // The last view (the one whose triangles can be read) against the twin.
+                let Some(last) = stats.last() else { continue };
+                let Some(depth) = last.fallback_depth else {
+                    continue;
+                };
+                assert!(
+                    depth < tess.max_depth,
+                    "{label}: fell back to depth {depth}"
+                );
+                let note = last.shortfall(&tess, *budget).unwrap();
+                assert!(
+                    note.contains(&budget.to_string()) && note.contains(&format!("depth {depth}")),
+                    "{label}: {note}"
+                );
+                let cpu = cpu_views_in(&cave, head, mode, &scene, &tess, *budget as usize);
+                let (_, twin) = cpu.last().unwrap();
+                assert_eq!(twin.stats.fallback_depth, Some(depth), "{label}");
+                let gpu = sorted_triangles(&renderer.read_tess_entries().unwrap());
+                let mut expected = twin.triangles.clone();
+                expected.sort();
+                assert!(gpu == expected, "{label}: GPU and CPU fallbacks differ");
+            }
+        }
+    }
+    // The corners this test exists for were reached: every uniform depth the budget cannot
+    // hold, at both heads, and every adaptive criterion in the smallest budget.
+    for n in [10, 16] {
+        let hits = overflowed
+            .iter()
+            .filter(|c| **c == (uniform(n), CAPACITY as u32));
+        assert_eq!(
+            hits.count(),
+            3,
+            "uniform:{n} in the default budget: {overflowed:?}"
+        );
+    }
+    for n in 7..=16 {
+        let hits = overflowed.iter().filter(|c| **c == (uniform(n), 1 << 16));
+        assert_eq!(hits.count(), 2, "uniform:{n} in 2^16: {overflowed:?}");
+    }
+    for c in adaptive {
+        assert!(overflowed.contains(&(c, 40)), "{c:?} in 40: {overflowed:?}");
     }
 }
 

@@ -578,10 +578,24 @@ impl App {
         let Some(gfx) = self.gfx.as_mut() else {
             return;
         };
+        let capacity = gfx.renderer.tess_capacity();
         let readback = gfx.renderer.poll_readbacks();
         let gpu_ms = readback.gpu_ms;
         // Reuses the panel's buffers: nothing grows per frame.
         self.info.breakdown.clone_from(&readback.breakdown);
+        // Warn once when a view's budget runs out (formatted on that change only).
+        let overflowed = readback.tess.iter().find(|t| t.overflowed);
+        match (overflowed, &self.info.tess_shortfall) {
+            (Some(stats), None) => {
+                let tess = self.state.settings.tess();
+                if let Some(note) = stats.shortfall(&tess, capacity) {
+                    tracing::warn!("tessellation: {note}");
+                    self.info.tess_shortfall = Some(note);
+                }
+            }
+            (None, Some(_)) if !readback.tess.is_empty() => self.info.tess_shortfall = None,
+            _ => {}
+        }
         if !readback.tess.is_empty() {
             self.info.triangles_drawn = readback
                 .tess

@@ -27,6 +27,8 @@ pub struct PanelInfo {
     /// Per wall (in wall order): triangles the tessellator emitted for both eyes, from the
     /// newest frame read back (empty while the frame is not tessellated).
     pub tess_emitted: Vec<u32>,
+    /// Why the newest frame read back is less refined than asked (its budget ran out).
+    pub tess_shortfall: Option<String>,
     /// Whether the scene has a sky loaded.
     pub has_sky: bool,
     /// Whether this device can tessellate.
@@ -250,6 +252,9 @@ fn stats_section(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
             ui.end_row();
         }
     });
+    if let Some(note) = &info.tess_shortfall {
+        ui.colored_label(egui::Color32::YELLOW, format!("Tessellation: {note}"));
+    }
 }
 
 /// Settings whose slider takes its range from the settings model.

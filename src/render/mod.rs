@@ -483,6 +483,11 @@ impl Renderer {
         self.sky_pass.has_cube()
     }
 
+    /// The tessellation output budget (triangles per view).
+    pub fn tess_capacity(&self) -> u32 {
+        self.tess_capacity
+    }
+
     /// Sets the tessellation output budget (triangles per view); takes effect on the next
     /// tessellated frame.
     pub fn set_tess_capacity(&mut self, capacity: u32) {

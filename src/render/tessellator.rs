@@ -13,7 +13,7 @@ use super::frame_timer::TessMarks;
 use super::shaders;
 use crate::cave::{ViewSetup, Wall};
 use crate::tess::criteria::wall_is_vertical;
-use crate::tess::{MAX_DEPTH_LIMIT, TessSettings, TessStats};
+use crate::tess::{FALLBACK_DEPTH_LIMIT, MAX_DEPTH_LIMIT, TessSettings, TessStats};
 
 /// Output entry. Keep in sync with `TessEntry` in shaders/common.wgsl.
 #[repr(C)]
@@ -139,6 +139,7 @@ pub fn stats_from_bytes(bytes: &[u8], input: u32, capacity: u32, out: &mut Vec<T
             culled_frustum: word(C_FRUSTUM),
             emitted: word(C_OUT).min(capacity),
             overflowed: word(C_OVERFLOW) != 0,
+            fallback_depth: word(C_FALLBACK).checked_sub(1),
         });
     }
 }
@@ -161,11 +162,12 @@ pub fn split_dispatches(rounds: u32) -> u32 {
 }
 
 /// Compute dispatches [`TessBuffers::encode`] records for one view: culling (with the first
-/// `SPLIT_LEVELS` levels of splitting), a prepare and a split per further split dispatch, then
-/// prefix and scatter (the last split finishes every triangle at the maximum depth itself: no
-/// flush dispatch).
+/// `SPLIT_LEVELS` levels of splitting), a prepare and a split per further split dispatch, the
+/// fallback check and its refinement (no workgroups unless the budget ran out), then prefix
+/// and scatter (the last split finishes every triangle at the maximum depth itself: no flush
+/// dispatch).
 pub fn dispatches_per_view(rounds: u32) -> usize {
-    1 + 2 * split_dispatches(rounds) as usize + 2
+    1 + 2 * split_dispatches(rounds) as usize + 2 + 2
 }
 
 /// Number of split levels (the maximum depth) a setting asks for.
@@ -177,17 +179,30 @@ pub fn rounds(settings: &TessSettings) -> u32 {
     }
 }
 
-/// Counter slots (keep in sync with shaders/tessellate.wgsl).
-const C_OUT: usize = 0;
-const C_BACK: usize = 1;
-const C_FRUSTUM: usize = 2;
-const C_OVERFLOW: usize = 3;
-// Slot 4 holds the triangles in flight (the budget); it never leaves the GPU.
-const C_DRAWS: usize = 5;
-/// Argument slots: 3 split dispatch + 3 scatter dispatch, then 4 per draw.
-const ARGS_DRAWS: usize = 6;
-/// Bytes of per-view statistics copied out of the counters (C_OUT..=C_OVERFLOW).
-pub const STATS_BYTES: u64 = 16;
+/// Counter slots (keep in sync with shaders/tessellate.wgsl; tests/gpu_layout.rs checks).
+/// Triangles emitted.
+pub const C_OUT: usize = 0;
+/// Source triangles culled as back faces.
+pub const C_BACK: usize = 1;
+/// Source triangles culled outside the view.
+pub const C_FRUSTUM: usize = 2;
+/// 1 when the output budget ran out.
+pub const C_OVERFLOW: usize = 3;
+/// 0, or 1 + the maximum depth of the view's fallback refinement.
+pub const C_FALLBACK: usize = 4;
+// Slots 5, 6 and 7 hold the triangles added by splits (the budget), the source triangles kept
+// for splitting and those of them left whole; they never leave the GPU.
+/// Per-draw triangle counts from here.
+pub const C_DRAWS: usize = 8;
+/// Argument slots: 3 split dispatch, 3 scatter dispatch, 3 fallback refinement, then 4 per draw.
+/// The fallback refinement's dispatch.
+pub const ARGS_FALLBACK: usize = 6;
+/// The first draw's indirect arguments.
+pub const ARGS_DRAWS: usize = 9;
+/// Bytes of per-view statistics copied out of the counters (C_OUT..=C_FALLBACK).
+pub const STATS_BYTES: u64 = 20;
+// The fallback refinement runs in one culling dispatch: it must not need a split dispatch.
+const _: () = assert!(FALLBACK_DEPTH_LIMIT <= SPLIT_LEVELS);
 const WORKGROUP: u32 = 64;
 /// Largest workgroup count of one dispatch dimension (keep in sync with
 /// shaders/tessellate.wgsl).
@@ -217,6 +232,7 @@ pub struct Tessellator {
     init: wgpu::ComputePipeline,
     prepare: wgpu::ComputePipeline,
     split: wgpu::ComputePipeline,
+    fallback: wgpu::ComputePipeline,
     prefix: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
     /// Layout for drawing tessellated output (group 2 of the scene pass).
@@ -264,7 +280,7 @@ impl Tessellator {
     }
 
     /// Compute pipelines built by [`Tessellator::new`] (once per renderer).
-    pub const PIPELINES: u64 = 6;
+    pub const PIPELINES: u64 = 7;
 
     pub fn new(device: &wgpu::Device) -> Self {
         let c = wgpu::ShaderStages::COMPUTE;
@@ -328,6 +344,7 @@ impl Tessellator {
             init: pipeline("cs_init", &work_layout),
             prepare: pipeline("cs_prepare", &args_pipeline_layout),
             split: pipeline("cs_split", &work_layout),
+            fallback: pipeline("cs_fallback", &args_pipeline_layout),
             prefix: pipeline("cs_prefix", &args_pipeline_layout),
             scatter: pipeline("cs_scatter", &work_layout),
             shared_layout,
@@ -697,6 +714,13 @@ impl TessBuffers {
                 pass.set_pipeline(&tess.split);
                 pass.dispatch_workgroups_indirect(&self.args, 0);
             }
+            // A view whose budget ran out is refined again, shallower but conforming (see
+            // cs_fallback); otherwise the second culling dispatch has no workgroups.
+            pass.set_bind_group(1, &self.lists_ba, &[]);
+            pass.set_pipeline(&tess.fallback);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&tess.init);
+            pass.dispatch_workgroups_indirect(&self.args, 4 * ARGS_FALLBACK as u64);
             if let Some(m) = inside {
                 pass.write_timestamp(m.queries, m.split);
             }

@@ -27,6 +27,23 @@ pub const BARY_ONE: u32 = 1 << 16;
 /// Deepest subdivision supported (2^16 segments per edge).
 pub const MAX_DEPTH_LIMIT: u32 = 16;
 
+/// Deepest a fallback refinement goes (see [`fallback_depth`]). Keep in sync with
+/// shaders/tessellate.wgsl: there it is the culling dispatch's own levels, so the fallback
+/// needs no split dispatch.
+pub const FALLBACK_DEPTH_LIMIT: u32 = 12;
+
+/// The maximum depth of the fallback refinement of a view whose output budget ran out: the
+/// deepest `d ≤ most` at which `roots` kept source triangles, each split into at most 4^d
+/// triangles, still fit `capacity`. Refined to that depth, no split is ever refused, so
+/// neighbours agree on every shared edge (mirrors `fallback_depth` in shaders/tessellate.wgsl).
+pub fn fallback_depth(roots: usize, capacity: usize, most: u32) -> u32 {
+    let mut d = 0;
+    while d < most && 2 * (d + 1) < 32 && roots <= capacity >> (2 * (d + 1)) {
+        d += 1;
+    }
+    d
+}
+
 /// A point of a source triangle: weights of its vertices 1 and 2 (vertex 0 gets the rest), in
 /// units of 1/BARY_ONE.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -73,8 +90,41 @@ pub struct TessStats {
     pub culled_backface: u32,
     pub culled_frustum: u32,
     pub emitted: u32,
-    /// The output budget ran out: some triangles were drawn less refined than asked.
+    /// The output budget ran out at the asked refinement.
     pub overflowed: bool,
+    /// Then the view was refined again with this maximum depth instead (see
+    /// [`fallback_depth`]): less refined than asked, but conforming.
+    pub fallback_depth: Option<u32>,
+}
+
+impl TessStats {
+    /// What a user must know when the output budget ran out (`None` when it did not): what
+    /// was asked, what was drawn instead, and what to change.
+    pub fn shortfall(&self, settings: &TessSettings, capacity: u32) -> Option<String> {
+        if !self.overflowed {
+            return None;
+        }
+        let mut asked = settings.max_depth.min(MAX_DEPTH_LIMIT);
+        if let Some(Criterion::Uniform(n)) = settings.criterion {
+            asked = asked.min(n);
+        }
+        let criterion = settings
+            .criterion
+            .map_or_else(|| "none".to_string(), |c| c.to_string());
+        Some(match self.fallback_depth {
+            Some(depth) => format!(
+                "the output budget of {capacity} triangles a view cannot hold {criterion} at \
+                 depth {asked}: refined to depth {depth} instead ({} triangles), less than \
+                 asked but crack-free; coarsen the criterion or lower max_depth",
+                self.emitted
+            ),
+            None => format!(
+                "the output budget of {capacity} triangles a view cannot hold even the \
+                 {} source triangles to refine: some are not drawn; coarsen the scene",
+                self.input
+            ),
+        })
+    }
 }
 
 /// Everything about one wall/eye view the criteria and culling need.
@@ -280,6 +330,8 @@ pub fn cluster_verdicts(
 /// `double_sided[t]` says whether source triangle `t` may be seen from behind (`None`: not
 /// drawn at all; see [`double_sided_flags`]); `capacity`
 /// bounds the live triangles of a round and, separately, the output, as the GPU's buffers do.
+/// If the budget runs out, the view is refined again to [`fallback_depth`] (as cs_fallback
+/// does): less refined than asked, never cracked.
 pub fn tessellate(
     scene: &Scene,
     double_sided: &[Option<bool>],
@@ -287,41 +339,94 @@ pub fn tessellate(
     settings: &TessSettings,
     capacity: usize,
 ) -> TessOutput {
+    let verdicts = cluster_verdicts(scene, tv, settings);
+    let (out, roots) =
+        tessellate_once(scene, double_sided, tv, settings, capacity, &verdicts, None);
+    if !out.stats.overflowed || settings.criterion.is_none() {
+        return out;
+    }
+    let most = settings
+        .max_depth
+        .min(MAX_DEPTH_LIMIT)
+        .min(FALLBACK_DEPTH_LIMIT);
+    // Roots the criterion left whole stay one triangle at any depth; the others share the rest.
+    let flat = roots.flat.min(roots.kept);
+    let depth = fallback_depth(roots.kept - flat, capacity.saturating_sub(flat), most);
+    let fallback = TessSettings {
+        max_depth: depth,
+        ..*settings
+    };
+    let (mut out, _) = tessellate_once(
+        scene,
+        double_sided,
+        tv,
+        &fallback,
+        capacity,
+        &verdicts,
+        Some(roots.kept),
+    );
+    out.stats.overflowed = true;
+    out.stats.fallback_depth = Some(depth);
+    out
+}
+
+/// Source triangles a refinement kept for splitting, and those of them the criterion left
+/// whole at depth 0 (mirrors the GPU's `C_ROOTS` and `C_FLAT_ROOTS`).
+#[derive(Debug, Clone, Copy, Default)]
+struct Roots {
+    kept: usize,
+    flat: usize,
+}
+
+/// One refinement of a view (see [`tessellate`]); returns it and its roots.
+/// `fallback_roots`: in a fallback refinement, the triangles the first one kept, whose output
+/// slots are the only ones reserved.
+fn tessellate_once(
+    scene: &Scene,
+    double_sided: &[Option<bool>],
+    tv: &TessView<'_>,
+    settings: &TessSettings,
+    capacity: usize,
+    verdicts: &[clusters::Verdict],
+    fallback_roots: Option<usize>,
+) -> (TessOutput, Roots) {
     let mut run = TessRun {
         scene,
         tv,
         settings,
         capacity,
         out: TessOutput::default(),
+        flat_roots: 0,
     };
     let tri_count = scene.triangle_count();
     run.out.stats.input = tri_count as u32;
-    let verdicts = cluster_verdicts(scene, tv, settings);
     // Triangles added by splitting; a split happens only if they and every source triangle
     // that may be kept (reserved up front, as cs_init splits before every triangle is kept:
     // the GPU's `root_bound`, there every source triangle outside cluster mode) fit
     // `capacity`, so every triangle gets an output slot and an exhausted budget means less
-    // refinement, not missing triangles (a triangle left unrefined beside a refined neighbour
-    // can show a T-junction: conformity holds only within the budget).
-    let root_bound = (0..tri_count)
-        .filter(|&t| {
-            matches!(double_sided.get(t), Some(Some(_)))
-                && verdicts.get(t) == Some(&clusters::Verdict::Needy)
-        })
-        .count();
+    // refinement, not missing triangles.
+    let root_bound = fallback_roots.unwrap_or_else(|| {
+        (0..tri_count)
+            .filter(|&t| {
+                matches!(double_sided.get(t), Some(Some(_)))
+                    && verdicts.get(t) == Some(&clusters::Verdict::Needy)
+            })
+            .count()
+    });
     let room = capacity.saturating_sub(root_bound);
-    let live = run.seed(double_sided, &verdicts);
+    let (live, kept) = run.seed(double_sided, verdicts);
 
     let Some(criterion) = settings.criterion else {
         run.out.stats.emitted = run.out.triangles.len() as u32;
-        return run.out;
+        return (run.out, Roots { kept, flat: 0 });
     };
     let live = run.refine(live, &criterion, room);
     for tri in live {
         run.emit(tri);
     }
     run.out.stats.emitted = run.out.triangles.len() as u32;
-    run.out
+    let flat = run.flat_roots;
+    (run.out, Roots { kept, flat })
 }
 
 /// The CPU tessellator's state for one view: its inputs and the output so far.
@@ -331,6 +436,8 @@ struct TessRun<'a> {
     settings: &'a TessSettings,
     capacity: usize,
     out: TessOutput,
+    /// Source triangles the criterion left whole at depth 0.
+    flat_roots: usize,
 }
 
 impl TessRun<'_> {
@@ -347,15 +454,16 @@ impl TessRun<'_> {
 
     /// The first pass over the source triangles (mirrors cs_init): leaves out the hidden,
     /// sets aside the fine, counts the culled, emits the rest without a criterion and
-    /// returns the triangles to refine.
+    /// returns the triangles to refine and how many source triangles it kept for splitting.
     fn seed(
         &mut self,
         double_sided: &[Option<bool>],
         verdicts: &[clusters::Verdict],
-    ) -> Vec<TessTriangle> {
+    ) -> (Vec<TessTriangle>, usize) {
         let settings = self.settings;
         let root = [Bary::V0, Bary::V1, Bary::V2];
         let mut live: Vec<TessTriangle> = Vec::new();
+        let mut roots = 0;
         for t in 0..self.scene.triangle_count() {
             // Triangles without a (valid) draw are never drawn (mirrors cs_init).
             let Some(&Some(double_sided_t)) = double_sided.get(t) else {
@@ -389,14 +497,17 @@ impl TessRun<'_> {
             };
             if settings.criterion.is_none() || settings.max_depth == 0 {
                 self.emit(tri);
-            } else if live.len() < self.capacity {
+                continue;
+            }
+            roots += 1;
+            if live.len() < self.capacity {
                 live.push(tri);
             } else {
                 self.out.stats.overflowed = true;
                 self.emit(tri);
             }
         }
-        live
+        (live, roots)
     }
 
     /// The culling tests on a source triangle (scene-space corners `p`): whether it faces
@@ -443,6 +554,9 @@ impl TessRun<'_> {
                 });
                 let n_split = split.iter().filter(|&&s| s).count();
                 if n_split == 0 {
+                    if depth == 0 {
+                        self.flat_roots += 1;
+                    }
                     self.emit(tri);
                     continue;
                 }
@@ -575,6 +689,29 @@ pub fn double_sided_flags(scene: &Scene) -> Vec<Option<bool>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fallback_depth_is_the_deepest_that_fits() {
+        // (roots, capacity, most) → depth, worked by hand: 4^d · roots ≤ capacity.
+        for (roots, capacity, most, depth) in [
+            (1, 16, 12, 2),
+            (1, 15, 12, 1),
+            (3, 48, 12, 2),
+            (3, 47, 12, 1),
+            (5, 4, 12, 0),
+            (1, 1 << 20, 12, 10),
+            (12, 1 << 20, 12, 8),
+            (1, usize::MAX, 12, 12),
+            (1, usize::MAX, 3, 3),
+            (0, 0, 7, 7),
+        ] {
+            assert_eq!(
+                fallback_depth(roots, capacity, most),
+                depth,
+                "{roots} roots in {capacity}, at most {most}"
+            );
+        }
+    }
 
     #[test]
     fn children_cover_the_parent_with_matching_winding() {
