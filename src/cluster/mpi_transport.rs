@@ -25,6 +25,37 @@ const TAG: c_int = 7901;
 const RECEIVE_LIMIT: std::time::Duration = std::time::Duration::from_secs(10);
 /// How long dropping the transport waits for its sends to complete before finalizing.
 const DRAIN_LIMIT: std::time::Duration = std::time::Duration::from_secs(2);
+/// Between two tests of a pending request: the render thread sleeps rather than spins (a
+/// settings message of a few MiB arrives in a few of these).
+const TEST_INTERVAL: std::time::Duration = std::time::Duration::from_micros(200);
+
+/// How waiting for a request ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Waited {
+    Done,
+    /// MPI_Test returned this error code: the request may still be pending.
+    Failed(c_int),
+    /// Not complete by the deadline: the request is still pending.
+    TimedOut,
+}
+
+/// Tests a request (`test` gives MPI_Test's code and flag) until it completes, fails or
+/// `limit` passes, sleeping [`TEST_INTERVAL`] between tests. After `Failed` or `TimedOut`
+/// MPI may still write the request's buffer: the caller must give it up.
+fn wait_for_request(limit: std::time::Duration, mut test: impl FnMut() -> (c_int, bool)) -> Waited {
+    let start = std::time::Instant::now();
+    loop {
+        match test() {
+            (0, true) => return Waited::Done,
+            (0, false) => {}
+            (code, _) => return Waited::Failed(code),
+        }
+        if start.elapsed() > limit {
+            return Waited::TimedOut;
+        }
+        std::thread::sleep(TEST_INTERVAL);
+    }
+}
 
 /// A send in flight: MPI reads `bytes` until `request` completes.
 struct InFlight {
@@ -68,9 +99,16 @@ impl MpiTransport {
     pub fn init() -> Result<Self, ClusterError> {
         // Only the main thread calls MPI, but the process has other threads (tracking,
         // gamepads): "funneled" is the level that says so.
-        let (universe, _) =
-            mpi::initialize_with_threading(mpi::environment::Threading::Funneled)
-                .ok_or_else(|| ClusterError::Mpi("MPI was already initialised".into()))?;
+        use mpi::environment::Threading;
+        let (universe, provided) = mpi::initialize_with_threading(Threading::Funneled)
+            .ok_or_else(|| ClusterError::Mpi("MPI was already initialised".into()))?;
+        if provided == Threading::Single {
+            return Err(ClusterError::Mpi(
+                "this MPI library provides only MPI_THREAD_SINGLE; omnicave has other threads \
+                 (tracking, gamepads) and needs MPI_THREAD_FUNNELED or more"
+                    .into(),
+            ));
+        }
         let world = universe.world();
         let (rank, size) = (world.rank() as usize, world.size() as usize);
         // SAFETY: MPI is initialised; both handles are MPI's predefined constants.
@@ -214,22 +252,38 @@ impl Transport for MpiTransport {
         let mut request = unsafe { request.assume_init() };
         // A large message (the settings) may still be arriving: wait for it, bounded, so a
         // sender that dies half-way cannot block this process.
-        let start = std::time::Instant::now();
-        loop {
+        let waited = wait_for_request(RECEIVE_LIMIT, || {
             let mut done: c_int = 0;
-            // SAFETY: the pending request from MPI_Imrecv above.
+            // SAFETY: the pending request from MPI_Imrecv above, tested until it completes.
             let code = unsafe { ffi::MPI_Test(&mut request, &mut done, ffi::RSMPI_STATUS_IGNORE) };
-            if code != 0 && len > capped {
+            (code, done != 0)
+        });
+        // SAFETY: comparing two request handles reads neither's buffer.
+        let pending = request != unsafe { ffi::RSMPI_REQUEST_NULL };
+        match waited {
+            Waited::Done => {}
+            // Completed with an error (MPI set the handle to null): the buffer is ours again.
+            Waited::Failed(_) if !pending && len > capped => {
                 return Err(ClusterError::Malformed(format!(
                     "a message of {len} bytes from rank {from}, over the {MAX_MESSAGE_BYTES}-byte budget"
                 )));
             }
-            check(code, "MPI_Test (receive)")?;
-            if done != 0 {
-                break;
+            Waited::Failed(code) if !pending => {
+                return Err(ClusterError::Mpi(format!(
+                    "receiving {len} bytes from rank {from}: MPI_Test failed with MPI error code {code}"
+                )));
             }
-            if start.elapsed() > RECEIVE_LIMIT {
-                // MPI may still write into the buffer: give it up for good.
+            // Still pending: MPI may still write into the buffer. Give it up for good, and
+            // the peer with it (its next message could not be told from this one's rest).
+            Waited::Failed(code) => {
+                std::mem::forget(std::mem::take(into));
+                self.abandon(from);
+                return Err(ClusterError::Mpi(format!(
+                    "receiving {len} bytes from rank {from}: MPI_Test failed with MPI error code \
+                     {code} and the receive is still pending; rank {from} is given up"
+                )));
+            }
+            Waited::TimedOut => {
                 std::mem::forget(std::mem::take(into));
                 self.abandon(from);
                 return Err(ClusterError::Mpi(format!(
@@ -237,7 +291,6 @@ impl Transport for MpiTransport {
                     RECEIVE_LIMIT.as_secs()
                 )));
             }
-            std::thread::yield_now();
         }
         if len > capped {
             return Err(ClusterError::Malformed(format!(
@@ -278,7 +331,7 @@ impl Drop for MpiTransport {
             if start.elapsed() > DRAIN_LIMIT {
                 self.finalize = false;
             }
-            std::thread::yield_now();
+            std::thread::sleep(TEST_INTERVAL);
         }
         if !self.finalize {
             // Sends that never completed: MPI may still read their buffers.
@@ -292,5 +345,38 @@ impl Drop for MpiTransport {
                 std::mem::forget(universe);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    #[test]
+    fn waiting_for_a_request_ends_done_failed_or_timed_out() {
+        let mut calls = 0;
+        let done = wait_for_request(Duration::from_secs(1), || {
+            calls += 1;
+            (0, calls == 3)
+        });
+        assert_eq!((done, calls), (Waited::Done, 3));
+        // An error code ends the wait at once, whatever the flag says.
+        assert_eq!(
+            wait_for_request(Duration::from_secs(1), || (15, false)),
+            Waited::Failed(15)
+        );
+        // Never complete: out by the deadline, having slept between tests (not spun).
+        let mut tests = 0;
+        let start = std::time::Instant::now();
+        let waited = wait_for_request(Duration::from_millis(20), || {
+            tests += 1;
+            (0, false)
+        });
+        assert_eq!(waited, Waited::TimedOut);
+        assert!(start.elapsed() >= Duration::from_millis(20));
+        // 20 ms at one test per 200 µs sleep is at most ~100 tests; a spin would make
+        // hundreds of thousands.
+        assert!(tests <= 150, "{tests} tests in 20 ms");
     }
 }
