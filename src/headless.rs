@@ -190,10 +190,27 @@ pub fn render_to_dir(
     crate::setup::place_at_camera(&mut config.settings, &scene)?;
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
-    if overrides.panorama {
-        return render_panorama_to_dir(&gpu, &config, &scene, sky.as_ref(), out_dir, formats);
-    }
-    let mut renderer = render_frame(&gpu, &config, &scene, sky.as_ref())?;
+    gpu.apply_test_fault_hook();
+    let written = if overrides.panorama {
+        render_panorama_to_dir(&gpu, &config, &scene, sky.as_ref(), out_dir, formats)
+    } else {
+        render_walls_to_dir(&gpu, &config, &scene, sky.as_ref(), out_dir, formats)
+    };
+    // A device fault makes whatever was written untrustworthy, and explains a failure.
+    gpu.check()?;
+    written
+}
+
+/// Writes each wall's eye images, the anaglyph and each of `formats`.
+fn render_walls_to_dir(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+    out_dir: &Path,
+    formats: &[StereoFormat],
+) -> Result<Written, HeadlessError> {
+    let mut renderer = render_frame(gpu, config, scene, sky)?;
     let images = renderer.read_images()?;
     let mut written = write_images(&images, out_dir)?;
     // Each wall in each asked-for stereo output format, composed on the GPU as a window would.

@@ -3,8 +3,9 @@
 //! read as a value and shown cut; enum flags list their values and suggest the nearest one;
 //! shell completions and the config's JSON schema are printed; the bundled configs load and
 //! validate against the committed schema; names round-trip; config errors name the line;
-//! `render` writes every wall and eye in each format asked for; and a batch command stopped
-//! by SIGTERM exits with 143.
+//! `render` writes every wall and eye in each format asked for; a GPU validation error or a
+//! lost device ends a render with a message, not a panic; and a batch command stopped by
+//! SIGTERM exits with 143.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -602,6 +603,33 @@ fn render_command_writes_every_wall_and_eye() {
     }
     let unfolded = image::open(out.join("unfolded-anaglyph.png")).unwrap();
     assert_eq!((unfolded.width(), unfolded.height()), (384, 72));
+}
+
+/// The test hook `OMNICAVE_TEST_GPU_FAULT` makes the device report a real validation error,
+/// or destroys it as a driver reset would: the render ends with exit status 1 and a message
+/// saying so, not a panic (101).
+#[test]
+fn a_gpu_fault_ends_a_render_with_a_message_not_a_panic() {
+    for (fault, says) in [
+        ("validation", "GPU validation error"),
+        ("lost", "the GPU device was lost"),
+    ] {
+        let out = tmp(&format!("gpu-fault-{fault}"));
+        let result = Command::new(env!("CARGO_BIN_EXE_omnicave"))
+            .args(["render", "--config", "config/cave.toml", "--mode", "stereo"])
+            .args(["--size", "32x18", "--out", out.to_str().unwrap()])
+            .current_dir(repo("."))
+            .env("OMNICAVE_TEST_GPU_FAULT", fault)
+            .env("NO_COLOR", "1")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{fault}:\n{stderr}");
+        assert!(
+            stderr.contains("the GPU stopped working") && stderr.contains(says),
+            "{fault}:\n{stderr}"
+        );
+    }
 }
 
 /// `--ipd -1` is a value (not an unknown flag `-1`), refused with its range; a 100 KB value is

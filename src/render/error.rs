@@ -9,6 +9,8 @@ pub enum RenderError {
     NoAdapter(String),
     #[error("cannot create the GPU device: {0}")]
     Device(String),
+    #[error("the GPU stopped working: {0}")]
+    GpuFault(String),
     #[error("reading images back from the GPU failed: {0}")]
     Readback(String),
     #[error("MSAA ×{0} is not supported here (use 1 or 4)")]

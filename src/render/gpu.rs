@@ -1,6 +1,37 @@
-//! The one wgpu device: adapter selection and the optional features the renderer uses.
+//! The one wgpu device: adapter selection, the optional features the renderer uses, and the
+//! device's fatal problems (an uncaptured validation error, a lost device) caught, not panicked.
+
+use std::sync::{Arc, Mutex};
 
 use super::error::RenderError;
+
+/// The first fatal problem the device reported (wgpu's default is to panic on an uncaptured
+/// error): the render loops check it each frame and stop with its message.
+#[derive(Debug, Default)]
+pub struct GpuFault(Mutex<Option<String>>);
+
+impl GpuFault {
+    /// Keeps the first problem (the later ones follow from it) and logs each.
+    pub fn record(&self, problem: String) {
+        tracing::error!("{problem}");
+        self.keep(problem);
+    }
+
+    fn keep(&self, problem: String) {
+        let mut slot = self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        slot.get_or_insert(problem);
+    }
+
+    pub fn get(&self) -> Option<String> {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+}
 
 /// Instance, adapter, device and queue, plus what the adapter can do.
 #[derive(Debug, Clone)]
@@ -15,6 +46,8 @@ pub struct Gpu {
     pub timestamps_supported: bool,
     /// GPU timestamps inside passes (between dispatches and draws): the per-stage breakdown.
     pub timestamps_inside_passes: bool,
+    /// The device's first fatal problem, if any ([`Gpu::check`]).
+    pub fault: Arc<GpuFault>,
 }
 
 /// Storage buffers the compute tessellator binds in one stage.
@@ -85,6 +118,32 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| RenderError::Device(e.to_string()))?;
+        let fault = Arc::new(GpuFault::default());
+        let on_error = fault.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            // wgpu's Display says only "Validation Error"; the description says what and where.
+            let problem = match &e {
+                wgpu::Error::Validation { description, .. } => {
+                    format!("GPU validation error: {}", description.trim())
+                }
+                wgpu::Error::Internal { description, .. } => {
+                    format!("GPU internal error: {}", description.trim())
+                }
+                other => format!("GPU error: {other}"),
+            };
+            on_error.record(problem);
+        }));
+        let on_lost = fault.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            let problem = format!("the GPU device was lost ({reason:?}): {message}");
+            // Destroyed: `Device::destroy`, or the device dropped at the end of a run, when
+            // nothing checks any more; kept for a check, logged only when unexpected.
+            if reason == wgpu::DeviceLostReason::Destroyed {
+                on_lost.keep(problem);
+            } else {
+                on_lost.record(problem);
+            }
+        });
         let info = adapter.get_info();
         tracing::info!(
             "GPU: {} ({:?}, {:?}, driver {})",
@@ -104,7 +163,37 @@ impl Gpu {
             ),
             timestamps_inside_passes: features
                 .contains(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES),
+            fault,
         })
+    }
+
+    /// `Err` once the device has reported a fatal problem (a validation error wgpu did not
+    /// return to a caller, or the device lost): whatever was rendered since is not to be
+    /// trusted.
+    pub fn check(&self) -> Result<(), RenderError> {
+        // Device-lost callbacks run from a poll: one that never waits delivers them now.
+        let _ = self.device.poll(wgpu::PollType::Poll);
+        self.fault
+            .get()
+            .map_or(Ok(()), |f| Err(RenderError::GpuFault(f)))
+    }
+
+    /// The test hook `OMNICAVE_TEST_GPU_FAULT`: `validation` makes a real validation error
+    /// (a buffer both mapped for reading and writing), `lost` destroys the device, as a driver
+    /// reset would. Anything else, or unset: nothing.
+    pub fn apply_test_fault_hook(&self) {
+        match std::env::var("OMNICAVE_TEST_GPU_FAULT").as_deref() {
+            Ok("validation") => {
+                let _invalid = self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("Gpu::test_fault_hook invalid buffer"),
+                    size: 4,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::MAP_WRITE,
+                    mapped_at_creation: false,
+                });
+            }
+            Ok("lost") => self.device.destroy(),
+            _ => {}
+        }
     }
 
     /// Whether the device can run the compute tessellator and draw its output (storage
