@@ -44,7 +44,7 @@ app=$!
   >"$out/track-sim.log" 2>&1 &
 sim=$!
 
-echo "t_s,rss_mb,fps,frames,received,accepted,dropped,clamped,implausible" >"$out/soak.csv"
+echo "t_s,rss_mb,fps,frames,received,accepted,dropped,clamped,implausible,lost" >"$out/soak.csv"
 start=$(date +%s)
 end=$((start + minutes * 60))
 while [ "$(date +%s)" -lt "$end" ]; do
@@ -55,8 +55,8 @@ while [ "$(date +%s)" -lt "$end" ]; do
   tracking=$(grep 'tracking: tracking' "$out/app.log" | tail -1 || true)
   fps=$(sed -n 's/.*stats: \([0-9.]*\) fps.*/\1/p' <<<"$stats")
   frames=$(sed -n 's/.*| frames \([0-9]*\).*/\1/p' <<<"$stats")
-  packets=$(sed -n 's/.*packets \([0-9]*\) received, \([0-9]*\) accepted, [0-9]* ignored, \([0-9]*\) dropped, \([0-9]*\) clamped, \([0-9]*\) implausible.*/\1,\2,\3,\4,\5/p' <<<"$tracking")
-  echo "$(( $(date +%s) - start )),$((rss_kb / 1024)),${fps:-},${frames:-},${packets:-,,,,}" >>"$out/soak.csv"
+  packets=$(sed -n 's/.*packets \([0-9]*\) received, \([0-9]*\) accepted, [0-9]* ignored, \([0-9]*\) dropped, \([0-9]*\) clamped | samples refused: [0-9]* conflicting, \([0-9]*\) implausible, .* lost \([0-9]*\) times.*/\1,\2,\3,\4,\5,\6/p' <<<"$tracking")
+  echo "$(( $(date +%s) - start )),$((rss_kb / 1024)),${fps:-},${frames:-},${packets:-,,,,,}" >>"$out/soak.csv"
   tail -1 "$out/soak.csv"
 done
 
@@ -73,6 +73,7 @@ awk -F, 'NR > 1 && $2 != "" {
   END {
     printf "samples %d; RSS first %d MB, last %d MB, min %d, max %d; fps mean %.1f, min %.1f\n",
       n, rss[1], rss[n], min, max, fps_sum / fps_n, fps_min
-    print "last sample (t_s,rss_mb,fps,frames,received,accepted,dropped,clamped,implausible): " last
+    print "last sample (t_s,rss_mb,fps,frames,received,accepted,dropped,clamped,implausible,lost): " last
   }' "$out/soak.csv"
+echo "\"tracking lost\" lines in the log: $(grep -c 'WARN.*tracking lost' "$out/app.log" || true)"
 [ "$status" -eq 0 ]

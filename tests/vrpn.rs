@@ -25,6 +25,7 @@ fn settings(port: u16, head: &str, head_sensor: i32) -> VrpnSettings {
         buttons: None,
         analogs: None,
         retry: Duration::from_millis(200),
+        allowed_senders: Vec::new(),
     }
 }
 

@@ -12,8 +12,8 @@ use crate::gamepad::{GamepadAction, GamepadMapper, GamepadMode, GamepadSettings}
 use crate::tracking::receiver::TrackedOrientation;
 use crate::tracking::receiver::{LOG_INTERVAL, LogLimiter};
 use crate::tracking::{
-    ButtonAction, Controls, Counters, HeadTracker, TrackerSample, TrackingSource, TrackingStats,
-    TrackingStatus,
+    ButtonAction, Controls, Counters, HeadTracker, Stream, StreamSenders, TrackerSample,
+    TrackingSource, TrackingStats, TrackingStatus,
 };
 
 /// Joystick deflection below which it does not fly (a resting stick reads a few hundredths).
@@ -38,6 +38,10 @@ pub struct TrackingInfo {
     pub lost_for: Option<f64>,
     pub stats: TrackingStats,
     pub counters: Counters,
+    /// Who drives the head, the wand and the buttons, and the newest second sender refused.
+    pub senders: Vec<(Stream, StreamSenders)>,
+    /// The source listens on a network address with no allowed senders: anyone there can send.
+    pub open_warning: Option<String>,
     /// Names of connected gamepads.
     pub gamepads: Vec<String>,
     /// Why gamepads are unavailable, if they are.
@@ -89,6 +93,11 @@ impl Tracking {
         if !self.was_on && self.receiver.is_none() {
             match TrackingSource::start(&self.config.source, &self.config.receiver) {
                 Ok(r) => {
+                    r.feed()
+                        .configure(self.tracker.settings.gate(Some(state.head_bounds())));
+                    if let Some(warning) = r.open_warning() {
+                        tracing::warn!("{warning}");
+                    }
                     self.receiver = Some(r);
                     self.error = None;
                 }
@@ -109,6 +118,8 @@ impl Tracking {
             self.tracker.settings.eye_offset = offset;
         }
         let feed = receiver.feed().clone();
+        // The gate judges in CAVE space: it follows the calibration and the CAVE's box.
+        feed.configure(self.tracker.settings.gate(Some(state.head_bounds())));
         let dt = self.last_poll.map_or(0.0, |t| {
             now.saturating_duration_since(t).as_secs_f32().min(0.25)
         });
@@ -225,6 +236,19 @@ impl Tracking {
             .as_ref()
             .map(|r| r.feed().counters())
             .unwrap_or_default();
+        into.senders.clear();
+        if let Some(r) = &self.receiver {
+            into.senders.extend(
+                Stream::ALL
+                    .iter()
+                    .map(|&s| (s, r.feed().senders(s)))
+                    .filter(|(_, s)| s.owner.is_some()),
+            );
+        }
+        into.open_warning = self
+            .receiver
+            .as_ref()
+            .and_then(TrackingSource::open_warning);
     }
 }
 

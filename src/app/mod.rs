@@ -297,6 +297,7 @@ impl App {
             Some(g) => g,
             None => Gpu::headless()?,
         };
+        gpu.apply_test_fault_hook();
         // Another process's walls get 1×1 targets from the start (no full-size spike).
         let mut cave = self.state.cave().clone();
         for (wall, mine) in cave.walls.iter_mut().zip(&own) {
@@ -304,7 +305,14 @@ impl App {
                 wall.resolution = [1, 1];
             }
         }
-        let mut renderer = Renderer::new(&gpu, &cave, self.state.render_settings())?;
+        let mut renderer = match Renderer::new(&gpu, &cave, self.state.render_settings()) {
+            Ok(r) => r,
+            Err(e) => {
+                // A lost device explains the failure better than what failed because of it.
+                gpu.check()?;
+                return Err(e.into());
+            }
+        };
         if rank.is_some() {
             renderer.set_wall_filter(Some(own.clone()));
         }
@@ -451,6 +459,11 @@ impl App {
         }
         let node = matches!(self.cluster, Some(ClusterLink::Node(_)));
         let gfx = self.gfx.as_mut()?;
+        // A validation error or a lost device ends the run with its message, not a panic.
+        if let Err(e) = gfx.gpu.check() {
+            self.fail(event_loop, e.into());
+            return None;
+        }
         if let Err(e) = render_views(gfx, &mut self.state, &mut self.info, node) {
             self.fail(event_loop, e);
             return None;
@@ -691,7 +704,8 @@ impl App {
                 "tracking: {}, {:.1} Hz, head ({:.4}, {:.4}, {:.4}) m, orientation xyzw \
                  ({:.5}, {:.5}, {:.5}, {:.5}), {} button actions, latency avg {:.2} ms \
                  max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
-                 {} dropped, {} clamped, {} implausible",
+                 {} dropped, {} clamped | samples refused: {} conflicting, {} implausible, \
+                 {} unconfirmed jump, {} unconfirmed not-tracked | lost {} times",
                 status.describe(),
                 t.stats.rate_hz,
                 p.x,
@@ -710,7 +724,11 @@ impl App {
                 c.ignored,
                 c.dropped(),
                 t.stats.clamped,
-                t.stats.implausible
+                c.gate.conflicting,
+                c.gate.implausible,
+                c.gate.unconfirmed_jump,
+                c.gate.unconfirmed_loss,
+                t.stats.lost_events
             );
         }
     }

@@ -510,16 +510,28 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
         let c = &info.counters;
         ui.label(format!(
             "packets {} · accepted {} · ignored {} · malformed {} · non-finite {} · refused {} \
-             · clamped {} · implausible {}",
-            c.received,
-            c.accepted,
-            c.ignored,
-            c.malformed,
-            c.non_finite,
-            c.refused,
-            s.clamped,
-            s.implausible
+             · clamped {}",
+            c.received, c.accepted, c.ignored, c.malformed, c.non_finite, c.refused, s.clamped,
         ));
+        let g = &c.gate;
+        ui.label(format!(
+            "samples refused: conflicting sender {} · implausible {} · unconfirmed jump {} · \
+             unconfirmed \"not tracked\" {} · tracking lost {} times",
+            g.conflicting, g.implausible, g.unconfirmed_jump, g.unconfirmed_loss, s.lost_events
+        ));
+        for (stream, senders) in &info.senders {
+            let Some(owner) = senders.owner else { continue };
+            match senders.conflicting {
+                Some(other) => ui.colored_label(
+                    egui::Color32::YELLOW,
+                    format!("{}: from {owner}; refusing {other}", stream.name()),
+                ),
+                None => ui.label(format!("{}: from {owner}", stream.name())),
+            };
+        }
+        if let Some(warning) = &info.open_warning {
+            ui.colored_label(egui::Color32::YELLOW, warning);
+        }
         match state.wand {
             Some(w) => {
                 let d = w.orientation * glam::Vec3::NEG_Z;

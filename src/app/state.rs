@@ -378,9 +378,9 @@ impl AppState {
     /// Applies a pose from the tracker (the position is refused, with the reason, if it is
     /// behind a wall; the orientation is taken either way).
     pub fn apply_tracked_pose(&mut self, pose: HeadPose) -> Result<(), String> {
-        if let Some(q) = pose.orientation.filter(|q| q.is_finite()) {
-            self.tracked_orientation = Some(q);
-        }
+        // The pose's own orientation: one from an earlier packet is not carried forward (a
+        // position-only tracker leaves the settings' yaw, pitch and roll).
+        self.tracked_orientation = pose.orientation.filter(|q| q.is_finite());
         self.set_head_position(pose.position)
     }
 

@@ -230,7 +230,9 @@ pub struct TrackingSection {
     pub source: SourceKind,
     /// OSC: UDP address:port to listen on; 0.0.0.0 is every interface.
     pub listen: String,
-    /// OSC and DTrack: senders allowed to move the head (IP addresses); empty: any.
+    /// Senders allowed to drive tracking (IP addresses): OSC and DTrack take packets only from
+    /// these, VRPN and NatNet connect only to servers at these; empty: any (with a warning
+    /// when OSC or DTrack listens on a network address).
     pub allowed_senders: Vec<String>,
     /// From the tracked body's origin to the midpoint of the eyes, metres, in the body's own
     /// frame as calibrated (x right, y up, −z forward of a head looking straight ahead): the
@@ -452,15 +454,17 @@ impl Default for FilterSection {
     }
 }
 
-/// What a head can do: a tracker sample beyond it is refused before the filter (counted as
-/// "implausible" in the panel and the stats line), so one corrupt packet cannot pin the head.
+/// What a head can do: the gate refuses a tracker sample beyond it in the receiver thread
+/// (counted as "implausible" or "unconfirmed jump" in the panel and the stats line), so one
+/// corrupt packet cannot pin the head. The wand may move and turn twice as fast.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlausibilitySection {
     /// How far outside the CAVE a sample may be, metres (those nearer are clamped in).
     #[schemars(range(min = 0.0, max = 100.0))]
     pub outside_margin_m: f32,
-    /// Fastest head movement accepted, m/s (a jump confirmed by 3 agreeing samples is taken).
+    /// Fastest head movement accepted, m/s (a jump confirmed by 3 agreeing samples over
+    /// 40 ms is taken).
     #[schemars(range(min = 0.1, max = 1000.0))]
     pub max_speed_mps: f32,
     /// Fastest head turn accepted, degrees per second.

@@ -296,8 +296,14 @@ impl ConfigFile {
         let buttons = self.validate_buttons(ck)?;
         let source = match t.source {
             SourceKind::Osc => None,
-            SourceKind::Vrpn => Some(SourceSettings::Vrpn(self.validate_vrpn(ck)?)),
-            SourceKind::NatNet => Some(SourceSettings::NatNet(self.validate_natnet(ck)?)),
+            SourceKind::Vrpn => Some(SourceSettings::Vrpn(Box::new(VrpnSettings {
+                allowed_senders: allowed_senders.clone(),
+                ..self.validate_vrpn(ck)?
+            }))),
+            SourceKind::NatNet => Some(SourceSettings::NatNet(NatNetSettings {
+                allowed_senders: allowed_senders.clone(),
+                ..self.validate_natnet(ck)?
+            })),
             SourceKind::DTrack => {
                 let d = &t.dtrack;
                 let listen: SocketAddr = d.listen.trim().parse().map_err(|_| {
@@ -481,6 +487,7 @@ impl ConfigFile {
             head_rigid_body: n.head_rigid_body,
             wand_rigid_body: (n.wand_rigid_body >= 0).then_some(n.wand_rigid_body),
             retry,
+            allowed_senders: Vec::new(),
         })
     }
 
@@ -522,6 +529,7 @@ impl ConfigFile {
             buttons: device("buttons", &v.buttons)?,
             analogs: device("analogs", &v.analogs)?,
             retry,
+            allowed_senders: Vec::new(),
         })
     }
 

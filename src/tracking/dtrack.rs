@@ -327,6 +327,7 @@ impl FrameSink {
             orientation: t.orientation().map(TrackedOrientation::Tracker),
             tracked: Some(true),
             sender: from,
+            jumped: false,
         };
         let mut used = false;
         // A frame without the head body: DTrack cannot see it now.
@@ -354,7 +355,7 @@ impl FrameSink {
                 self.wand_seq += 1;
                 self.feed.publish_wand(sample(&stick.target, self.wand_seq));
             }
-            self.feed.update_controls(|c| {
+            self.feed.update_controls(from, arrived, |c| {
                 for (i, down) in stick.buttons.iter().enumerate() {
                     c.set_button(i, *down);
                 }
@@ -380,6 +381,7 @@ fn empty_target() -> Target {
 pub struct DTrackReceiver {
     feed: TrackerFeed,
     udp: UdpThread,
+    allowed_senders: Vec<IpAddr>,
 }
 
 impl DTrackReceiver {
@@ -394,7 +396,16 @@ impl DTrackReceiver {
             move |bytes, from, arrived| sink.handle(bytes, from, arrived),
         )?;
         tracing::info!("DTrack tracking: listening on {}", udp.local_addr());
-        Ok(Self { feed, udp })
+        Ok(Self {
+            feed,
+            udp,
+            allowed_senders: settings.allowed_senders.clone(),
+        })
+    }
+
+    /// The senders allowed (empty: any).
+    pub fn allowed_senders(&self) -> &[IpAddr] {
+        &self.allowed_senders
     }
 
     pub fn local_addr(&self) -> SocketAddr {

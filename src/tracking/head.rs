@@ -1,5 +1,6 @@
-//! From tracker samples to the head pose a frame uses: calibration, One Euro filter, clamping to
-//! the CAVE, loss of tracking, and the latency from a packet's arrival to the frame using it.
+//! From the samples the gate accepted to the head pose a frame uses: calibration, One Euro
+//! filter, clamping to the CAVE, loss of tracking, and the latency from a packet's arrival to
+//! the frame using it.
 
 use std::time::{Duration, Instant};
 
@@ -7,7 +8,8 @@ use glam::{Quat, Vec3};
 
 use super::calibration::Calibration;
 use super::filter::{OneEuro, OneEuroParams};
-use super::plausibility::{Candidate, PlausibilityGate, PlausibilityLimits, Verdict};
+use super::gate::GateSettings;
+use super::plausibility::PlausibilityLimits;
 use super::receiver::{LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerSample, held_back};
 
 /// How samples become head poses.
@@ -18,11 +20,23 @@ pub struct TrackingSettings {
     pub filter: Option<OneEuroParams>,
     /// No packet for this long: tracking is lost (the head holds its last pose).
     pub timeout: Duration,
-    /// What a head can do: samples beyond it are refused before the filter.
+    /// What a head can do: the gate refuses samples beyond it in the receiver thread.
     pub plausibility: PlausibilityLimits,
     /// From the tracked body's origin to the midpoint of the eyes, in the body's calibrated
     /// frame (metres): the eyes are at `position + orientation · eye_offset`.
     pub eye_offset: Vec3,
+}
+
+impl TrackingSettings {
+    /// What the receiver's gate needs to judge samples for a CAVE of box `bounds`.
+    pub fn gate(&self, bounds: Option<(Vec3, Vec3)>) -> GateSettings {
+        GateSettings {
+            calibration: self.calibration,
+            bounds,
+            limits: self.plausibility,
+            timeout: self.timeout,
+        }
+    }
 }
 
 impl Default for TrackingSettings {
@@ -43,9 +57,10 @@ pub enum TrackingStatus {
     /// No packet yet.
     Waiting,
     Tracking,
-    /// No packet within the timeout: the head holds its last pose.
+    /// No accepted sample within the timeout: the head holds its last pose.
     Lost,
-    /// The tracker says it cannot see the body (NatNet `tracked 0`): the head holds.
+    /// The tracker says it cannot see the body (NatNet `tracked 0`, confirmed by the gate):
+    /// the head holds.
     NotVisible,
 }
 
@@ -84,9 +99,8 @@ pub struct TrackingStats {
     pub latency_last_ms: f64,
     /// Positions clamped into the CAVE since start.
     pub clamped: u64,
-    /// Samples refused as implausible since start (not finite, far outside the CAVE, faster
-    /// than a head moves): they never reach the filter.
-    pub implausible: u64,
+    /// Times tracking was lost (no accepted sample within the timeout) since start.
+    pub lost_events: u64,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -114,8 +128,6 @@ pub struct HeadTracker {
     window: Window,
     stats: TrackingStats,
     clamp_log: LogLimiter,
-    gate: PlausibilityGate,
-    implausible_log: LogLimiter,
     /// When the last accepted sample arrived (the filter's time step runs from it).
     last_accepted_arrival: Option<Instant>,
     /// The newest tracked body's pose in CAVE space before the eye offset (for calibrating it).
@@ -138,8 +150,6 @@ impl HeadTracker {
             window: Window::default(),
             stats: TrackingStats::default(),
             clamp_log: LogLimiter::default(),
-            gate: PlausibilityGate::default(),
-            implausible_log: LogLimiter::default(),
             last_accepted_arrival: None,
             body: None,
         }
@@ -210,6 +220,7 @@ impl HeadTracker {
         self.record_latency(&sample, now, frame_interval);
 
         if sample.tracked == Some(false) {
+            // The gate confirmed it: the tracker cannot see the head.
             self.set_status(TrackingStatus::NotVisible, now);
             return None;
         }
@@ -217,17 +228,14 @@ impl HeadTracker {
             return None; // orientation without any position yet: nothing to place
         };
         let (position, orientation) = self.calibrated_eyes(raw_position, sample.orientation);
-        let candidate = Candidate {
-            position,
-            orientation,
-            arrived: sample.arrived,
-        };
-        let jump = self.judge(candidate, bounds, now)?;
+        if !position.is_finite() || orientation.is_some_and(|q| !q.is_finite()) {
+            return None; // the gate refuses these; a second net
+        }
         let dt = self.last_accepted_arrival.map_or(0.0, |t| {
             sample.arrived.saturating_duration_since(t).as_secs_f32()
         });
         self.last_accepted_arrival = Some(sample.arrived);
-        if self.status != TrackingStatus::Tracking || jump {
+        if self.status != TrackingStatus::Tracking || sample.jumped {
             // Fresh start, resuming after a loss, or a confirmed jump: no smoothing from the
             // stale pose.
             self.position_filter.reset();
@@ -244,9 +252,10 @@ impl HeadTracker {
             orientation = orientation.map(|q| self.orientation_filter.filter_quat(q, dt, &params));
         }
         let position = self.clamped(position, bounds, now);
+        // The orientation is this sample's: a tracker that stopped sending one has none.
         let pose = HeadPose {
             position,
-            orientation: orientation.or(self.pose.and_then(|p| p.orientation)),
+            orientation,
         };
         self.pose = Some(pose);
         Some(pose)
@@ -303,40 +312,6 @@ impl HeadTracker {
         (position, orientation)
     }
 
-    /// The plausibility gate's verdict on `candidate`: whether it is a confirmed jump, or
-    /// `None` where it is refused (counted, logged, and tracking maybe lost).
-    fn judge(
-        &mut self,
-        candidate: Candidate,
-        bounds: Option<(Vec3, Vec3)>,
-        now: Instant,
-    ) -> Option<bool> {
-        let position = candidate.position;
-        let verdict = self
-            .gate
-            .judge(candidate, bounds, &self.settings.plausibility);
-        match verdict {
-            Verdict::Accept => Some(false),
-            Verdict::AcceptJump => Some(true),
-            Verdict::Refuse(why) => {
-                self.stats.implausible += 1;
-                if let Some(held) = self.implausible_log.allow(now, LOG_INTERVAL) {
-                    tracing::warn!(
-                        "tracking: refused an implausible sample ({}) at ({:.3e}, {:.3e}, \
-                         {:.3e}) m{}",
-                        why.describe(),
-                        position.x,
-                        position.y,
-                        position.z,
-                        held_back(held)
-                    );
-                }
-                self.check_timeout(now);
-                None
-            }
-        }
-    }
-
     /// `position` clamped into `bounds` (counted, with a warning, where it was outside).
     fn clamped(&mut self, position: Vec3, bounds: Option<(Vec3, Vec3)>, now: Instant) -> Vec3 {
         let Some((min, max)) = bounds else {
@@ -363,8 +338,8 @@ impl HeadTracker {
         position
     }
 
-    /// Lost once the newest accepted sample is older than the timeout (a stream of refused
-    /// samples is no tracking).
+    /// Lost once the newest accepted sample is older than the timeout (the gate publishes
+    /// only accepted ones: a stream of refused samples is no tracking).
     fn check_timeout(&mut self, now: Instant) {
         if let Some(arrival) = self.last_accepted_arrival
             && self.status == TrackingStatus::Tracking
@@ -392,6 +367,7 @@ impl HeadTracker {
                     self.settings.timeout.as_secs_f64()
                 );
                 self.lost_since = Some(now);
+                self.stats.lost_events += 1;
             }
             TrackingStatus::NotVisible => {
                 tracing::warn!("tracking lost: the tracker reports the head as not tracked");
@@ -426,7 +402,7 @@ impl HeadTracker {
             latency_max_frames: w.latency_max_frames,
             latency_last_ms: self.stats.latency_last_ms,
             clamped: self.stats.clamped,
-            implausible: self.stats.implausible,
+            lost_events: self.stats.lost_events,
         };
         self.window = Window::default();
         self.window_start = Some(now);
@@ -447,6 +423,7 @@ mod tests {
             orientation: None,
             tracked: None,
             sender: SocketAddr::from(([127, 0, 0, 1], 9)),
+            jumped: false,
         }
     }
 
@@ -487,11 +464,11 @@ mod tests {
     }
 
     #[test]
-    fn outside_positions_are_clamped_or_refused_and_counted() {
+    fn outside_positions_are_clamped_and_counted() {
         let t0 = Instant::now();
         let mut t = unfiltered();
         let bounds = (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0));
-        // 0.3 m outside: within the 0.5 m margin, clamped.
+        // 0.3 m outside: within the gate's 0.5 m margin (farther is refused there), clamped.
         let got = t.update(
             Some(sample(1, t0, Vec3::new(1.3, 1.0, -0.5))),
             t0,
@@ -499,18 +476,5 @@ mod tests {
         );
         assert_eq!(got.map(|h| h.position), Some(Vec3::new(1.0, 1.0, -0.5)));
         assert_eq!(t.stats.clamped, 1);
-        // 2 m outside: refused, the head stays.
-        let later = t0 + Duration::from_millis(8);
-        let got = t.update(
-            Some(sample(2, later, Vec3::new(3.0, 1.0, -0.5))),
-            later,
-            Some(bounds),
-        );
-        assert_eq!(got, None);
-        assert_eq!(t.stats.implausible, 1);
-        assert_eq!(
-            t.pose().map(|h| h.position),
-            Some(Vec3::new(1.0, 1.0, -0.5))
-        );
     }
 }

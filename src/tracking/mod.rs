@@ -5,6 +5,7 @@
 pub mod calibration;
 pub mod dtrack;
 pub mod filter;
+pub mod gate;
 pub mod head;
 pub mod natnet;
 pub mod osc;
@@ -21,6 +22,7 @@ use std::path::PathBuf;
 pub use calibration::Calibration;
 pub use dtrack::DTrackSettings;
 pub use filter::OneEuroParams;
+pub use gate::{GateCounters, GateSettings, Stream, StreamSenders};
 pub use head::{HeadPose, HeadTracker, TrackingSettings, TrackingStats, TrackingStatus};
 pub use natnet::NatNetSettings;
 pub use osc::{OscMapping, QuaternionOrder};

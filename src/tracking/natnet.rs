@@ -44,6 +44,8 @@ pub struct NatNetSettings {
     pub wand_rigid_body: Option<i32>,
     /// Wait between connection attempts.
     pub retry: Duration,
+    /// Addresses Motive may be at (`tracking.allowed_senders`; empty: any).
+    pub allowed_senders: Vec<std::net::IpAddr>,
 }
 
 /// A running NatNet client.
@@ -156,6 +158,11 @@ impl Link {
     /// One connection: the handshake, then frames until the stream goes quiet.
     fn session(&mut self) -> Result<(), String> {
         let server = self.settings.server;
+        let allowed = &self.settings.allowed_senders;
+        let server_ip = std::net::IpAddr::V4(*server.ip());
+        if !allowed.is_empty() && !allowed.iter().any(|ip| ip.to_canonical() == server_ip) {
+            return Err(format!("{server_ip} is not in tracking.allowed_senders"));
+        }
         let mut client = CommandClient::bind(self.settings.interface, server)
             .map_err(|e| format!("cannot open a command socket: {e}"))?;
         let info = client
@@ -273,6 +280,7 @@ impl Link {
                 orientation: Some(TrackedOrientation::Tracker(Quat::from_xyzw(x, y, z, w))),
                 tracked: Some(b.tracking_valid()),
                 sender: from,
+                jumped: false,
             })
         };
         let mut fate = Fate::Ignored;

@@ -1,5 +1,5 @@
-//! The gate a tracker sample passes before the filter: inside the CAVE (with a margin), no
-//! faster than a head moves, finite throughout. A refused sample never touches the filter.
+//! Plausibility of one stream's samples: inside the CAVE (with a margin), no faster than a head
+//! moves, finite throughout; a jump only when agreeing samples confirm it over time.
 
 use std::time::Instant;
 
@@ -37,8 +37,13 @@ pub const MAX_TRACKED_DISTANCE_M: f64 = 1000.0;
 const JITTER_M: f64 = 0.02;
 const JITTER_RAD: f64 = 0.02;
 /// Consecutive samples that agree with one another (each plausible from the one before) that
-/// make a jump real: a tracker re-homed, or a calibration changed. At 120 Hz: 25 ms.
+/// make a claim real (a jump: a tracker re-homed or a calibration changed; "not tracked"): at
+/// least this many, spanning at least [`CONFIRMATION_TIME`]. Counting samples alone would let a
+/// sender at 1 200 packets/s confirm anything in 2 ms; the time makes a burst count as one.
 pub const JUMP_CONFIRMATIONS: u32 = 3;
+/// The least time from the first to the last sample confirming a claim: six samples of a
+/// 120 Hz tracker, a head held 40 ms on a real jump.
+pub const CONFIRMATION_TIME: std::time::Duration = std::time::Duration::from_millis(40);
 
 /// Why a sample was refused.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,11 +76,19 @@ pub struct Candidate {
     pub arrived: Instant,
 }
 
+/// A claim being confirmed: when its first sample arrived, its newest sample, how many agree.
+#[derive(Debug, Clone, Copy)]
+struct Streak {
+    since: Instant,
+    newest: Candidate,
+    agreeing: u32,
+}
+
 /// The last accepted sample and a possible jump being confirmed.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PlausibilityGate {
     accepted: Option<Candidate>,
-    jump: Option<(Candidate, u32)>,
+    jump: Option<Streak>,
 }
 
 /// What the gate decided.
@@ -83,8 +96,11 @@ pub struct PlausibilityGate {
 pub enum Verdict {
     /// Plausible: filter it.
     Accept,
-    /// A jump confirmed by [`JUMP_CONFIRMATIONS`] agreeing samples: take it unfiltered.
+    /// A jump confirmed by [`JUMP_CONFIRMATIONS`] agreeing samples over [`CONFIRMATION_TIME`]:
+    /// take it unfiltered.
     AcceptJump,
+    /// Not from the last accepted pose, and not yet confirmed as a jump.
+    Unconfirmed(Implausible),
     Refuse(Implausible),
 }
 
@@ -117,17 +133,26 @@ impl PlausibilityGate {
             }
             Err(why) => {
                 // Not from the last accepted pose: perhaps the start of a real jump.
-                let agreeing = match self.jump {
-                    Some((previous, n)) if step(&previous, &sample, limits).is_ok() => n + 1,
-                    _ => 1,
+                let streak = match self.jump {
+                    Some(s) if step(&s.newest, &sample, limits).is_ok() => Streak {
+                        newest: sample,
+                        agreeing: s.agreeing + 1,
+                        ..s
+                    },
+                    _ => Streak {
+                        since: sample.arrived,
+                        newest: sample,
+                        agreeing: 1,
+                    },
                 };
-                if agreeing >= JUMP_CONFIRMATIONS {
+                let lasted = sample.arrived.saturating_duration_since(streak.since);
+                if streak.agreeing >= JUMP_CONFIRMATIONS && lasted >= CONFIRMATION_TIME {
                     self.accepted = Some(sample);
                     self.jump = None;
                     Verdict::AcceptJump
                 } else {
-                    self.jump = Some((sample, agreeing));
-                    Verdict::Refuse(why)
+                    self.jump = Some(streak);
+                    Verdict::Unconfirmed(why)
                 }
             }
         }
@@ -212,27 +237,35 @@ mod tests {
         // 1.5 m in 8 ms is 187 m/s.
         assert!(matches!(
             gate.judge(at(t0, 8, b), bounds, &limits),
-            Verdict::Refuse(Implausible::TooFast(_))
+            Verdict::Unconfirmed(Implausible::TooFast(_))
         ));
+        // A burst: three agreeing samples within a millisecond confirm nothing.
+        for _ in 0..3 {
+            assert!(matches!(
+                gate.judge(at(t0, 9, b), bounds, &limits),
+                Verdict::Unconfirmed(_)
+            ));
+        }
+        // 40 ms after the streak began it is a jump.
         assert!(matches!(
-            gate.judge(at(t0, 16, b), bounds, &limits),
-            Verdict::Refuse(_)
+            gate.judge(at(t0, 47, b), bounds, &limits),
+            Verdict::Unconfirmed(_)
         ));
         assert_eq!(
-            gate.judge(at(t0, 24, b), bounds, &limits),
+            gate.judge(at(t0, 48, b), bounds, &limits),
             Verdict::AcceptJump
         );
         assert_eq!(
-            gate.judge(at(t0, 32, b + Vec3::X * 0.01), bounds, &limits),
+            gate.judge(at(t0, 56, b + Vec3::X * 0.01), bounds, &limits),
             Verdict::Accept
         );
         // Outside by more than the margin, and huge: refused alone.
         assert_eq!(
-            gate.judge(at(t0, 40, Vec3::new(2.6, 1.6, 0.0)), bounds, &limits),
+            gate.judge(at(t0, 64, Vec3::new(2.6, 1.6, 0.0)), bounds, &limits),
             Verdict::Refuse(Implausible::Outside)
         );
         assert_eq!(
-            gate.judge(at(t0, 48, Vec3::new(3e38, 1.6, 0.2)), None, &limits),
+            gate.judge(at(t0, 72, Vec3::new(3e38, 1.6, 0.2)), None, &limits),
             Verdict::Refuse(Implausible::Outside)
         );
     }
@@ -249,7 +282,7 @@ mod tests {
         c.orientation = Some(Quat::from_rotation_y(3.0));
         assert!(matches!(
             gate.judge(c, None, &limits),
-            Verdict::Refuse(Implausible::TurnedTooFast(_))
+            Verdict::Unconfirmed(Implausible::TurnedTooFast(_))
         ));
         c.orientation = Some(Quat::from_rotation_y(0.05));
         assert_eq!(gate.judge(c, None, &limits), Verdict::Accept);

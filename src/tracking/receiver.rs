@@ -1,6 +1,7 @@
-//! The OSC receiver: a UDP socket on its own thread that decodes every packet and keeps only the
-//! newest pose (no queue), counting what it accepts and drops. It never blocks the renderer: the
-//! render loop only tries the lock on a slot the thread holds for a copy of a few fields.
+//! The OSC receiver and the feed every source fills: a UDP socket on its own thread decodes
+//! every packet, the gate judges every sample there, and only the newest accepted pose is kept
+//! (no queue), with counts of what was accepted and dropped and why. It never blocks the
+//! renderer: the render loop only tries the lock on a slot the thread holds for a copy.
 
 use std::net::{IpAddr, SocketAddr, UdpSocket};
 use std::panic::AssertUnwindSafe;
@@ -12,6 +13,7 @@ use std::time::{Duration, Instant};
 use glam::{Quat, Vec3};
 
 use super::TrackingError;
+use super::gate::{GateCounters, GateSettings, Refusal, SourceGate, Stream, StreamSenders};
 use super::osc::{OscMapping, PacketOutcome, PoseUpdate, decode_packet};
 
 /// Largest UDP payload: every datagram fits whole.
@@ -30,11 +32,13 @@ pub enum TrackedOrientation {
     CaveAxes(Quat),
 }
 
-/// The newest state the tracker has sent (tracker frame), merged over packets: a packet with
-/// only an orientation keeps the last position.
+/// The newest state the tracker has sent (tracker frame). OSC merges a pose sent in parts
+/// (position and orientation in separate packets), each part for at most the tracking timeout;
+/// the "tracked" flag is never carried from one packet to the next.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackerSample {
-    /// Accepted packets so far; changes with every accepted packet.
+    /// Samples of this stream published so far (the feed numbers them); changes with every
+    /// sample the gate accepts.
     pub seq: u64,
     /// When the newest accepted packet came off the socket.
     pub arrived: Instant,
@@ -43,9 +47,12 @@ pub struct TrackerSample {
     pub stored: Instant,
     pub position: Option<Vec3>,
     pub orientation: Option<TrackedOrientation>,
-    /// The tracker's own flag (NatNet `tracked`), if it sends one.
+    /// The tracker's own flag (NatNet `tracked`, a DTrack frame without the body), if this
+    /// sample says.
     pub tracked: Option<bool>,
     pub sender: SocketAddr,
+    /// The gate took it as a confirmed jump (the filter starts afresh from it).
+    pub jumped: bool,
 }
 
 /// Packet counts. Every received packet is counted once in exactly one of accepted, ignored,
@@ -66,6 +73,8 @@ pub struct Counters {
     pub refused: u64,
     /// Socket errors (not packets).
     pub socket_errors: u64,
+    /// Samples of accepted packets the gate then refused, by reason.
+    pub gate: GateCounters,
 }
 
 impl Counters {
@@ -153,6 +162,22 @@ impl Controls {
     }
 }
 
+/// The gate's settings as the render loop last set them; `generation` changes with them.
+#[derive(Debug, Default, Clone, Copy)]
+struct Configured {
+    settings: GateSettings,
+    generation: u64,
+}
+
+/// The gate, its settings' generation it has seen, and its log.
+#[derive(Debug, Default)]
+struct GateState {
+    gate: SourceGate,
+    generation: u64,
+    published: [u64; 2],
+    log: LogLimiter,
+}
+
 /// What the receiver shares with the render loop.
 #[derive(Debug, Default)]
 struct Shared {
@@ -160,6 +185,8 @@ struct Shared {
     wand: Mutex<Option<TrackerSample>>,
     controls: Mutex<Controls>,
     counters: AtomicCounters,
+    configured: Mutex<Configured>,
+    gate: Mutex<GateState>,
 }
 
 /// One packet's (or message's) fate, for [`TrackerFeed::count`].
@@ -208,19 +235,85 @@ impl TrackerFeed {
         try_copy(&self.shared.controls)
     }
 
-    /// A source stores the head's newest sample.
+    /// Sets what the gate judges samples against (the render loop, when it changes; never
+    /// waits: should the receiver hold the settings this instant, the next frame sets them).
+    /// A change forgets the accepted history, which was judged in the old frame.
+    pub fn configure(&self, settings: GateSettings) {
+        if let Ok(mut c) = self.shared.configured.try_lock()
+            && c.settings != settings
+        {
+            c.settings = settings;
+            c.generation += 1;
+        }
+    }
+
+    /// The gate's settings now.
+    pub fn gate_settings(&self) -> GateSettings {
+        lock(&self.shared.configured).settings
+    }
+
+    /// Who drives `stream`, and the newest second sender refused.
+    pub fn senders(&self, stream: Stream) -> StreamSenders {
+        lock(&self.shared.gate).gate.senders(stream)
+    }
+
+    /// A source offers the head's newest sample: the gate judges it, and only an accepted one
+    /// becomes the head's newest.
     pub fn publish_head(&self, sample: TrackerSample) {
-        *lock(&self.shared.latest) = Some(sample);
+        self.publish(Stream::Head, sample);
     }
 
-    /// A source stores the wand's newest sample.
+    /// A source offers the wand's newest sample, judged like the head's.
     pub fn publish_wand(&self, sample: TrackerSample) {
-        *lock(&self.shared.wand) = Some(sample);
+        self.publish(Stream::Wand, sample);
     }
 
-    /// A source changes the buttons and analogs.
-    pub fn update_controls(&self, change: impl FnOnce(&mut Controls)) {
-        change(&mut lock(&self.shared.controls));
+    fn publish(&self, stream: Stream, sample: TrackerSample) {
+        let configured = *lock(&self.shared.configured);
+        let mut state = lock(&self.shared.gate);
+        let state = &mut *state;
+        if state.generation != configured.generation {
+            state.generation = configured.generation;
+            state.gate.reset_history();
+        }
+        match state.gate.judge(stream, sample, &configured.settings) {
+            Ok(mut sample) => {
+                let (slot, n) = match stream {
+                    Stream::Wand => (&self.shared.wand, &mut state.published[1]),
+                    _ => (&self.shared.latest, &mut state.published[0]),
+                };
+                *n += 1;
+                sample.seq = *n;
+                sample.stored = Instant::now();
+                *lock(slot) = Some(sample);
+            }
+            Err(refusal) => log_refusal(&mut state.log, stream, &sample, refusal),
+        }
+    }
+
+    /// A source changes the buttons and analogs, as `from` sent them at `arrived`: only the
+    /// sender driving the buttons may (others are counted as conflicting).
+    pub fn update_controls(
+        &self,
+        from: SocketAddr,
+        arrived: Instant,
+        change: impl FnOnce(&mut Controls),
+    ) {
+        let settings = lock(&self.shared.configured).settings;
+        let mut state = lock(&self.shared.gate);
+        match state.gate.admit_controls(from, arrived, &settings) {
+            Ok(()) => change(&mut lock(&self.shared.controls)),
+            Err(refusal) => {
+                let state = &mut *state;
+                if let Some(held) = state.log.allow(arrived, LOG_INTERVAL) {
+                    tracing::warn!(
+                        "tracking: refused buttons from {from}: {}{}",
+                        refusal.describe(),
+                        held_back(held)
+                    );
+                }
+            }
+        }
     }
 
     /// A source counts one received packet or message and its fate.
@@ -258,7 +351,30 @@ impl TrackerFeed {
             non_finite: get(&c.non_finite),
             refused: get(&c.refused),
             socket_errors: get(&c.socket_errors),
+            gate: lock(&self.shared.gate).gate.counters,
         }
+    }
+}
+
+/// Logs a refused sample, at most once per [`LOG_INTERVAL`].
+fn log_refusal(log: &mut LogLimiter, stream: Stream, sample: &TrackerSample, refusal: Refusal) {
+    if let Some(held) = log.allow(sample.arrived, LOG_INTERVAL) {
+        let at = sample
+            .position
+            .map(|p| {
+                format!(
+                    " at ({:.3e}, {:.3e}, {:.3e}) (tracker units)",
+                    p.x, p.y, p.z
+                )
+            })
+            .unwrap_or_default();
+        tracing::warn!(
+            "tracking: refused a {} sample from {}{at}: {}{}",
+            stream.name(),
+            sample.sender,
+            refusal.describe(),
+            held_back(held)
+        );
     }
 }
 
@@ -301,8 +417,10 @@ pub struct PacketSink {
     mapping: OscMapping,
     allowed: Vec<IpAddr>,
     feed: TrackerFeed,
-    seq: u64,
     current: Option<TrackerSample>,
+    /// When the current position and orientation arrived (each expires after the timeout).
+    position_at: Option<Instant>,
+    orientation_at: Option<Instant>,
     malformed_log: LogLimiter,
     refused_log: LogLimiter,
 }
@@ -317,8 +435,9 @@ impl PacketSink {
                 .map(|ip| ip.to_canonical())
                 .collect(),
             feed: TrackerFeed::default(),
-            seq: 0,
             current: None,
+            position_at: None,
+            orientation_at: None,
             malformed_log: LogLimiter::default(),
             refused_log: LogLimiter::default(),
         }
@@ -377,31 +496,51 @@ impl PacketSink {
         }
     }
 
+    /// Offers the pose `update` completes to the gate. A part the packet lacks (the position
+    /// of an orientation-only packet) is the same sender's last one, if it arrived within the
+    /// timeout; the "tracked" flag is this packet's own.
     fn store(&mut self, update: PoseUpdate, from: SocketAddr, arrived: Instant) {
-        self.seq += 1;
-        let previous = self.current;
+        let timeout = self.feed.gate_settings().timeout;
+        let recent = |at: Option<Instant>| {
+            at.is_some_and(|t| arrived.saturating_duration_since(t) <= timeout)
+        };
+        let previous = self.current.filter(|p| p.sender == from);
         let orientation = match (update.orientation, update.orientation_cave_axes) {
             (Some(q), _) => Some(TrackedOrientation::Tracker(q)),
             (None, Some(q)) => Some(TrackedOrientation::CaveAxes(q)),
-            (None, None) => previous.and_then(|p| p.orientation),
+            (None, None) => previous
+                .and_then(|p| p.orientation)
+                .filter(|_| recent(self.orientation_at)),
+        };
+        if orientation.is_some()
+            && update
+                .orientation
+                .or(update.orientation_cave_axes)
+                .is_some()
+        {
+            self.orientation_at = Some(arrived);
+        }
+        let position = match update.position {
+            Some(p) => {
+                self.position_at = Some(arrived);
+                Some(p)
+            }
+            None => previous
+                .and_then(|p| p.position)
+                .filter(|_| recent(self.position_at)),
         };
         let sample = TrackerSample {
-            seq: self.seq,
+            seq: 0,
             arrived,
-            stored: Instant::now(),
-            position: update.position.or(previous.and_then(|p| p.position)),
+            stored: arrived,
+            position,
             orientation,
-            tracked: update.tracked.or(previous.and_then(|p| p.tracked)),
+            tracked: update.tracked,
             sender: from,
+            jumped: false,
         };
         self.current = Some(sample);
-        let mut slot = self
-            .feed
-            .shared
-            .latest
-            .lock()
-            .unwrap_or_else(|p| p.into_inner());
-        *slot = Some(sample);
+        self.feed.publish_head(sample);
     }
 }
 
@@ -514,6 +653,7 @@ impl Drop for UdpThread {
 pub struct OscReceiver {
     feed: TrackerFeed,
     udp: UdpThread,
+    allowed_senders: Vec<IpAddr>,
 }
 
 impl OscReceiver {
@@ -529,7 +669,16 @@ impl OscReceiver {
             move |bytes, from, arrived| sink.handle(bytes, from, arrived),
         )?;
         tracing::info!("OSC head tracking: listening on {}", udp.local_addr());
-        Ok(Self { feed, udp })
+        Ok(Self {
+            feed,
+            udp,
+            allowed_senders: settings.allowed_senders.clone(),
+        })
+    }
+
+    /// The senders allowed (empty: any).
+    pub fn allowed_senders(&self) -> &[IpAddr] {
+        &self.allowed_senders
     }
 
     /// The address the socket is bound to (with the port chosen when 0 was asked for).

@@ -37,7 +37,8 @@ crate::named_enum!(SourceKind {
 pub enum SourceSettings {
     /// OSC, with the receiver settings kept beside it (`TrackingConfig::receiver`).
     Osc,
-    Vrpn(VrpnSettings),
+    /// Boxed: its device names make it several times the others' size.
+    Vrpn(Box<VrpnSettings>),
     DTrack(DTrackSettings),
     NatNet(NatNetSettings),
 }
@@ -78,6 +79,23 @@ impl TrackingSource {
             Self::Vrpn(_) | Self::NatNet(_) => None,
             Self::DTrack(r) => Some(r.local_addr()),
         }
+    }
+
+    /// A warning when the source listens on a network address (not loopback) and takes
+    /// packets from anyone (no `tracking.allowed_senders`).
+    pub fn open_warning(&self) -> Option<String> {
+        let (what, listen, allowed) = match self {
+            Self::Osc(r) => ("OSC", r.local_addr(), r.allowed_senders()),
+            Self::DTrack(r) => ("DTrack", r.local_addr(), r.allowed_senders()),
+            // Clients: they take data only from the server they connected to.
+            Self::Vrpn(_) | Self::NatNet(_) => return None,
+        };
+        (allowed.is_empty() && !listen.ip().is_loopback()).then(|| {
+            format!(
+                "{what} listens on {listen} and takes tracking from any sender on the network; \
+                 list the tracker's address in tracking.allowed_senders"
+            )
+        })
     }
 
     /// One line for the panel: the source and where it listens or connects.

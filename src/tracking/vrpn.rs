@@ -9,7 +9,7 @@ use std::io::{ErrorKind, Read, Write};
 use std::net::UdpSocket;
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::AssertUnwindSafe;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -109,6 +109,8 @@ pub struct VrpnSettings {
     pub analogs: Option<VrpnDevice>,
     /// Wait between connection attempts while a server is absent.
     pub retry: Duration,
+    /// Addresses a server may be at (`tracking.allowed_senders`; empty: any).
+    pub allowed_senders: Vec<IpAddr>,
 }
 
 /// Which of the configured roles a device name plays on one server.
@@ -146,6 +148,8 @@ pub struct VrpnClient {
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
     servers: Vec<String>,
+    /// Each server's session's UDP data port (0: not connected).
+    data_ports: Vec<Arc<AtomicU32>>,
 }
 
 impl VrpnClient {
@@ -189,14 +193,23 @@ impl VrpnClient {
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
         let mut servers = Vec::new();
+        let mut data_ports = Vec::new();
         for ((host, port), roles) in by_server {
+            let data_port = Arc::new(AtomicU32::new(0));
+            data_ports.push(data_port.clone());
             let server = ServerLink {
                 host: host.clone(),
                 port,
                 roles,
                 retry: settings.retry,
+                allowed: settings
+                    .allowed_senders
+                    .iter()
+                    .map(|ip| ip.to_canonical())
+                    .collect(),
                 feed: feed.clone(),
                 stop: stop.clone(),
+                data_port,
             };
             servers.push(format!("{host}:{port}"));
             let thread = std::thread::Builder::new()
@@ -211,6 +224,7 @@ impl VrpnClient {
             stop,
             threads,
             servers,
+            data_ports,
         })
     }
 
@@ -221,6 +235,19 @@ impl VrpnClient {
     /// The servers, as `host:port`.
     pub fn servers(&self) -> &[String] {
         &self.servers
+    }
+
+    /// The UDP port each server's data arrives at now (`None`: not connected), in the order
+    /// of [`Self::servers`]; only that server's address may send there.
+    pub fn data_ports(&self) -> Vec<Option<u16>> {
+        self.data_ports
+            .iter()
+            .map(|p| {
+                u16::try_from(p.load(Ordering::Acquire))
+                    .ok()
+                    .filter(|&p| p != 0)
+            })
+            .collect()
     }
 }
 
@@ -253,6 +280,8 @@ enum LinkError {
     Wire(#[from] WireError),
     #[error("the server closed the connection")]
     Closed,
+    #[error("{0} is not in tracking.allowed_senders")]
+    NotAllowed(IpAddr),
     #[error("stopped")]
     Stopped,
 }
@@ -263,8 +292,11 @@ struct ServerLink {
     port: u16,
     roles: Roles,
     retry: Duration,
+    allowed: Vec<IpAddr>,
     feed: TrackerFeed,
     stop: Arc<AtomicBool>,
+    /// This session's UDP data port (0 between sessions).
+    data_port: Arc<AtomicU32>,
 }
 
 impl ServerLink {
@@ -321,6 +353,10 @@ impl ServerLink {
     /// One connection, from the request to its end.
     fn session(&self) -> Result<(), LinkError> {
         let server = self.server_addr()?;
+        let server_ip = server.ip().to_canonical();
+        if !self.allowed.is_empty() && !self.allowed.contains(&server_ip) {
+            return Err(LinkError::NotAllowed(server_ip));
+        }
         let unspecified = if server.is_ipv4() {
             IpAddr::V4(Ipv4Addr::UNSPECIFIED)
         } else {
@@ -341,7 +377,16 @@ impl ServerLink {
                 return Err(LinkError::Stopped);
             }
             match listener.accept() {
-                Ok((stream, _)) => break stream,
+                // Only the server calls back; anyone else is turned away.
+                Ok((stream, peer)) if peer.ip().to_canonical() == server_ip => break stream,
+                Ok((_, peer)) => {
+                    self.feed.count(Fate::Refused);
+                    tracing::warn!(
+                        "VRPN {}:{}: refused a callback from {peer} (the server is {server_ip})",
+                        self.host,
+                        self.port
+                    );
+                }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => {
                     if Instant::now() >= deadline {
                         return Err(LinkError::NoAnswer);
@@ -364,6 +409,7 @@ impl ServerLink {
         let udp = UdpSocket::bind((unspecified, 0))?;
         udp.set_read_timeout(Some(POLL))?;
         let udp_port = udp.local_addr()?.port();
+        self.data_port.store(u32::from(udp_port), Ordering::Release);
         let mut ip = my_ip.to_string().into_bytes();
         ip.push(0);
         let (seconds, microseconds) = now_since_epoch();
@@ -394,10 +440,11 @@ impl ServerLink {
             let feed = self.feed.clone();
             std::thread::Builder::new()
                 .name(format!("vrpn-udp-{}", self.port))
-                .spawn(move || udp_loop(&udp, &dispatch, &over, &stop, &feed))?
+                .spawn(move || udp_loop(&udp, server_ip, &dispatch, &over, &stop, &feed))?
         };
         let result = self.tcp_loop(&mut stream, &dispatch);
         session_over.store(true, Ordering::Release);
+        self.data_port.store(0, Ordering::Release);
         let _ = udp_thread.join();
         match result {
             Err(LinkError::Stopped) => Err(LinkError::Stopped),
@@ -427,7 +474,7 @@ impl ServerLink {
             payload.resize(header.padded_payload_len(), 0);
             self.read_full(stream, &mut payload, None)?;
             let body = &payload[..header.payload_len()];
-            lock(dispatch).message(&header, body, arrived);
+            lock(dispatch).message(&header, body, arrived, Channel::Tcp);
         }
     }
 
@@ -461,8 +508,18 @@ impl ServerLink {
     }
 }
 
+/// Where a message came: the TCP connection the server called back on, or UDP.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Channel {
+    Tcp,
+    Udp,
+}
+
+/// Reads the session's UDP channel: datagrams only from the server's address, and from the
+/// first port it sends from (its data socket); anything else is refused and counted.
 fn udp_loop(
     udp: &UdpSocket,
+    server_ip: IpAddr,
     dispatch: &Mutex<Dispatch>,
     over: &AtomicBool,
     stop: &AtomicBool,
@@ -470,14 +527,28 @@ fn udp_loop(
 ) {
     let mut buf = vec![0u8; 65_536];
     let mut error_log = LogLimiter::default();
+    let mut refused_log = LogLimiter::default();
+    let mut server_port: Option<u16> = None;
     while !over.load(Ordering::Acquire) && !stop.load(Ordering::Acquire) {
         match udp.recv_from(&mut buf) {
-            Ok((n, _from)) => {
+            Ok((n, from)) => {
                 let arrived = Instant::now();
+                let port = *server_port.get_or_insert(from.port());
+                if from.ip().to_canonical() != server_ip || from.port() != port {
+                    feed.count(Fate::Refused);
+                    if let Some(held) = refused_log.allow(arrived, LOG_INTERVAL) {
+                        tracing::warn!(
+                            "VRPN: refused a datagram from {from} (the server sends from \
+                             {server_ip}:{port}){}",
+                            held_back(held)
+                        );
+                    }
+                    continue;
+                }
                 let (messages, error) = wire::split_datagram(&buf[..n]);
                 let mut d = lock(dispatch);
                 for (header, payload) in messages {
-                    d.message(&header, payload, arrived);
+                    d.message(&header, payload, arrived, Channel::Udp);
                 }
                 if let Some(e) = error {
                     d.bad(Fate::Malformed, &e.to_string(), arrived);
@@ -548,15 +619,28 @@ impl Dispatch {
         }
     }
 
-    fn message(&mut self, header: &Header, payload: &[u8], arrived: Instant) {
+    fn message(&mut self, header: &Header, payload: &[u8], arrived: Instant, via: Channel) {
         match header.kind {
             wire::SENDER_DESCRIPTION | wire::TYPE_DESCRIPTION => {
+                // Names come from the server's own connection, once per id: a datagram cannot
+                // rename an id to steer another device's reports into the head.
+                if via == Channel::Udp {
+                    self.bad(Fate::Refused, "a name description over UDP", arrived);
+                    return;
+                }
                 let map = if header.kind == wire::SENDER_DESCRIPTION {
                     &mut self.senders
                 } else {
                     &mut self.types
                 };
                 match wire::parse_name(payload) {
+                    Ok(name) if map.get(&header.sender).is_some_and(|n| *n != name) => {
+                        let why = format!(
+                            "id {} is '{}' already, not '{name}'",
+                            header.sender, map[&header.sender]
+                        );
+                        self.bad(Fate::Refused, &why, arrived);
+                    }
                     Ok(name) if map.len() < wire::MAX_IDS || map.contains_key(&header.sender) => {
                         map.insert(header.sender, name);
                     }
@@ -577,12 +661,14 @@ impl Dispatch {
                     wire::BUTTON_CHANGE | wire::BUTTON_STATES
                         if self.roles.buttons.as_ref() == Some(sender) =>
                     {
-                        self.buttons(kind_name == wire::BUTTON_STATES, payload)
+                        self.buttons(kind_name == wire::BUTTON_STATES, payload, arrived)
                     }
                     wire::ANALOG_CHANNEL if self.roles.analogs.as_ref() == Some(sender) => {
                         match wire::parse_analog(payload) {
                             Ok(values) => {
-                                self.feed.update_controls(|c| c.set_analogs(values));
+                                self.feed.update_controls(self.server, arrived, |c| {
+                                    c.set_analogs(values);
+                                });
                                 Ok(())
                             }
                             Err(e) => Err((Fate::Malformed, e.to_string())),
@@ -637,6 +723,7 @@ impl Dispatch {
             orientation: Some(TrackedOrientation::Tracker(Quat::from_xyzw(qx, qy, qz, qw))),
             tracked: None,
             sender: self.server,
+            jumped: false,
         };
         if head {
             self.head_seq += 1;
@@ -653,11 +740,16 @@ impl Dispatch {
         Ok(())
     }
 
-    fn buttons(&mut self, all: bool, payload: &[u8]) -> Result<(), (Fate, String)> {
+    fn buttons(
+        &mut self,
+        all: bool,
+        payload: &[u8],
+        arrived: Instant,
+    ) -> Result<(), (Fate, String)> {
         if all {
             let states =
                 wire::parse_button_states(payload).map_err(|e| (Fate::Malformed, e.to_string()))?;
-            self.feed.update_controls(|c| {
+            self.feed.update_controls(self.server, arrived, |c| {
                 for (i, down) in states.iter().enumerate() {
                     c.set_button(i, *down);
                 }
@@ -668,8 +760,9 @@ impl Dispatch {
             if !(0..wire::MAX_WIRE_BUTTONS as i32).contains(&button) {
                 return Err((Fate::Malformed, format!("button number {button}")));
             }
-            self.feed
-                .update_controls(|c| c.set_button(button as usize, down));
+            self.feed.update_controls(self.server, arrived, |c| {
+                c.set_button(button as usize, down);
+            });
         }
         Ok(())
     }
@@ -723,7 +816,7 @@ mod tests {
         let (messages, error) = wire::split_datagram(&bytes);
         assert!(error.is_none());
         for (h, p) in messages {
-            d.message(&h, p, Instant::now());
+            d.message(&h, p, Instant::now(), Channel::Tcp);
         }
     }
 

@@ -1,0 +1,431 @@
+//! The gate every tracker sample passes in its receiver thread, for every source and stream
+//! (head, wand, buttons): one sender drives a stream at a time, each sample is judged on its
+//! own, jumps and "not tracked" claims need agreeing samples over time, and nothing is carried
+//! forward from a single packet.
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use glam::{Quat, Vec3};
+
+use super::calibration::Calibration;
+use super::plausibility::{
+    CONFIRMATION_TIME, Candidate, Implausible, JUMP_CONFIRMATIONS, PlausibilityGate,
+    PlausibilityLimits, Verdict, unit_quaternion,
+};
+use super::receiver::{TrackedOrientation, TrackerSample};
+
+/// A hand moves and turns faster than a head: the wand's limits are the head's times this.
+const WAND_LIMIT_FACTOR: f32 = 2.0;
+
+/// What the gate needs to judge samples in CAVE space; the render loop sets it
+/// ([`super::TrackerFeed::configure`]) and changes it when the calibration, the CAVE or the
+/// limits change.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GateSettings {
+    pub calibration: Calibration,
+    /// Where a head may be (the CAVE's box, min and max corners); `None`: anywhere within
+    /// [`super::plausibility::MAX_TRACKED_DISTANCE_M`].
+    pub bounds: Option<(Vec3, Vec3)>,
+    pub limits: PlausibilityLimits,
+    /// A sender silent this long gives up its streams; a component of a pose (an orientation
+    /// sent alone) older than this is forgotten.
+    pub timeout: Duration,
+}
+
+impl Default for GateSettings {
+    fn default() -> Self {
+        Self {
+            calibration: Calibration::default(),
+            bounds: None,
+            limits: PlausibilityLimits::default(),
+            timeout: Duration::from_millis(500),
+        }
+    }
+}
+
+/// The streams a source feeds, each with its own sender and history.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stream {
+    Head,
+    Wand,
+    /// Buttons and analogs.
+    Controls,
+}
+
+impl Stream {
+    pub const ALL: [Stream; 3] = [Stream::Head, Stream::Wand, Stream::Controls];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Head => "head",
+            Self::Wand => "wand",
+            Self::Controls => "buttons",
+        }
+    }
+
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Why the gate refused a sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Refusal {
+    /// Another sender drives this stream.
+    Conflicting,
+    /// Not finite, or outside the CAVE by more than the margin.
+    Implausible(Implausible),
+    /// Faster than a head moves from the accepted pose, not (yet) confirmed as a jump.
+    UnconfirmedJump(Implausible),
+    /// "Not tracked" (a flag or an empty frame), not (yet) confirmed.
+    UnconfirmedLoss,
+}
+
+impl Refusal {
+    pub fn describe(self) -> String {
+        match self {
+            Self::Conflicting => "from a second sender while the first still sends".into(),
+            Self::Implausible(why) => why.describe(),
+            Self::UnconfirmedJump(why) => format!("{}, not confirmed", why.describe()),
+            Self::UnconfirmedLoss => "\"not tracked\", not confirmed".into(),
+        }
+    }
+}
+
+/// Samples the gate refused, by reason, since the source started (all streams).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GateCounters {
+    /// From a second sender while the stream's sender still sends.
+    pub conflicting: u64,
+    /// Not finite, or outside the CAVE by more than the margin.
+    pub implausible: u64,
+    /// A jump not (yet) confirmed by agreeing samples over time.
+    pub unconfirmed_jump: u64,
+    /// A "not tracked" claim not (yet) confirmed.
+    pub unconfirmed_loss: u64,
+}
+
+impl GateCounters {
+    pub fn count(&mut self, refusal: Refusal) {
+        let counter = match refusal {
+            Refusal::Conflicting => &mut self.conflicting,
+            Refusal::Implausible(_) => &mut self.implausible,
+            Refusal::UnconfirmedJump(_) => &mut self.unconfirmed_jump,
+            Refusal::UnconfirmedLoss => &mut self.unconfirmed_loss,
+        };
+        *counter += 1;
+    }
+
+    pub fn total(&self) -> u64 {
+        self.conflicting + self.implausible + self.unconfirmed_jump + self.unconfirmed_loss
+    }
+}
+
+/// Who drives a stream: its sender, and the newest second sender refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct StreamSenders {
+    pub owner: Option<SocketAddr>,
+    pub conflicting: Option<SocketAddr>,
+}
+
+/// The sender driving a stream and when it was last heard.
+#[derive(Debug, Clone, Copy)]
+struct Owner {
+    sender: SocketAddr,
+    heard: Instant,
+}
+
+/// One stream's gate.
+#[derive(Debug, Clone, Default)]
+struct StreamGate {
+    owner: Option<Owner>,
+    conflicting: Option<SocketAddr>,
+    plausibility: PlausibilityGate,
+    /// A "not tracked" claim being confirmed: since when, how many samples.
+    loss: Option<(Instant, u32)>,
+    /// The stream is published as not tracked (a confirmed loss): the next pose starts afresh.
+    lost: bool,
+}
+
+impl StreamGate {
+    /// Whether `from` may drive the stream now: the sender established first keeps it until
+    /// it has been silent for `timeout`.
+    fn admit(
+        &mut self,
+        stream: Stream,
+        from: SocketAddr,
+        at: Instant,
+        timeout: Duration,
+    ) -> Result<(), Refusal> {
+        match self.owner {
+            Some(o) if o.sender == from => {}
+            Some(o) if at.saturating_duration_since(o.heard) <= timeout => {
+                self.conflicting = Some(from);
+                return Err(Refusal::Conflicting);
+            }
+            previous => {
+                match previous {
+                    Some(o) => tracing::info!(
+                        "tracking: the {} stream now comes from {from} ({} silent for {:.2} s)",
+                        stream.name(),
+                        o.sender,
+                        at.saturating_duration_since(o.heard).as_secs_f64()
+                    ),
+                    None => {
+                        tracing::info!("tracking: the {} stream comes from {from}", stream.name())
+                    }
+                }
+                // A new sender's samples are judged afresh, not against another's history.
+                *self = Self {
+                    conflicting: self.conflicting,
+                    ..Self::default()
+                };
+            }
+        }
+        self.owner = Some(Owner {
+            sender: from,
+            heard: at,
+        });
+        Ok(())
+    }
+
+    /// Judges a pose sample from the stream's sender; what to publish if it passes.
+    fn judge_pose(
+        &mut self,
+        sample: TrackerSample,
+        settings: &GateSettings,
+        limits: &PlausibilityLimits,
+    ) -> Result<TrackerSample, Refusal> {
+        if sample.tracked == Some(false) {
+            return self.judge_loss(sample);
+        }
+        self.loss = None;
+        let Some(raw) = sample.position else {
+            // An orientation before any position: nothing to place, nothing to judge.
+            return Ok(sample);
+        };
+        let cal = &settings.calibration;
+        let orientation = sample.orientation.map(|o| {
+            let q = match o {
+                TrackedOrientation::Tracker(q) => cal.orientation(q),
+                TrackedOrientation::CaveAxes(q) => cal.orientation_in_cave_axes(q),
+            };
+            // A quaternion without a direction is refused as not finite.
+            unit_quaternion(q).unwrap_or(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 0.0))
+        });
+        let candidate = Candidate {
+            position: cal.position(raw),
+            orientation,
+            arrived: sample.arrived,
+        };
+        if self.lost {
+            // Seen again after a confirmed loss: judged by the bounds alone.
+            self.plausibility.reset();
+        }
+        match self.plausibility.judge(candidate, settings.bounds, limits) {
+            Verdict::Accept => {
+                self.lost = false;
+                Ok(sample)
+            }
+            Verdict::AcceptJump => {
+                self.lost = false;
+                Ok(TrackerSample {
+                    jumped: true,
+                    ..sample
+                })
+            }
+            Verdict::Unconfirmed(why) => Err(Refusal::UnconfirmedJump(why)),
+            Verdict::Refuse(why) => Err(Refusal::Implausible(why)),
+        }
+    }
+
+    /// A "not tracked" sample: published once [`JUMP_CONFIRMATIONS`] of them in a row span
+    /// [`CONFIRMATION_TIME`].
+    fn judge_loss(&mut self, sample: TrackerSample) -> Result<TrackerSample, Refusal> {
+        let (since, n) = match self.loss {
+            Some((since, n)) => (since, n + 1),
+            None => (sample.arrived, 1),
+        };
+        self.loss = Some((since, n));
+        let lasted = sample.arrived.saturating_duration_since(since);
+        if self.lost || (n >= JUMP_CONFIRMATIONS && lasted >= CONFIRMATION_TIME) {
+            self.lost = true;
+            Ok(TrackerSample {
+                position: None,
+                orientation: None,
+                ..sample
+            })
+        } else {
+            Err(Refusal::UnconfirmedLoss)
+        }
+    }
+}
+
+/// The gates of a source's three streams.
+#[derive(Debug, Clone, Default)]
+pub struct SourceGate {
+    streams: [StreamGate; 3],
+    pub counters: GateCounters,
+}
+
+impl SourceGate {
+    /// Judges a head or wand sample; the sample to publish, or why not (counted).
+    pub fn judge(
+        &mut self,
+        stream: Stream,
+        sample: TrackerSample,
+        settings: &GateSettings,
+    ) -> Result<TrackerSample, Refusal> {
+        let gate = &mut self.streams[stream.index()];
+        let result = gate
+            .admit(stream, sample.sender, sample.arrived, settings.timeout)
+            .and_then(|()| {
+                let limits = match stream {
+                    Stream::Wand => PlausibilityLimits {
+                        max_speed_mps: settings.limits.max_speed_mps * WAND_LIMIT_FACTOR,
+                        max_turn_dps: settings.limits.max_turn_dps * WAND_LIMIT_FACTOR,
+                        ..settings.limits
+                    },
+                    _ => settings.limits,
+                };
+                gate.judge_pose(sample, settings, &limits)
+            });
+        if let Err(refusal) = result {
+            self.counters.count(refusal);
+        }
+        result
+    }
+
+    /// Whether `from` may change the buttons now (counted where not).
+    pub fn admit_controls(
+        &mut self,
+        from: SocketAddr,
+        at: Instant,
+        settings: &GateSettings,
+    ) -> Result<(), Refusal> {
+        let result = self.streams[Stream::Controls.index()].admit(
+            Stream::Controls,
+            from,
+            at,
+            settings.timeout,
+        );
+        if let Err(refusal) = result {
+            self.counters.count(refusal);
+        }
+        result
+    }
+
+    /// Forgets every stream's history (the calibration or the CAVE changed: the accepted poses
+    /// are in another frame); senders keep their streams.
+    pub fn reset_history(&mut self) {
+        for gate in &mut self.streams {
+            gate.plausibility.reset();
+            gate.loss = None;
+        }
+    }
+
+    pub fn senders(&self, stream: Stream) -> StreamSenders {
+        let gate = &self.streams[stream.index()];
+        StreamSenders {
+            owner: gate.owner.map(|o| o.sender),
+            conflicting: gate.conflicting,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(from: u16, ms: u64, t0: Instant, position: Option<Vec3>) -> TrackerSample {
+        TrackerSample {
+            seq: 0,
+            arrived: t0 + Duration::from_millis(ms),
+            stored: t0,
+            position,
+            orientation: None,
+            tracked: None,
+            sender: SocketAddr::from(([127, 0, 0, 1], from)),
+            jumped: false,
+        }
+    }
+
+    #[test]
+    fn the_first_sender_keeps_a_stream_until_silent() {
+        let t0 = Instant::now();
+        let settings = GateSettings::default();
+        let mut gate = SourceGate::default();
+        let p = Some(Vec3::new(0.0, 1.6, 0.0));
+        assert!(
+            gate.judge(Stream::Head, sample(1, 0, t0, p), &settings)
+                .is_ok()
+        );
+        assert_eq!(
+            gate.judge(Stream::Head, sample(2, 1, t0, p), &settings),
+            Err(Refusal::Conflicting)
+        );
+        // The wand is another stream: the second sender may drive it.
+        assert!(
+            gate.judge(Stream::Wand, sample(2, 1, t0, p), &settings)
+                .is_ok()
+        );
+        // Sender 1 silent for longer than the timeout: sender 2 takes the head.
+        assert!(
+            gate.judge(Stream::Head, sample(2, 502, t0, p), &settings)
+                .is_ok()
+        );
+        assert_eq!(
+            gate.judge(Stream::Head, sample(1, 503, t0, p), &settings),
+            Err(Refusal::Conflicting)
+        );
+        assert_eq!(gate.counters.conflicting, 2);
+        let s = gate.senders(Stream::Head);
+        assert_eq!(s.owner.map(|a| a.port()), Some(2));
+        assert_eq!(s.conflicting.map(|a| a.port()), Some(1));
+    }
+
+    #[test]
+    fn not_tracked_needs_confirmation_over_time() {
+        let t0 = Instant::now();
+        let settings = GateSettings::default();
+        let mut gate = SourceGate::default();
+        let p = Some(Vec3::new(0.0, 1.6, 0.0));
+        let lost = |ms| TrackerSample {
+            tracked: Some(false),
+            ..sample(1, ms, t0, None)
+        };
+        assert!(
+            gate.judge(Stream::Head, sample(1, 0, t0, p), &settings)
+                .is_ok()
+        );
+        // One claim, then a pose: nothing published, the claim forgotten.
+        assert_eq!(
+            gate.judge(Stream::Head, lost(8), &settings),
+            Err(Refusal::UnconfirmedLoss)
+        );
+        assert!(
+            gate.judge(Stream::Head, sample(1, 16, t0, p), &settings)
+                .is_ok()
+        );
+        // A burst of claims within a millisecond: still nothing.
+        for _ in 0..10 {
+            assert!(gate.judge(Stream::Head, lost(17), &settings).is_err());
+        }
+        // Claims for 40 ms: the loss is published, without a pose.
+        let mut published = None;
+        for ms in (25..=57).step_by(8) {
+            published = gate.judge(Stream::Head, lost(ms), &settings).ok();
+        }
+        let published = published.expect("confirmed");
+        assert_eq!((published.tracked, published.position), (Some(false), None));
+        // Seen again, far away: judged afresh, accepted.
+        let far = Some(Vec3::new(1.5, 1.6, 0.0));
+        assert!(
+            gate.judge(Stream::Head, sample(1, 65, t0, far), &settings)
+                .is_ok()
+        );
+        // The first claim, the burst of ten and four before the fifth at 40 ms.
+        assert_eq!(gate.counters.unconfirmed_loss, 1 + 10 + 4);
+    }
+}
