@@ -493,6 +493,70 @@ fn vrpn_spoofed_datagrams_and_names_are_refused() {
 }
 
 #[test]
+fn the_real_vrpn_server_hung_or_restarted_is_lost_in_time_and_followed_again() {
+    let Some(binary) = server_binary() else {
+        return;
+    };
+    let mut server = VrpnServer::start(&binary, free_port());
+    let port = server.port;
+    let mut rig = Rig::new(config(
+        &format!(
+            "source = \"vrpn\"\n[tracking.vrpn]\nhead = \"DTrack@127.0.0.1:{port}\"\n\
+             retry_seconds = 0.2\n"
+        ),
+        false,
+    ));
+    let timeout = Duration::from_millis(500);
+    let dtrack = UdpSocket::bind("127.0.0.1:0").expect("socket");
+    let dtrack_port = server.dtrack_port;
+    let clock = Instant::now();
+    let mut n = 0u64;
+    // Polls while the tracker sends, until the status is `want`; how long that took.
+    let mut until = |rig: &mut Rig, want: TrackingStatus, limit: Duration| {
+        let start = Instant::now();
+        while rig.info().status != Some(want) {
+            assert!(
+                start.elapsed() < limit,
+                "not {want:?} within {limit:?}: {:?}",
+                rig.info()
+            );
+            let p = honest_position(clock.elapsed().as_secs_f64()) * 1e3;
+            let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+            let mm = [f64::from(p.x), f64::from(p.y), f64::from(p.z)];
+            let frame = dtrack_frame(n, mm, identity, [0.0; 3], 0, [0.0; 2]);
+            n += 1;
+            let _ = dtrack.send_to(frame.as_bytes(), ("127.0.0.1", dtrack_port));
+            std::thread::sleep(Duration::from_millis(8));
+            rig.poll();
+        }
+        start.elapsed()
+    };
+    until(&mut rig, TrackingStatus::Tracking, Duration::from_secs(20));
+    // Hung: lost within the timeout plus 0.2 s (the issue's bound; the last sample may be up
+    // to one 8 ms frame older than the stop).
+    server.signal("STOP");
+    let lost = until(&mut rig, TrackingStatus::Lost, Duration::from_secs(5));
+    server.signal("CONT");
+    let back = until(&mut rig, TrackingStatus::Tracking, Duration::from_secs(3));
+    // Killed and started again on the same port.
+    server.kill();
+    let killed = until(&mut rig, TrackingStatus::Lost, Duration::from_secs(5));
+    server.restart();
+    let restarted = until(&mut rig, TrackingStatus::Tracking, Duration::from_secs(3));
+    eprintln!(
+        "hung: lost after {lost:?}, followed {back:?} after SIGCONT; killed: lost after \
+         {killed:?}, followed {restarted:?} after the restart"
+    );
+    for took in [lost, killed] {
+        assert!(
+            took <= timeout + Duration::from_millis(200),
+            "lost after {took:?}"
+        );
+    }
+    assert_eq!(rig.info().stats.lost_events, 2);
+}
+
+#[test]
 fn the_honest_tracker_alone_with_loss_and_jitter_never_loses_tracking() {
     // Seconds of the honest run: 10 minutes is the acceptance run
     // (OMNICAVE_SOAK_SECONDS=600); CI runs a few seconds of it.

@@ -99,6 +99,16 @@ impl VrpnServer {
         self.wait_listening();
     }
 
+    /// Sends `signal` (`STOP`, `CONT`) to the server: a hung server, and its return.
+    pub fn signal(&self, signal: &str) {
+        let status = Command::new("kill")
+            .arg(format!("-{signal}"))
+            .arg(self.child.id().to_string())
+            .status()
+            .expect("kill");
+        assert!(status.success(), "kill -{signal}");
+    }
+
     pub fn kill(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
