@@ -43,6 +43,11 @@ fn honest_position(t: f64) -> Vec3 {
     Vec3::new(-0.3 + 0.6 * u as f32, 1.6, -0.3)
 }
 
+/// The honest orientation (OSC): turned 17° left.
+fn honest_orientation() -> Quat {
+    Quat::from_rotation_y(0.3)
+}
+
 /// Distance from `p` to the polyline through `path`.
 fn distance_to_path(p: Vec3, path: &[Vec3]) -> f32 {
     path.windows(2)
@@ -136,10 +141,12 @@ fn sender(
 }
 
 /// Starts the honest sender, waits for tracking, starts the hostile one, and polls for
-/// [`ATTACK`], checking every frame: tracking, and the head on the honest path. Returns the
+/// [`ATTACK`], checking every frame: tracking, the head on the honest path and turned as the
+/// honest tracker says (`orientation`). Returns the
 /// rig and how many hostile packets were sent.
 fn attack(
     rig: &mut Rig,
+    orientation: Quat,
     honest: impl FnMut(&UdpSocket, u64) + Send + 'static,
     hostile: impl FnMut(&UdpSocket, u64) + Send + 'static,
     path: &Mutex<Vec<Vec3>>,
@@ -165,6 +172,15 @@ fn attack(
             "after {:?}: {info:?}",
             start.elapsed()
         );
+        // The honest `orientation` throughout, where the tracker sends one (1e-4: f32
+        // quaternions through the identity calibration).
+        if let Some(q) = rig.state.tracked_orientation {
+            assert!(
+                q.angle_between(orientation) < 1e-4,
+                "orientation {q} after {:?}",
+                start.elapsed()
+            );
+        }
         let head = rig.state.head_position();
         let d = distance_to_path(head, &path.lock().unwrap());
         worst = worst.max(d);
@@ -215,23 +231,17 @@ fn osc_a_hostile_sender_cannot_freeze_steer_or_lose_the_head() {
     let send = move |s: &UdpSocket, p: &OscPacket| {
         s.send_to(&encode::bytes(p), target).expect("send");
     };
+    // The honest tracker sends position and orientation in separate packets, as some
+    // bridges do: the hostile packets between them must not break the pose apart.
     let honest = move |s: &UdpSocket, i: u64| {
         let p = honest_position(i as f64 / HONEST_HZ);
         honest_path.lock().unwrap().push(p);
-        match i {
-            // The honest tracker itself once says "not tracked", once sends an orientation:
-            // neither freezes the head nor sticks to it.
-            60 => send(s, &osc_body(1, "tracked", &[0.0])),
-            90 => send(
-                s,
-                &encode::orientation(
-                    &honest_mapping,
-                    Quat::from_rotation_y(1.0),
-                    honest_mapping.quaternion_order,
-                ),
-            ),
-            _ => send(s, &encode::position(&honest_mapping, p)),
-        }
+        send(s, &encode::position(&honest_mapping, p));
+        let q = honest_orientation();
+        send(
+            s,
+            &encode::orientation(&honest_mapping, q, honest_mapping.quaternion_order),
+        );
     };
     let hostile = move |s: &UdpSocket, i: u64| {
         let here = honest_position(i as f64 / HOSTILE_HZ);
@@ -258,17 +268,16 @@ fn osc_a_hostile_sender_cannot_freeze_steer_or_lose_the_head() {
         };
         send(s, &packet);
     };
-    let sent = attack(&mut rig, honest, hostile, &path);
+    let sent = attack(&mut rig, honest_orientation(), honest, hostile, &path);
     let c = rig.info().counters;
     // Every hostile OSC packet for us was refused as from a second sender (the garbage, one
     // in seven, is malformed); a few may be in flight at the end.
     assert!(c.gate.conflicting >= sent * 6 / 7 - 10, "{c:?}");
-    assert_eq!(c.gate.implausible + c.gate.unconfirmed_jump, 0, "{c:?}");
-    // The honest "not tracked" was one claim, unconfirmed.
-    assert_eq!(c.gate.unconfirmed_loss, 1, "{c:?}");
-    // The one orientation packet is forgotten after the timeout: positions alone leave the
-    // head's orientation to the settings.
-    assert_eq!(rig.state.tracked_orientation, None);
+    assert_eq!(
+        c.gate.implausible + c.gate.unconfirmed_jump + c.gate.unconfirmed_loss,
+        0,
+        "{c:?}"
+    );
     let senders = rig.info().senders;
     let (_, head) = senders.first().expect("the head's sender");
     assert!(
@@ -276,6 +285,55 @@ fn osc_a_hostile_sender_cannot_freeze_steer_or_lose_the_head() {
         "{senders:?}"
     );
     assert_ne!(head.owner, head.conflicting);
+}
+
+/// What one packet says is not carried forward: a lone orientation is forgotten after the
+/// timeout, a lone "tracked 0" is one claim; "tracked 0" sent in packets of its own between
+/// positions (a bridge) is confirmed, and "tracked 1" resumes.
+#[test]
+fn one_packet_is_not_carried_forward_and_claims_in_their_own_packets_count() {
+    let mut rig = Rig::new(config("natnet_rigid_body = 1\n", false));
+    let target = rig.target();
+    let m = rig.tracking_mapping();
+    let socket = UdpSocket::bind("127.0.0.1:0").expect("socket");
+    let send = |p: &OscPacket| {
+        socket.send_to(&encode::bytes(p), target).expect("send");
+    };
+    let start = Instant::now();
+    let frames = |rig: &mut Rig, ms: u64, extra: &dyn Fn()| {
+        let until = Instant::now() + Duration::from_millis(ms);
+        while Instant::now() < until {
+            send(&encode::position(
+                &m,
+                honest_position(start.elapsed().as_secs_f64()),
+            ));
+            extra();
+            std::thread::sleep(Duration::from_millis(8));
+            rig.poll();
+        }
+    };
+    frames(&mut rig, 100, &|| {});
+    assert_eq!(rig.info().status, Some(TrackingStatus::Tracking));
+    // One orientation and one "tracked 0" among the positions.
+    send(&encode::orientation(
+        &m,
+        honest_orientation(),
+        m.quaternion_order,
+    ));
+    send(&osc_body(1, "tracked", &[0.0]));
+    frames(&mut rig, 100, &|| {});
+    assert_eq!(rig.info().status, Some(TrackingStatus::Tracking));
+    assert!(rig.state.tracked_orientation.is_some());
+    // 0.5 s later the orientation is forgotten: positions alone leave it to the settings.
+    frames(&mut rig, 600, &|| {});
+    assert_eq!(rig.state.tracked_orientation, None);
+    assert_eq!(rig.info().status, Some(TrackingStatus::Tracking));
+    // A bridge sending "tracked 0" in a packet of its own after each position: confirmed.
+    frames(&mut rig, 150, &|| send(&osc_body(1, "tracked", &[0.0])));
+    assert_eq!(rig.info().status, Some(TrackingStatus::NotVisible));
+    frames(&mut rig, 100, &|| send(&osc_body(1, "tracked", &[1.0])));
+    assert_eq!(rig.info().status, Some(TrackingStatus::Tracking));
+    assert_eq!(rig.info().stats.lost_events, 0);
 }
 
 #[test]
@@ -318,7 +376,7 @@ fn dtrack_empty_frames_and_jumps_from_a_hostile_sender_change_nothing() {
         };
         s.send_to(text.as_bytes(), target).expect("send");
     };
-    let sent = attack(&mut rig, honest, hostile, &path);
+    let sent = attack(&mut rig, Quat::IDENTITY, honest, hostile, &path);
     let c = rig.info().counters;
     assert!(c.gate.conflicting >= sent - 10, "{c:?}");
     assert_eq!(c.gate.unconfirmed_loss, 1, "{c:?}");
@@ -593,8 +651,18 @@ fn the_honest_tracker_alone_with_loss_and_jitter_never_loses_tracking() {
                     lost += 1;
                     continue;
                 }
-                let p = honest_position(start.elapsed().as_secs_f64());
-                let packet = encode::position(&mapping, p);
+                // Walking and turning the head back and forth at up to 760°/s (a fast
+                // saccadic turn), in one bundle.
+                let t = start.elapsed().as_secs_f64();
+                let yaw = 2.0 * (std::f64::consts::TAU * 1.06 * t).sin();
+                let packet = encode::bundle(vec![
+                    encode::position(&mapping, honest_position(t)),
+                    encode::orientation(
+                        &mapping,
+                        Quat::from_rotation_y(yaw as f32),
+                        mapping.quaternion_order,
+                    ),
+                ]);
                 socket
                     .send_to(&encode::bytes(&packet), target)
                     .expect("send");

@@ -236,14 +236,19 @@ impl Tracking {
             .as_ref()
             .map(|r| r.feed().counters())
             .unwrap_or_default();
-        into.senders.clear();
-        if let Some(r) = &self.receiver {
-            into.senders.extend(
-                Stream::ALL
-                    .iter()
-                    .map(|&s| (s, r.feed().senders(s)))
-                    .filter(|(_, s)| s.owner.is_some()),
-            );
+        // Kept from the last frame should a source hold them this instant.
+        match self.receiver.as_ref().map(|r| r.feed().try_senders()) {
+            Some(Some(senders)) => {
+                into.senders.clear();
+                into.senders.extend(
+                    Stream::ALL
+                        .iter()
+                        .map(|&s| (s, senders[s.index()]))
+                        .filter(|(_, s)| s.owner.is_some()),
+                );
+            }
+            Some(None) => {}
+            None => into.senders.clear(),
         }
         into.open_warning = self
             .receiver

@@ -17,6 +17,9 @@ use super::receiver::{TrackedOrientation, TrackerSample};
 
 /// A hand moves and turns faster than a head: the wand's limits are the head's times this.
 const WAND_LIMIT_FACTOR: f32 = 2.0;
+/// "Not tracked" claims further apart than this are separate claims, not one confirming the
+/// other (a tracker at 30 Hz sends one every 33 ms).
+const CLAIM_GAP: Duration = Duration::from_millis(100);
 
 /// What the gate needs to judge samples in CAVE space; the render loop sets it
 /// ([`super::TrackerFeed::configure`]) and changes it when the calibration, the CAVE or the
@@ -64,7 +67,8 @@ impl Stream {
         }
     }
 
-    fn index(self) -> usize {
+    /// The stream's place in per-stream arrays (head 0, wand 1, buttons 2).
+    pub fn index(self) -> usize {
         self as usize
     }
 }
@@ -106,6 +110,18 @@ pub struct GateCounters {
     pub unconfirmed_loss: u64,
 }
 
+impl Refusal {
+    /// The refusal's counter in [`GateCounters::as_array`] order.
+    pub fn counter_index(self) -> usize {
+        match self {
+            Self::Conflicting => 0,
+            Self::Implausible(_) => 1,
+            Self::UnconfirmedJump(_) => 2,
+            Self::UnconfirmedLoss => 3,
+        }
+    }
+}
+
 impl GateCounters {
     pub fn count(&mut self, refusal: Refusal) {
         let counter = match refusal {
@@ -115,6 +131,18 @@ impl GateCounters {
             Refusal::UnconfirmedLoss => &mut self.unconfirmed_loss,
         };
         *counter += 1;
+    }
+
+    /// From the counts in [`Refusal::counter_index`] order.
+    pub fn from_array(
+        [conflicting, implausible, unconfirmed_jump, unconfirmed_loss]: [u64; 4],
+    ) -> Self {
+        Self {
+            conflicting,
+            implausible,
+            unconfirmed_jump,
+            unconfirmed_loss,
+        }
     }
 
     pub fn total(&self) -> u64 {
@@ -136,14 +164,23 @@ struct Owner {
     heard: Instant,
 }
 
+/// "Not tracked" claims in a row: the first's and the newest's arrival, how many.
+#[derive(Debug, Clone, Copy)]
+struct Claims {
+    since: Instant,
+    newest: Instant,
+    count: u32,
+}
+
 /// One stream's gate.
 #[derive(Debug, Clone, Default)]
 struct StreamGate {
     owner: Option<Owner>,
-    conflicting: Option<SocketAddr>,
+    /// The newest second sender refused, and when.
+    conflicting: Option<(SocketAddr, Instant)>,
     plausibility: PlausibilityGate,
-    /// A "not tracked" claim being confirmed: since when, how many samples.
-    loss: Option<(Instant, u32)>,
+    /// "Not tracked" claims being confirmed (samples without a flag leave them be).
+    loss: Option<Claims>,
     /// The stream is published as not tracked (a confirmed loss): the next pose starts afresh.
     lost: bool,
 }
@@ -161,7 +198,7 @@ impl StreamGate {
         match self.owner {
             Some(o) if o.sender == from => {}
             Some(o) if at.saturating_duration_since(o.heard) <= timeout => {
-                self.conflicting = Some(from);
+                self.conflicting = Some((from, at));
                 return Err(Refusal::Conflicting);
             }
             previous => {
@@ -178,7 +215,7 @@ impl StreamGate {
                 }
                 // A new sender's samples are judged afresh, not against another's history.
                 *self = Self {
-                    conflicting: self.conflicting,
+                    conflicting: self.conflicting.filter(|(c, _)| *c != from),
                     ..Self::default()
                 };
             }
@@ -197,10 +234,29 @@ impl StreamGate {
         settings: &GateSettings,
         limits: &PlausibilityLimits,
     ) -> Result<TrackerSample, Refusal> {
-        if sample.tracked == Some(false) {
-            return self.judge_loss(sample);
+        match sample.tracked {
+            Some(false) => return self.judge_loss(sample),
+            Some(true) => self.loss = None,
+            // No flag (a bridge may send it in a packet of its own): claims stay, until they
+            // stop coming.
+            None => {
+                if self
+                    .loss
+                    .is_some_and(|c| sample.arrived.saturating_duration_since(c.newest) > CLAIM_GAP)
+                {
+                    self.loss = None;
+                }
+                if self.lost && self.loss.is_some() {
+                    // Confirmed lost and still said so: a pose between the claims is stale.
+                    return Ok(TrackerSample {
+                        position: None,
+                        orientation: None,
+                        tracked: Some(false),
+                        ..sample
+                    });
+                }
+            }
         }
-        self.loss = None;
         let Some(raw) = sample.position else {
             // An orientation before any position: nothing to place, nothing to judge.
             return Ok(sample);
@@ -240,16 +296,25 @@ impl StreamGate {
         }
     }
 
-    /// A "not tracked" sample: published once [`JUMP_CONFIRMATIONS`] of them in a row span
-    /// [`CONFIRMATION_TIME`].
+    /// A "not tracked" sample: published once [`JUMP_CONFIRMATIONS`] claims, each within
+    /// [`CLAIM_GAP`] of the one before, span [`CONFIRMATION_TIME`].
     fn judge_loss(&mut self, sample: TrackerSample) -> Result<TrackerSample, Refusal> {
-        let (since, n) = match self.loss {
-            Some((since, n)) => (since, n + 1),
-            None => (sample.arrived, 1),
+        let at = sample.arrived;
+        let claims = match self.loss {
+            Some(c) if at.saturating_duration_since(c.newest) <= CLAIM_GAP => Claims {
+                newest: at,
+                count: c.count + 1,
+                ..c
+            },
+            _ => Claims {
+                since: at,
+                newest: at,
+                count: 1,
+            },
         };
-        self.loss = Some((since, n));
-        let lasted = sample.arrived.saturating_duration_since(since);
-        if self.lost || (n >= JUMP_CONFIRMATIONS && lasted >= CONFIRMATION_TIME) {
+        self.loss = Some(claims);
+        let lasted = at.saturating_duration_since(claims.since);
+        if self.lost || (claims.count >= JUMP_CONFIRMATIONS && lasted >= CONFIRMATION_TIME) {
             self.lost = true;
             Ok(TrackerSample {
                 position: None,
@@ -325,11 +390,20 @@ impl SourceGate {
         }
     }
 
-    pub fn senders(&self, stream: Stream) -> StreamSenders {
+    /// Who drives `stream`, and a second sender refused within `timeout` of the owner's
+    /// newest sample.
+    pub fn senders(&self, stream: Stream, timeout: Duration) -> StreamSenders {
         let gate = &self.streams[stream.index()];
+        let recent = |at: Instant| {
+            gate.owner
+                .is_some_and(|o| o.heard.saturating_duration_since(at) <= timeout)
+        };
         StreamSenders {
             owner: gate.owner.map(|o| o.sender),
-            conflicting: gate.conflicting,
+            conflicting: gate
+                .conflicting
+                .filter(|&(c, at)| recent(at) && Some(c) != gate.owner.map(|o| o.sender))
+                .map(|(c, _)| c),
         }
     }
 }
@@ -349,6 +423,31 @@ mod tests {
             sender: SocketAddr::from(([127, 0, 0, 1], from)),
             jumped: false,
         }
+    }
+
+    #[test]
+    fn not_tracked_in_packets_of_its_own_is_confirmed_across_poses() {
+        // A bridge sending position and "tracked 0" as separate packets, 8 ms apart.
+        let t0 = Instant::now();
+        let settings = GateSettings::default();
+        let mut gate = SourceGate::default();
+        let p = Some(Vec3::new(0.0, 1.6, 0.0));
+        let mut confirmed = None;
+        for tick in 0..8u64 {
+            assert!(
+                gate.judge(Stream::Head, sample(1, tick * 8, t0, p), &settings)
+                    .is_ok()
+            );
+            let lost = TrackerSample {
+                tracked: Some(false),
+                ..sample(1, tick * 8 + 1, t0, None)
+            };
+            if gate.judge(Stream::Head, lost, &settings).is_ok() && confirmed.is_none() {
+                confirmed = Some(tick);
+            }
+        }
+        // Claims at 1, 9, …, 41 ms: the sixth spans 40 ms.
+        assert_eq!(confirmed, Some(5));
     }
 
     #[test]
@@ -380,7 +479,7 @@ mod tests {
             Err(Refusal::Conflicting)
         );
         assert_eq!(gate.counters.conflicting, 2);
-        let s = gate.senders(Stream::Head);
+        let s = gate.senders(Stream::Head, settings.timeout);
         assert_eq!(s.owner.map(|a| a.port()), Some(2));
         assert_eq!(s.conflicting.map(|a| a.port()), Some(1));
     }
@@ -399,32 +498,33 @@ mod tests {
             gate.judge(Stream::Head, sample(1, 0, t0, p), &settings)
                 .is_ok()
         );
-        // One claim, then a pose: nothing published, the claim forgotten.
+        // One claim, then poses: nothing published; 100 ms on, the claim is forgotten.
         assert_eq!(
             gate.judge(Stream::Head, lost(8), &settings),
             Err(Refusal::UnconfirmedLoss)
         );
-        assert!(
-            gate.judge(Stream::Head, sample(1, 16, t0, p), &settings)
-                .is_ok()
-        );
+        for ms in [16, 120] {
+            let pose = gate.judge(Stream::Head, sample(1, ms, t0, p), &settings);
+            assert_eq!(pose.map(|s| s.position), Ok(p));
+        }
         // A burst of claims within a millisecond: still nothing.
         for _ in 0..10 {
-            assert!(gate.judge(Stream::Head, lost(17), &settings).is_err());
+            assert!(gate.judge(Stream::Head, lost(121), &settings).is_err());
         }
         // Claims for 40 ms: the loss is published, without a pose.
         let mut published = None;
-        for ms in (25..=57).step_by(8) {
+        for ms in (129..=161).step_by(8) {
             published = gate.judge(Stream::Head, lost(ms), &settings).ok();
         }
         let published = published.expect("confirmed");
         assert_eq!((published.tracked, published.position), (Some(false), None));
-        // Seen again, far away: judged afresh, accepted.
+        // A pose between further claims is stale: published as not tracked.
+        let stale = gate.judge(Stream::Head, sample(1, 165, t0, p), &settings);
+        assert_eq!(stale.map(|s| s.tracked), Ok(Some(false)));
+        // Claims stopped for longer than the gap: seen again, far away, judged afresh.
         let far = Some(Vec3::new(1.5, 1.6, 0.0));
-        assert!(
-            gate.judge(Stream::Head, sample(1, 65, t0, far), &settings)
-                .is_ok()
-        );
+        let seen = gate.judge(Stream::Head, sample(1, 270, t0, far), &settings);
+        assert_eq!(seen.map(|s| s.position), Ok(far));
         // The first claim, the burst of ten and four before the fifth at 40 ms.
         assert_eq!(gate.counters.unconfirmed_loss, 1 + 10 + 4);
     }

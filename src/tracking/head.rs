@@ -225,7 +225,9 @@ impl HeadTracker {
             return None;
         }
         let Some(raw_position) = sample.position else {
-            return None; // orientation without any position yet: nothing to place
+            // An orientation without a (recent) position: nothing to place, and no tracking.
+            self.check_timeout(now);
+            return None;
         };
         let (position, orientation) = self.calibrated_eyes(raw_position, sample.orientation);
         if !position.is_finite() || orientation.is_some_and(|q| !q.is_finite()) {

@@ -36,6 +36,9 @@ pub const MAX_TRACKED_DISTANCE_M: f64 = 1000.0;
 /// the tracker's noise), metres and radians.
 const JITTER_M: f64 = 0.02;
 const JITTER_RAD: f64 = 0.02;
+/// Timing jitter allowed on top of the time between two samples: packets of a 120 Hz tracker
+/// that arrive 2 ms apart (±3 ms of network jitter) still carry 8 ms of movement, seconds.
+const JITTER_S: f64 = 0.006;
 /// Consecutive samples that agree with one another (each plausible from the one before) that
 /// make a claim real (a jump: a tracker re-homed or a calibration changed; "not tracked"): at
 /// least this many, spanning at least [`CONFIRMATION_TIME`]. Counting samples alone would let a
@@ -188,7 +191,8 @@ fn step(from: &Candidate, to: &Candidate, limits: &PlausibilityLimits) -> Result
     let dt = to
         .arrived
         .saturating_duration_since(from.arrived)
-        .as_secs_f64();
+        .as_secs_f64()
+        + JITTER_S;
     let moved = (to.position.as_dvec3() - from.position.as_dvec3()).length();
     if moved > f64::from(limits.max_speed_mps) * dt + JITTER_M {
         return Err(Implausible::TooFast(moved / dt.max(1e-6)));

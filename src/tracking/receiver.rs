@@ -169,16 +169,17 @@ struct Configured {
     generation: u64,
 }
 
-/// The gate, its settings' generation it has seen, and its log.
+/// The gate, the settings' generation it has seen, and the samples published per stream.
+/// Only the sources' threads take its lock (never while logging).
 #[derive(Debug, Default)]
 struct GateState {
     gate: SourceGate,
     generation: u64,
     published: [u64; 2],
-    log: LogLimiter,
 }
 
-/// What the receiver shares with the render loop.
+/// What the receiver shares with the render loop. The render loop only tries the slots'
+/// locks and reads atomics: it never waits on a source.
 #[derive(Debug, Default)]
 struct Shared {
     latest: Mutex<Option<TrackerSample>>,
@@ -187,6 +188,11 @@ struct Shared {
     counters: AtomicCounters,
     configured: Mutex<Configured>,
     gate: Mutex<GateState>,
+    /// Samples the gate refused, in [`Refusal::counter_index`] order.
+    refusals: [AtomicU64; 4],
+    /// Who drives each stream, as the gate last said.
+    senders: Mutex<[StreamSenders; 3]>,
+    refusal_log: Mutex<LogLimiter>,
 }
 
 /// One packet's (or message's) fate, for [`TrackerFeed::count`].
@@ -252,9 +258,10 @@ impl TrackerFeed {
         lock(&self.shared.configured).settings
     }
 
-    /// Who drives `stream`, and the newest second sender refused.
-    pub fn senders(&self, stream: Stream) -> StreamSenders {
-        lock(&self.shared.gate).gate.senders(stream)
+    /// Who drives each stream, and a second sender being refused (by [`Stream::index`]);
+    /// `None` only if a source holds them this instant.
+    pub fn try_senders(&self) -> Option<[StreamSenders; 3]> {
+        try_copy(&self.shared.senders)
     }
 
     /// A source offers the head's newest sample: the gate judges it, and only an accepted one
@@ -270,24 +277,58 @@ impl TrackerFeed {
 
     fn publish(&self, stream: Stream, sample: TrackerSample) {
         let configured = *lock(&self.shared.configured);
-        let mut state = lock(&self.shared.gate);
-        let state = &mut *state;
-        if state.generation != configured.generation {
-            state.generation = configured.generation;
-            state.gate.reset_history();
-        }
-        match state.gate.judge(stream, sample, &configured.settings) {
-            Ok(mut sample) => {
-                let (slot, n) = match stream {
-                    Stream::Wand => (&self.shared.wand, &mut state.published[1]),
-                    _ => (&self.shared.latest, &mut state.published[0]),
-                };
-                *n += 1;
-                sample.seq = *n;
-                sample.stored = Instant::now();
-                *lock(slot) = Some(sample);
+        let (judged, senders) = {
+            let mut state = lock(&self.shared.gate);
+            let state = &mut *state;
+            if state.generation != configured.generation {
+                state.generation = configured.generation;
+                state.gate.reset_history();
             }
-            Err(refusal) => log_refusal(&mut state.log, stream, &sample, refusal),
+            let judged = state.gate.judge(stream, sample, &configured.settings);
+            let judged = judged.map(|mut accepted| {
+                let n = &mut state.published[usize::from(stream == Stream::Wand)];
+                *n += 1;
+                accepted.seq = *n;
+                accepted
+            });
+            let senders = state.gate.senders(stream, configured.settings.timeout);
+            (judged, senders)
+        };
+        lock(&self.shared.senders)[stream.index()] = senders;
+        match judged {
+            Ok(mut accepted) => {
+                let slot = match stream {
+                    Stream::Wand => &self.shared.wand,
+                    _ => &self.shared.latest,
+                };
+                accepted.stored = Instant::now();
+                *lock(slot) = Some(accepted);
+            }
+            Err(refusal) => self.refused(stream, &sample, refusal),
+        }
+    }
+
+    /// Counts a refused sample and logs it, at most once per [`LOG_INTERVAL`].
+    fn refused(&self, stream: Stream, sample: &TrackerSample, refusal: Refusal) {
+        self.shared.refusals[refusal.counter_index()].fetch_add(1, Ordering::AcqRel);
+        let allowed = lock(&self.shared.refusal_log).allow(sample.arrived, LOG_INTERVAL);
+        if let Some(held) = allowed {
+            let at = sample
+                .position
+                .map(|p| {
+                    format!(
+                        " at ({:.3e}, {:.3e}, {:.3e}) (tracker units)",
+                        p.x, p.y, p.z
+                    )
+                })
+                .unwrap_or_default();
+            tracing::warn!(
+                "tracking: refused a {} sample from {}{at}: {}{}",
+                stream.name(),
+                sample.sender,
+                refusal.describe(),
+                held_back(held)
+            );
         }
     }
 
@@ -300,18 +341,27 @@ impl TrackerFeed {
         change: impl FnOnce(&mut Controls),
     ) {
         let settings = lock(&self.shared.configured).settings;
-        let mut state = lock(&self.shared.gate);
-        match state.gate.admit_controls(from, arrived, &settings) {
+        let (admitted, senders) = {
+            let mut state = lock(&self.shared.gate);
+            let admitted = state.gate.admit_controls(from, arrived, &settings);
+            let senders = state.gate.senders(Stream::Controls, settings.timeout);
+            (admitted, senders)
+        };
+        lock(&self.shared.senders)[Stream::Controls.index()] = senders;
+        match admitted {
             Ok(()) => change(&mut lock(&self.shared.controls)),
             Err(refusal) => {
-                let state = &mut *state;
-                if let Some(held) = state.log.allow(arrived, LOG_INTERVAL) {
-                    tracing::warn!(
-                        "tracking: refused buttons from {from}: {}{}",
-                        refusal.describe(),
-                        held_back(held)
-                    );
-                }
+                let sample = TrackerSample {
+                    seq: 0,
+                    arrived,
+                    stored: arrived,
+                    position: None,
+                    orientation: None,
+                    tracked: None,
+                    sender: from,
+                    jumped: false,
+                };
+                self.refused(Stream::Controls, &sample, refusal);
             }
         }
     }
@@ -351,30 +401,8 @@ impl TrackerFeed {
             non_finite: get(&c.non_finite),
             refused: get(&c.refused),
             socket_errors: get(&c.socket_errors),
-            gate: lock(&self.shared.gate).gate.counters,
+            gate: GateCounters::from_array(self.shared.refusals.each_ref().map(get)),
         }
-    }
-}
-
-/// Logs a refused sample, at most once per [`LOG_INTERVAL`].
-fn log_refusal(log: &mut LogLimiter, stream: Stream, sample: &TrackerSample, refusal: Refusal) {
-    if let Some(held) = log.allow(sample.arrived, LOG_INTERVAL) {
-        let at = sample
-            .position
-            .map(|p| {
-                format!(
-                    " at ({:.3e}, {:.3e}, {:.3e}) (tracker units)",
-                    p.x, p.y, p.z
-                )
-            })
-            .unwrap_or_default();
-        tracing::warn!(
-            "tracking: refused a {} sample from {}{at}: {}{}",
-            stream.name(),
-            sample.sender,
-            refusal.describe(),
-            held_back(held)
-        );
     }
 }
 
@@ -417,10 +445,8 @@ pub struct PacketSink {
     mapping: OscMapping,
     allowed: Vec<IpAddr>,
     feed: TrackerFeed,
-    current: Option<TrackerSample>,
-    /// When the current position and orientation arrived (each expires after the timeout).
-    position_at: Option<Instant>,
-    orientation_at: Option<Instant>,
+    /// Each recent sender's newest position and orientation (a pose may come in parts).
+    parts: Vec<SenderParts>,
     malformed_log: LogLimiter,
     refused_log: LogLimiter,
 }
@@ -435,9 +461,7 @@ impl PacketSink {
                 .map(|ip| ip.to_canonical())
                 .collect(),
             feed: TrackerFeed::default(),
-            current: None,
-            position_at: None,
-            orientation_at: None,
+            parts: Vec::new(),
             malformed_log: LogLimiter::default(),
             refused_log: LogLimiter::default(),
         }
@@ -501,47 +525,69 @@ impl PacketSink {
     /// timeout; the "tracked" flag is this packet's own.
     fn store(&mut self, update: PoseUpdate, from: SocketAddr, arrived: Instant) {
         let timeout = self.feed.gate_settings().timeout;
-        let recent = |at: Option<Instant>| {
-            at.is_some_and(|t| arrived.saturating_duration_since(t) <= timeout)
+        let index = match self.parts.iter().position(|p| p.sender == from) {
+            Some(i) => i,
+            None => {
+                if self.parts.len() >= MAX_PART_SENDERS {
+                    // Forget the sender heard least recently, never the head's own.
+                    let owner = self.feed.try_senders().and_then(|s| s[0].owner);
+                    let oldest = (0..self.parts.len())
+                        .filter(|&i| Some(self.parts[i].sender) != owner)
+                        .min_by_key(|&i| self.parts[i].heard);
+                    if let Some(i) = oldest {
+                        self.parts.swap_remove(i);
+                    }
+                }
+                self.parts.push(SenderParts {
+                    sender: from,
+                    heard: arrived,
+                    position: None,
+                    orientation: None,
+                });
+                self.parts.len() - 1
+            }
         };
-        let previous = self.current.filter(|p| p.sender == from);
+        let parts = &mut self.parts[index];
+        parts.heard = arrived;
+        if let Some(p) = update.position {
+            parts.position = Some((p, arrived));
+        }
         let orientation = match (update.orientation, update.orientation_cave_axes) {
             (Some(q), _) => Some(TrackedOrientation::Tracker(q)),
             (None, Some(q)) => Some(TrackedOrientation::CaveAxes(q)),
-            (None, None) => previous
-                .and_then(|p| p.orientation)
-                .filter(|_| recent(self.orientation_at)),
+            (None, None) => None,
         };
-        if orientation.is_some()
-            && update
-                .orientation
-                .or(update.orientation_cave_axes)
-                .is_some()
-        {
-            self.orientation_at = Some(arrived);
+        if let Some(o) = orientation {
+            parts.orientation = Some((o, arrived));
         }
-        let position = match update.position {
-            Some(p) => {
-                self.position_at = Some(arrived);
-                Some(p)
-            }
-            None => previous
-                .and_then(|p| p.position)
-                .filter(|_| recent(self.position_at)),
-        };
+        let recent = |at: Instant| arrived.saturating_duration_since(at) <= timeout;
         let sample = TrackerSample {
             seq: 0,
             arrived,
             stored: arrived,
-            position,
-            orientation,
+            position: parts.position.filter(|&(_, at)| recent(at)).map(|(p, _)| p),
+            orientation: parts
+                .orientation
+                .filter(|&(_, at)| recent(at))
+                .map(|(o, _)| o),
             tracked: update.tracked,
             sender: from,
             jumped: false,
         };
-        self.current = Some(sample);
         self.feed.publish_head(sample);
     }
+}
+
+/// Most senders whose pose parts the OSC receiver keeps (the head's sender is never evicted).
+const MAX_PART_SENDERS: usize = 8;
+
+/// One sender's newest position and orientation, each with its arrival.
+#[derive(Debug, Clone, Copy)]
+struct SenderParts {
+    sender: SocketAddr,
+    heard: Instant,
+    position: Option<(Vec3, Instant)>,
+    orientation: Option<(TrackedOrientation, Instant)>,
 }
 
 fn lock<T>(slot: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {

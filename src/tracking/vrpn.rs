@@ -194,6 +194,8 @@ impl VrpnClient {
         let mut threads = Vec::new();
         let mut servers = Vec::new();
         let mut data_ports = Vec::new();
+        // Buttons and analogs may come from different servers: one stream, one client.
+        let controls_sender = Arc::new(Mutex::new(None));
         for ((host, port), roles) in by_server {
             let data_port = Arc::new(AtomicU32::new(0));
             data_ports.push(data_port.clone());
@@ -210,6 +212,7 @@ impl VrpnClient {
                 feed: feed.clone(),
                 stop: stop.clone(),
                 data_port,
+                controls_sender: controls_sender.clone(),
             };
             servers.push(format!("{host}:{port}"));
             let thread = std::thread::Builder::new()
@@ -297,6 +300,9 @@ struct ServerLink {
     stop: Arc<AtomicBool>,
     /// This session's UDP data port (0 between sessions).
     data_port: Arc<AtomicU32>,
+    /// The address the client's buttons and analogs are sent as, whichever server reports
+    /// them (the first server resolved): they are one stream to the gate.
+    controls_sender: Arc<Mutex<Option<SocketAddr>>>,
 }
 
 impl ServerLink {
@@ -372,6 +378,7 @@ impl ServerLink {
         let request = format!("{my_ip} {callback_port}\0");
         lob.send(request.as_bytes())?;
         let deadline = Instant::now() + CALLBACK_WAIT;
+        let mut refused_log = LogLimiter::default();
         let mut stream = loop {
             if self.stopped() {
                 return Err(LinkError::Stopped);
@@ -381,11 +388,15 @@ impl ServerLink {
                 Ok((stream, peer)) if peer.ip().to_canonical() == server_ip => break stream,
                 Ok((_, peer)) => {
                     self.feed.count(Fate::Refused);
-                    tracing::warn!(
-                        "VRPN {}:{}: refused a callback from {peer} (the server is {server_ip})",
-                        self.host,
-                        self.port
-                    );
+                    if let Some(held) = refused_log.allow(Instant::now(), LOG_INTERVAL) {
+                        tracing::warn!(
+                            "VRPN {}:{}: refused a callback from {peer} (the server is \
+                             {server_ip}){}",
+                            self.host,
+                            self.port,
+                            held_back(held)
+                        );
+                    }
                 }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => {
                     if Instant::now() >= deadline {
@@ -427,10 +438,12 @@ impl ServerLink {
             self.port,
             self.roles.describe()
         );
+        let controls_from = *lock(&self.controls_sender).get_or_insert(server);
         let dispatch = Arc::new(Mutex::new(Dispatch::new(
             self.roles.clone(),
             self.feed.clone(),
             server,
+            controls_from,
         )));
         let session_over = Arc::new(AtomicBool::new(false));
         let udp_thread = {
@@ -533,8 +546,14 @@ fn udp_loop(
         match udp.recv_from(&mut buf) {
             Ok((n, from)) => {
                 let arrived = Instant::now();
-                let port = *server_port.get_or_insert(from.port());
-                if from.ip().to_canonical() != server_ip || from.port() != port {
+                // The address first: only the server's first datagram fixes the port.
+                let from_server = from.ip().to_canonical() == server_ip;
+                let port = match server_port {
+                    Some(p) => p,
+                    None if from_server => *server_port.insert(from.port()),
+                    None => 0,
+                };
+                if !from_server || from.port() != port {
                     feed.count(Fate::Refused);
                     if let Some(held) = refused_log.allow(arrived, LOG_INTERVAL) {
                         tracing::warn!(
@@ -587,6 +606,8 @@ struct Dispatch {
     roles: Roles,
     feed: TrackerFeed,
     server: SocketAddr,
+    /// The sender buttons and analogs are counted as (one for the whole client).
+    controls_from: SocketAddr,
     senders: HashMap<i32, String>,
     types: HashMap<i32, String>,
     head_seq: u64,
@@ -595,11 +616,12 @@ struct Dispatch {
 }
 
 impl Dispatch {
-    fn new(roles: Roles, feed: TrackerFeed, server: SocketAddr) -> Self {
+    fn new(roles: Roles, feed: TrackerFeed, server: SocketAddr, controls_from: SocketAddr) -> Self {
         Self {
             roles,
             feed,
             server,
+            controls_from,
             senders: HashMap::new(),
             types: HashMap::new(),
             head_seq: 0,
@@ -666,7 +688,7 @@ impl Dispatch {
                     wire::ANALOG_CHANNEL if self.roles.analogs.as_ref() == Some(sender) => {
                         match wire::parse_analog(payload) {
                             Ok(values) => {
-                                self.feed.update_controls(self.server, arrived, |c| {
+                                self.feed.update_controls(self.controls_from, arrived, |c| {
                                     c.set_analogs(values);
                                 });
                                 Ok(())
@@ -749,7 +771,7 @@ impl Dispatch {
         if all {
             let states =
                 wire::parse_button_states(payload).map_err(|e| (Fate::Malformed, e.to_string()))?;
-            self.feed.update_controls(self.server, arrived, |c| {
+            self.feed.update_controls(self.controls_from, arrived, |c| {
                 for (i, down) in states.iter().enumerate() {
                     c.set_button(i, *down);
                 }
@@ -760,7 +782,7 @@ impl Dispatch {
             if !(0..wire::MAX_WIRE_BUTTONS as i32).contains(&button) {
                 return Err((Fate::Malformed, format!("button number {button}")));
             }
-            self.feed.update_controls(self.server, arrived, |c| {
+            self.feed.update_controls(self.controls_from, arrived, |c| {
                 c.set_button(button as usize, down);
             });
         }
@@ -808,7 +830,7 @@ mod tests {
             analogs: Some("Button0".into()),
         };
         let server = SocketAddr::from(([127, 0, 0, 1], 3883));
-        (Dispatch::new(roles, feed.clone(), server), feed)
+        (Dispatch::new(roles, feed.clone(), server, server), feed)
     }
 
     fn send(d: &mut Dispatch, sender: i32, kind: i32, payload: &[u8]) {
