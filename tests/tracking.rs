@@ -259,15 +259,8 @@ fn natnet_form_with_other_bodies_and_the_tracked_flag() {
     let config = config("wxyz", "natnet_rigid_body = 3\n");
     let mut rig = Rig::new(config.clone());
     let m = &config.tracking.receiver.mapping;
-    let body = |id: i32, kind: &str, values: &[f32]| {
-        encode::message(
-            "/rigidbody",
-            [OscType::Int(id), OscType::String(kind.into())]
-                .into_iter()
-                .chain(encode::floats(values))
-                .collect(),
-        )
-    };
+    let body =
+        |id: i32, kind: &str, values: &[f32]| encode::rigid_body("/rigidbody", id, kind, values);
     let q = tracker_quat();
     rig.deliver(&encode::bundle(vec![
         encode::message("/frame/start", vec![OscType::Int(1)]),

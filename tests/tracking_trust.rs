@@ -25,7 +25,7 @@ use omnicave::tracking::vrpn_wire as wire;
 use omnicave::tracking::{
     GateSettings, OscMapping, TrackerFeed, TrackingStatus, VrpnClient, VrpnDevice, VrpnSettings,
 };
-use rosc::{OscPacket, OscType};
+use rosc::OscPacket;
 
 /// How far the head may be from the honest path: the issue's 5 mm. With the filter off and an
 /// identity calibration the head is exactly an honest sample, so any hostile influence shows
@@ -67,14 +67,21 @@ fn distance_to_path(p: Vec3, path: &[Vec3]) -> f32 {
         )
 }
 
-/// The desktop config tracking on a free loopback port, identity calibration, no filter, the
+/// The desktop config tracking (on a free loopback port unless `extra` starts with a
+/// `listen`), identity calibration, no filter, the
 /// default plausibility limits and a 0.5 s timeout; `extra` goes into `[tracking]`.
 fn config(extra: &str, filter: bool) -> Config {
+    // A free loopback port, unless `extra` says where to listen.
+    let listen = if extra.starts_with("listen") {
+        ""
+    } else {
+        "listen = \"127.0.0.1:0\"\n"
+    };
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config/desktop.toml");
     let text = std::fs::read_to_string(&path).expect("desktop.toml")
         + &format!(
-            "\n[tracking]\nenabled = true\nlisten = \"127.0.0.1:0\"\ntimeout_seconds = 0.5\n\
-             {extra}\n[tracking.filter]\nenabled = {filter}\n"
+            "\n[tracking]\nenabled = true\n{listen}timeout_seconds = 0.5\n{extra}\n\
+             [tracking.filter]\nenabled = {filter}\n"
         );
     Config::from_toml(&text, &path).expect("config")
 }
@@ -204,13 +211,7 @@ fn attack(
 }
 
 fn osc_body(id: i32, kind: &str, values: &[f32]) -> OscPacket {
-    encode::message(
-        "/rigidbody",
-        [OscType::Int(id), OscType::String(kind.into())]
-            .into_iter()
-            .chain(encode::floats(values))
-            .collect(),
-    )
+    encode::rigid_body("/rigidbody", id, kind, values)
 }
 
 /// A jump of 0.3–3 m from `p` in a direction that changes with `i`.
@@ -334,6 +335,26 @@ fn one_packet_is_not_carried_forward_and_claims_in_their_own_packets_count() {
     frames(&mut rig, 100, &|| send(&osc_body(1, "tracked", &[1.0])));
     assert_eq!(rig.info().status, Some(TrackingStatus::Tracking));
     assert_eq!(rig.info().stats.lost_events, 0);
+}
+
+/// Listening on every interface with no allowed senders is warned about; on loopback, or with
+/// allowed senders, it is not.
+#[test]
+fn an_open_listening_address_is_warned_about() {
+    for (extra, warned) in [
+        ("listen = \"0.0.0.0:0\"\n", true),
+        ("listen = \"127.0.0.1:0\"\n", false),
+        (
+            "listen = \"0.0.0.0:0\"\nallowed_senders = [\"192.168.1.20\"]\n",
+            false,
+        ),
+    ] {
+        let warning = Rig::new(config(extra, false)).info().open_warning;
+        assert_eq!(warning.is_some(), warned, "{extra}: {warning:?}");
+        if let Some(w) = warning {
+            assert!(w.contains("tracking.allowed_senders"), "{w}");
+        }
+    }
 }
 
 #[test]

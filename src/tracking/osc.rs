@@ -532,24 +532,24 @@ pub mod encode {
         message(&mapping.orientation_address, floats(&order.components(q)))
     }
 
+    /// One message of the NatNet-to-OSC form: `<address> <id> <kind> <values…>` (kind
+    /// `position`, `quat` or `tracked`).
+    pub fn rigid_body(address: &str, id: i32, kind: &str, values: &[f32]) -> OscPacket {
+        message(
+            address,
+            [OscType::Int(id), OscType::String(kind.into())]
+                .into_iter()
+                .chain(floats(values))
+                .collect(),
+        )
+    }
+
     /// The NatNet-to-OSC bridges' messages for one rigid body.
     pub fn natnet(mapping: &OscMapping, p: Vec3, q: Option<Quat>) -> Vec<OscPacket> {
-        let id = OscType::Int(mapping.natnet_rigid_body as i32);
-        let mut out = vec![message(
-            &mapping.natnet_address,
-            [id.clone(), OscType::String("position".into())]
-                .into_iter()
-                .chain(floats(&p.to_array()))
-                .collect(),
-        )];
+        let (address, id) = (&mapping.natnet_address, mapping.natnet_rigid_body as i32);
+        let mut out = vec![rigid_body(address, id, "position", &p.to_array())];
         if let Some(q) = q {
-            out.push(message(
-                &mapping.natnet_address,
-                [id, OscType::String("quat".into())]
-                    .into_iter()
-                    .chain(floats(&[q.x, q.y, q.z, q.w]))
-                    .collect(),
-            ));
+            out.push(rigid_body(address, id, "quat", &[q.x, q.y, q.z, q.w]));
         }
         out
     }
