@@ -23,7 +23,8 @@ use omnicave::config::Config;
 use omnicave::tracking::osc::encode;
 use omnicave::tracking::vrpn_wire as wire;
 use omnicave::tracking::{
-    GateSettings, OscMapping, TrackerFeed, TrackingStatus, VrpnClient, VrpnDevice, VrpnSettings,
+    GateSettings, LinkState, OscMapping, TrackerFeed, TrackingStatus, VrpnClient, VrpnDevice,
+    VrpnSettings,
 };
 use rosc::OscPacket;
 
@@ -404,6 +405,49 @@ fn dtrack_empty_frames_and_jumps_from_a_hostile_sender_change_nothing() {
 }
 
 #[test]
+fn replayed_and_reordered_frames_from_the_trackers_own_address_are_stale() {
+    // Someone replaying the tracker's frames under its address (or the network reordering
+    // them): each honest frame is followed by an older one, 1 cm off the path. A head moves
+    // 1 cm in 8 ms (1.2 m/s) easily, so only the frame counter tells these apart.
+    let mut rig = Rig::new(config(
+        "source = \"dtrack\"\n[tracking.dtrack]\nlisten = \"127.0.0.1:0\"\nhead_body = 1\n",
+        false,
+    ));
+    let target = rig.target();
+    let path = Arc::new(Mutex::new(Vec::new()));
+    let honest_path = path.clone();
+    let frame = |counter: u64, p: Vec3| {
+        format!(
+            "fr {counter}\r\n6d 1 [1 1.000][{:.3} {:.3} {:.3} 0 0 0][1 0 0 0 1 0 0 0 1]\r\n",
+            p.x * 1e3,
+            p.y * 1e3,
+            p.z * 1e3
+        )
+    };
+    let honest = move |s: &UdpSocket, i: u64| {
+        let p = honest_position(i as f64 / HONEST_HZ);
+        honest_path.lock().unwrap().push(p);
+        s.send_to(frame(1000 + i, p).as_bytes(), target)
+            .expect("send");
+        // One frame back, or a second back: both older than the newest.
+        let back = if i.is_multiple_of(2) { 1 } else { 120 };
+        let old = frame(1000 + i - back, p + Vec3::X * 0.01);
+        s.send_to(old.as_bytes(), target).expect("send");
+    };
+    attack(
+        &mut rig,
+        Quat::IDENTITY,
+        honest,
+        |_: &UdpSocket, _| {},
+        &path,
+    );
+    let c = rig.info().counters;
+    // Every replay once tracking began (240 in the 2 s attack, more before it).
+    assert!(c.gate.stale >= 200, "{c:?}");
+    assert_eq!(c.gate.unconfirmed_jump + c.gate.conflicting, 0, "{c:?}");
+}
+
+#[test]
 fn a_real_loss_is_confirmed_and_tracking_resumes() {
     let mut rig = Rig::new(config(
         "source = \"dtrack\"\n[tracking.dtrack]\nlisten = \"127.0.0.1:0\"\nhead_body = 1\n",
@@ -457,6 +501,7 @@ fn vrpn_spoofed_datagrams_and_names_are_refused() {
         analogs: None,
         retry: Duration::from_millis(200),
         allowed_senders: Vec::new(),
+        idle: Duration::from_millis(500),
     })
     .expect("client");
     let feed: TrackerFeed = client.feed().clone();
@@ -615,8 +660,20 @@ fn the_real_vrpn_server_hung_or_restarted_is_lost_in_time_and_followed_again() {
     // to one 8 ms frame older than the stop).
     server.signal("STOP");
     let lost = until(&mut rig, TrackingStatus::Lost, Duration::from_secs(5));
+    // The connection is still open, but a server that reports a tracker and sends nothing
+    // for the timeout is called again: the panel says so.
+    let start = Instant::now();
+    while !matches!(rig.info().link, Some(LinkState::Reconnecting(_))) {
+        assert!(
+            start.elapsed() < timeout + Duration::from_millis(500),
+            "{:?}",
+            rig.info().link
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
     server.signal("CONT");
     let back = until(&mut rig, TrackingStatus::Tracking, Duration::from_secs(3));
+    assert_eq!(rig.info().link, Some(LinkState::Connected));
     // Killed and started again on the same port.
     server.kill();
     let killed = until(&mut rig, TrackingStatus::Lost, Duration::from_secs(5));

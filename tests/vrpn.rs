@@ -26,6 +26,7 @@ fn settings(port: u16, head: &str, head_sensor: i32) -> VrpnSettings {
         analogs: None,
         retry: Duration::from_millis(200),
         allowed_senders: Vec::new(),
+        idle: Duration::from_millis(500),
     }
 }
 

@@ -12,7 +12,7 @@ use crate::gamepad::{GamepadAction, GamepadMapper, GamepadMode, GamepadSettings}
 use crate::tracking::receiver::TrackedOrientation;
 use crate::tracking::receiver::{LOG_INTERVAL, LogLimiter};
 use crate::tracking::{
-    ButtonAction, Controls, Counters, HeadTracker, Stream, StreamSenders, TrackerSample,
+    ButtonAction, Controls, Counters, HeadTracker, LinkState, Stream, StreamSenders, TrackerSample,
     TrackingSource, TrackingStats, TrackingStatus,
 };
 
@@ -35,6 +35,8 @@ pub struct TrackingInfo {
     /// Why the receiver could not start.
     pub error: Option<String>,
     pub status: Option<TrackingStatus>,
+    /// Listening, connected, or reconnecting (and to what).
+    pub link: Option<LinkState>,
     pub lost_for: Option<f64>,
     pub stats: TrackingStats,
     pub counters: Counters,
@@ -229,6 +231,7 @@ impl Tracking {
             into.error.clone_from(&self.error);
         }
         into.status = self.receiver.as_ref().map(|_| self.tracker.status());
+        into.link = self.receiver.as_ref().map(TrackingSource::link);
         into.lost_for = self.tracker.lost_for(now);
         into.stats = self.tracker.stats();
         into.counters = self

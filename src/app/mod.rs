@@ -30,6 +30,7 @@ use crate::render::gpu::Gpu;
 use crate::scene::Scene;
 use crate::setup::{load_config_sky, load_scene};
 use crate::sky::CubeMap;
+use crate::tracking::LinkState;
 use cluster_link::{ClusterLink, NodeNext};
 use devices::{Gamepads, Tracking};
 pub use error::AppError;
@@ -704,8 +705,7 @@ impl App {
                 "tracking: {}, {:.1} Hz, head ({:.4}, {:.4}, {:.4}) m, orientation xyzw \
                  ({:.5}, {:.5}, {:.5}, {:.5}), {} button actions, latency avg {:.2} ms \
                  max {:.2} ms ({:.2} frame) | packets {} received, {} accepted, {} ignored, \
-                 {} dropped, {} clamped | samples refused: {} conflicting, {} implausible, \
-                 {} unconfirmed jump, {} unconfirmed not-tracked | lost {} times",
+                 {} dropped, {} clamped | samples refused: {} | lost {} times | link {}",
                 status.describe(),
                 t.stats.rate_hz,
                 p.x,
@@ -724,11 +724,9 @@ impl App {
                 c.ignored,
                 c.dropped(),
                 t.stats.clamped,
-                c.gate.conflicting,
-                c.gate.implausible,
-                c.gate.unconfirmed_jump,
-                c.gate.unconfirmed_loss,
-                t.stats.lost_events
+                c.gate.describe(),
+                t.stats.lost_events,
+                t.link.as_ref().map_or_else(String::new, LinkState::describe)
             );
         }
     }

@@ -436,7 +436,7 @@ fn head_and_cave_section(ui: &mut Ui, state: &mut AppState) {
 /// The tracking status line and its colour (`None` while the receiver is not running).
 fn tracking_status(info: &TrackingInfo) -> Option<(egui::Color32, String)> {
     let status = info.status?;
-    let text = match (status, info.lost_for) {
+    let mut text = match (status, info.lost_for) {
         (TrackingStatus::Lost | TrackingStatus::NotVisible, Some(s)) => {
             format!(
                 "{} for {s:.1} s: head holds its last pose",
@@ -445,6 +445,13 @@ fn tracking_status(info: &TrackingInfo) -> Option<(egui::Color32, String)> {
         }
         _ => status.describe().to_owned(),
     };
+    // Whether anything is being done about it: a connection being made again, or one up
+    // with no data (the tracker itself stopped), or a port listened on.
+    if status != TrackingStatus::Tracking
+        && let Some(link) = &info.link
+    {
+        text = format!("{text} ({})", link.describe());
+    }
     let colour = match status {
         TrackingStatus::Tracking => egui::Color32::LIGHT_GREEN,
         TrackingStatus::Waiting => egui::Color32::LIGHT_YELLOW,
@@ -515,9 +522,9 @@ fn tracking_section(ui: &mut Ui, state: &mut AppState, info: &TrackingInfo) {
         ));
         let g = &c.gate;
         ui.label(format!(
-            "samples refused: conflicting sender {} · implausible {} · unconfirmed jump {} · \
-             unconfirmed \"not tracked\" {} · tracking lost {} times",
-            g.conflicting, g.implausible, g.unconfirmed_jump, g.unconfirmed_loss, s.lost_events
+            "samples refused: {} · tracking lost {} times",
+            g.describe(),
+            s.lost_events
         ));
         for (stream, senders) in &info.senders {
             let Some(owner) = senders.owner else { continue };

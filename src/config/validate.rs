@@ -277,7 +277,13 @@ impl ConfigFile {
     fn validate_tracking(&self, ck: &Checker<'_>) -> Result<TrackingConfig, ConfigError> {
         let t = &self.tracking;
         let (listen, allowed_senders) = self.validate_osc_receiver(ck)?;
-        let timeout = t.timeout_seconds;
+        let timeout = Duration::try_from_secs_f32(t.timeout_seconds).map_err(|_| {
+            ck.fail(
+                "tracking.timeout_seconds",
+                t.timeout_seconds,
+                "must be a positive number of seconds",
+            )
+        })?;
         let calibration = self.validate_calibration(ck)?;
         let f = &t.filter;
         let params = OneEuroParams {
@@ -298,10 +304,12 @@ impl ConfigFile {
             SourceKind::Osc => None,
             SourceKind::Vrpn => Some(SourceSettings::Vrpn(Box::new(VrpnSettings {
                 allowed_senders: allowed_senders.clone(),
+                idle: timeout,
                 ..self.validate_vrpn(ck)?
             }))),
             SourceKind::NatNet => Some(SourceSettings::NatNet(NatNetSettings {
                 allowed_senders: allowed_senders.clone(),
+                idle: timeout,
                 ..self.validate_natnet(ck)?
             })),
             SourceKind::DTrack => {
@@ -347,13 +355,7 @@ impl ConfigFile {
                     max_speed_mps: t.plausibility.max_speed_mps,
                     max_turn_dps: t.plausibility.max_turn_dps,
                 },
-                timeout: Duration::try_from_secs_f32(timeout).map_err(|_| {
-                    ck.fail(
-                        "tracking.timeout_seconds",
-                        timeout,
-                        "must be a positive number of seconds",
-                    )
-                })?,
+                timeout,
             },
         })
     }
@@ -488,6 +490,7 @@ impl ConfigFile {
             wand_rigid_body: (n.wand_rigid_body >= 0).then_some(n.wand_rigid_body),
             retry,
             allowed_senders: Vec::new(),
+            idle: Duration::ZERO,
         })
     }
 
@@ -530,6 +533,7 @@ impl ConfigFile {
             analogs: device("analogs", &v.analogs)?,
             retry,
             allowed_senders: Vec::new(),
+            idle: Duration::ZERO,
         })
     }
 

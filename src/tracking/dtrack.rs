@@ -11,8 +11,8 @@ use glam::{DMat3, DQuat, Quat, Vec3};
 use super::TrackingError;
 use super::osc::MAX_ABS_NUMBER;
 use super::receiver::{
-    Fate, LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerFeed, TrackerSample, UdpThread,
-    held_back,
+    Fate, LOG_INTERVAL, LogLimiter, SentAt, TrackedOrientation, TrackerFeed, TrackerSample,
+    UdpThread, held_back,
 };
 
 /// The UDP port DTrack sends to unless configured otherwise (the manuals' examples use 5000).
@@ -319,6 +319,11 @@ impl FrameSink {
                 return;
             }
         };
+        // The frame counter, else the time stamp: what orders this tracker's frames.
+        let sent = frame
+            .frame_counter
+            .map(SentAt::Frame)
+            .or(frame.timestamp.map(SentAt::Seconds));
         let sample = |t: &Target, seq: u64| TrackerSample {
             seq,
             arrived,
@@ -327,6 +332,7 @@ impl FrameSink {
             orientation: t.orientation().map(TrackedOrientation::Tracker),
             tracked: Some(true),
             sender: from,
+            sent,
             jumped: false,
         };
         let mut used = false;

@@ -13,7 +13,7 @@ use super::plausibility::{
     CONFIRMATION_TIME, Candidate, Implausible, JUMP_CONFIRMATIONS, PlausibilityGate,
     PlausibilityLimits, Verdict, unit_quaternion,
 };
-use super::receiver::{TrackedOrientation, TrackerSample};
+use super::receiver::{SentAt, TrackedOrientation, TrackerSample};
 
 /// A hand moves and turns faster than a head: the wand's limits are the head's times this.
 const WAND_LIMIT_FACTOR: f32 = 2.0;
@@ -84,6 +84,9 @@ pub enum Refusal {
     UnconfirmedJump(Implausible),
     /// "Not tracked" (a flag or an empty frame), not (yet) confirmed.
     UnconfirmedLoss,
+    /// Taken before the newest sample accepted from the same sender (its clock or frame
+    /// counter says so): a reordered or replayed packet.
+    Stale,
 }
 
 impl Refusal {
@@ -93,6 +96,7 @@ impl Refusal {
             Self::Implausible(why) => why.describe(),
             Self::UnconfirmedJump(why) => format!("{}, not confirmed", why.describe()),
             Self::UnconfirmedLoss => "\"not tracked\", not confirmed".into(),
+            Self::Stale => "older than the newest sample from the same sender".into(),
         }
     }
 }
@@ -108,6 +112,8 @@ pub struct GateCounters {
     pub unconfirmed_jump: u64,
     /// A "not tracked" claim not (yet) confirmed.
     pub unconfirmed_loss: u64,
+    /// Older than the newest sample from the same sender.
+    pub stale: u64,
 }
 
 impl Refusal {
@@ -118,6 +124,7 @@ impl Refusal {
             Self::Implausible(_) => 1,
             Self::UnconfirmedJump(_) => 2,
             Self::UnconfirmedLoss => 3,
+            Self::Stale => 4,
         }
     }
 }
@@ -129,24 +136,53 @@ impl GateCounters {
             Refusal::Implausible(_) => &mut self.implausible,
             Refusal::UnconfirmedJump(_) => &mut self.unconfirmed_jump,
             Refusal::UnconfirmedLoss => &mut self.unconfirmed_loss,
+            Refusal::Stale => &mut self.stale,
         };
         *counter += 1;
     }
 
+    /// How many reasons there are.
+    pub const COUNT: usize = 5;
+
     /// From the counts in [`Refusal::counter_index`] order.
     pub fn from_array(
-        [conflicting, implausible, unconfirmed_jump, unconfirmed_loss]: [u64; 4],
+        [
+            conflicting,
+            implausible,
+            unconfirmed_jump,
+            unconfirmed_loss,
+            stale,
+        ]: [u64; Self::COUNT],
     ) -> Self {
         Self {
             conflicting,
             implausible,
             unconfirmed_jump,
             unconfirmed_loss,
+            stale,
         }
     }
 
+    /// The counts with their reasons' names, in [`Refusal::counter_index`] order.
+    pub fn by_reason(&self) -> [(&'static str, u64); Self::COUNT] {
+        [
+            ("conflicting", self.conflicting),
+            ("implausible", self.implausible),
+            ("unconfirmed jump", self.unconfirmed_jump),
+            ("unconfirmed not-tracked", self.unconfirmed_loss),
+            ("stale", self.stale),
+        ]
+    }
+
+    /// "0 conflicting, 0 implausible, …" (the stats line, the panel and the bench report).
+    pub fn describe(&self) -> String {
+        self.by_reason()
+            .map(|(reason, n)| format!("{n} {reason}"))
+            .join(", ")
+    }
+
     pub fn total(&self) -> u64 {
-        self.conflicting + self.implausible + self.unconfirmed_jump + self.unconfirmed_loss
+        self.by_reason().iter().map(|(_, n)| n).sum()
     }
 }
 
@@ -172,6 +208,31 @@ struct Claims {
     count: u32,
 }
 
+impl Claims {
+    /// [`JUMP_CONFIRMATIONS`] claims spanning [`CONFIRMATION_TIME`].
+    fn confirmed(&self) -> bool {
+        self.count >= JUMP_CONFIRMATIONS
+            && self.newest.saturating_duration_since(self.since) >= CONFIRMATION_TIME
+    }
+}
+
+/// A run of claims with one more at `at`; a claim more than [`CLAIM_GAP`] after the run's
+/// newest starts a new run.
+fn extend(run: Option<Claims>, at: Instant) -> Claims {
+    match run {
+        Some(c) if at.saturating_duration_since(c.newest) <= CLAIM_GAP => Claims {
+            newest: at,
+            count: c.count + 1,
+            ..c
+        },
+        _ => Claims {
+            since: at,
+            newest: at,
+            count: 1,
+        },
+    }
+}
+
 /// One stream's gate.
 #[derive(Debug, Clone, Default)]
 struct StreamGate {
@@ -183,6 +244,10 @@ struct StreamGate {
     loss: Option<Claims>,
     /// The stream is published as not tracked (a confirmed loss): the next pose starts afresh.
     lost: bool,
+    /// The sender's time of the newest sample not refused as stale.
+    newest_sent: Option<SentAt>,
+    /// Stale samples in a row (a sender whose clock or counter restarted sends only these).
+    behind: Option<Claims>,
 }
 
 impl StreamGate {
@@ -296,25 +361,39 @@ impl StreamGate {
         }
     }
 
+    /// Refuses a sample taken before the newest one from this sender, unless such samples keep
+    /// coming for [`CONFIRMATION_TIME`] (the sender's clock or frame counter restarted, or
+    /// wrapped at midnight: it is followed from there).
+    fn judge_sent(&mut self, stream: Stream, sample: &TrackerSample) -> Result<(), Refusal> {
+        let Some(sent) = sample.sent else {
+            return Ok(());
+        };
+        if let Some(newest) = self.newest_sent
+            && sent.is_before(newest)
+        {
+            let run = extend(self.behind, sample.arrived);
+            self.behind = Some(run);
+            if !run.confirmed() {
+                return Err(Refusal::Stale);
+            }
+            tracing::info!(
+                "tracking: the {} stream's sender {} restarted its clock or frame counter \
+                 ({newest:?} before, {sent:?} now)",
+                stream.name(),
+                sample.sender
+            );
+        }
+        self.newest_sent = Some(sent);
+        self.behind = None;
+        Ok(())
+    }
+
     /// A "not tracked" sample: published once [`JUMP_CONFIRMATIONS`] claims, each within
     /// [`CLAIM_GAP`] of the one before, span [`CONFIRMATION_TIME`].
     fn judge_loss(&mut self, sample: TrackerSample) -> Result<TrackerSample, Refusal> {
-        let at = sample.arrived;
-        let claims = match self.loss {
-            Some(c) if at.saturating_duration_since(c.newest) <= CLAIM_GAP => Claims {
-                newest: at,
-                count: c.count + 1,
-                ..c
-            },
-            _ => Claims {
-                since: at,
-                newest: at,
-                count: 1,
-            },
-        };
+        let claims = extend(self.loss, sample.arrived);
         self.loss = Some(claims);
-        let lasted = at.saturating_duration_since(claims.since);
-        if self.lost || (claims.count >= JUMP_CONFIRMATIONS && lasted >= CONFIRMATION_TIME) {
+        if self.lost || claims.confirmed() {
             self.lost = true;
             Ok(TrackerSample {
                 position: None,
@@ -331,11 +410,10 @@ impl StreamGate {
 #[derive(Debug, Clone, Default)]
 pub struct SourceGate {
     streams: [StreamGate; 3],
-    pub counters: GateCounters,
 }
 
 impl SourceGate {
-    /// Judges a head or wand sample; the sample to publish, or why not (counted).
+    /// Judges a head or wand sample; the sample to publish, or why not.
     pub fn judge(
         &mut self,
         stream: Stream,
@@ -343,8 +421,7 @@ impl SourceGate {
         settings: &GateSettings,
     ) -> Result<TrackerSample, Refusal> {
         let gate = &mut self.streams[stream.index()];
-        let result = gate
-            .admit(stream, sample.sender, sample.arrived, settings.timeout)
+        gate.admit(stream, sample.sender, sample.arrived, settings.timeout)
             .and_then(|()| {
                 let limits = match stream {
                     Stream::Wand => PlausibilityLimits {
@@ -354,31 +431,19 @@ impl SourceGate {
                     },
                     _ => settings.limits,
                 };
+                gate.judge_sent(stream, &sample)?;
                 gate.judge_pose(sample, settings, &limits)
-            });
-        if let Err(refusal) = result {
-            self.counters.count(refusal);
-        }
-        result
+            })
     }
 
-    /// Whether `from` may change the buttons now (counted where not).
+    /// Whether `from` may change the buttons now.
     pub fn admit_controls(
         &mut self,
         from: SocketAddr,
         at: Instant,
         settings: &GateSettings,
     ) -> Result<(), Refusal> {
-        let result = self.streams[Stream::Controls.index()].admit(
-            Stream::Controls,
-            from,
-            at,
-            settings.timeout,
-        );
-        if let Err(refusal) = result {
-            self.counters.count(refusal);
-        }
-        result
+        self.streams[Stream::Controls.index()].admit(Stream::Controls, from, at, settings.timeout)
     }
 
     /// Forgets every stream's history (the calibration or the CAVE changed: the accepted poses
@@ -387,6 +452,7 @@ impl SourceGate {
         for gate in &mut self.streams {
             gate.plausibility.reset();
             gate.loss = None;
+            gate.behind = None;
         }
     }
 
@@ -412,6 +478,28 @@ impl SourceGate {
 mod tests {
     use super::*;
 
+    /// A gate and its refusals by reason (the feed counts them in the app).
+    #[derive(Default)]
+    struct Counting {
+        gate: SourceGate,
+        counters: GateCounters,
+    }
+
+    impl Counting {
+        fn judge(
+            &mut self,
+            stream: Stream,
+            sample: TrackerSample,
+            settings: &GateSettings,
+        ) -> Result<TrackerSample, Refusal> {
+            let judged = self.gate.judge(stream, sample, settings);
+            if let Err(refusal) = judged {
+                self.counters.count(refusal);
+            }
+            judged
+        }
+    }
+
     fn sample(from: u16, ms: u64, t0: Instant, position: Option<Vec3>) -> TrackerSample {
         TrackerSample {
             seq: 0,
@@ -421,6 +509,7 @@ mod tests {
             orientation: None,
             tracked: None,
             sender: SocketAddr::from(([127, 0, 0, 1], from)),
+            sent: None,
             jumped: false,
         }
     }
@@ -430,7 +519,7 @@ mod tests {
         // A bridge sending position and "tracked 0" as separate packets, 8 ms apart.
         let t0 = Instant::now();
         let settings = GateSettings::default();
-        let mut gate = SourceGate::default();
+        let mut gate = Counting::default();
         let p = Some(Vec3::new(0.0, 1.6, 0.0));
         let mut confirmed = None;
         for tick in 0..8u64 {
@@ -454,7 +543,7 @@ mod tests {
     fn the_first_sender_keeps_a_stream_until_silent() {
         let t0 = Instant::now();
         let settings = GateSettings::default();
-        let mut gate = SourceGate::default();
+        let mut gate = Counting::default();
         let p = Some(Vec3::new(0.0, 1.6, 0.0));
         assert!(
             gate.judge(Stream::Head, sample(1, 0, t0, p), &settings)
@@ -479,7 +568,7 @@ mod tests {
             Err(Refusal::Conflicting)
         );
         assert_eq!(gate.counters.conflicting, 2);
-        let s = gate.senders(Stream::Head, settings.timeout);
+        let s = gate.gate.senders(Stream::Head, settings.timeout);
         assert_eq!(s.owner.map(|a| a.port()), Some(2));
         assert_eq!(s.conflicting.map(|a| a.port()), Some(1));
     }
@@ -488,7 +577,7 @@ mod tests {
     fn not_tracked_needs_confirmation_over_time() {
         let t0 = Instant::now();
         let settings = GateSettings::default();
-        let mut gate = SourceGate::default();
+        let mut gate = Counting::default();
         let p = Some(Vec3::new(0.0, 1.6, 0.0));
         let lost = |ms| TrackerSample {
             tracked: Some(false),
@@ -527,5 +616,58 @@ mod tests {
         assert_eq!(seen.map(|s| s.position), Ok(far));
         // The first claim, the burst of ten and four before the fifth at 40 ms.
         assert_eq!(gate.counters.unconfirmed_loss, 1 + 10 + 4);
+    }
+
+    #[test]
+    fn a_sample_older_than_the_newest_is_stale_until_the_clock_restarted() {
+        let t0 = Instant::now();
+        let settings = GateSettings::default();
+        let mut gate = Counting::default();
+        let p = Some(Vec3::new(0.0, 1.6, 0.0));
+        let at = |ms: u64, frame: u64| TrackerSample {
+            sent: Some(SentAt::Frame(frame)),
+            ..sample(1, ms, t0, p)
+        };
+        for (ms, frame) in [(0, 100), (8, 101), (16, 103)] {
+            assert!(gate.judge(Stream::Head, at(ms, frame), &settings).is_ok());
+        }
+        // Reordered (frame 102 after 103) and replayed (frame 50): stale.
+        assert_eq!(
+            gate.judge(Stream::Head, at(17, 102), &settings),
+            Err(Refusal::Stale)
+        );
+        assert_eq!(
+            gate.judge(Stream::Head, at(18, 50), &settings),
+            Err(Refusal::Stale)
+        );
+        // The same frame again (a duplicate) is not older.
+        assert!(gate.judge(Stream::Head, at(20, 103), &settings).is_ok());
+        // Seconds and frames are different clocks: never compared.
+        let secs = TrackerSample {
+            sent: Some(SentAt::Seconds(1.0)),
+            ..sample(1, 24, t0, p)
+        };
+        assert!(gate.judge(Stream::Head, secs, &settings).is_ok());
+        // The tracker restarted: frames from 0 again, every 8 ms. Refused until they have
+        // kept coming for 40 ms, then followed.
+        let mut gate = Counting::default();
+        assert!(gate.judge(Stream::Head, at(0, 90_000), &settings).is_ok());
+        let verdicts: Vec<bool> = (0..8u64)
+            .map(|i| {
+                gate.judge(Stream::Head, at(100 + 8 * i, i), &settings)
+                    .is_ok()
+            })
+            .collect();
+        assert_eq!(
+            verdicts,
+            [false, false, false, false, false, true, true, true]
+        );
+        assert_eq!(gate.counters.stale, 5);
+        // Another sender's clock is its own: a new owner starts afresh.
+        let other = TrackerSample {
+            sent: Some(SentAt::Frame(1)),
+            ..sample(2, 1000, t0, p)
+        };
+        assert!(gate.judge(Stream::Head, other, &settings).is_ok());
     }
 }

@@ -425,6 +425,7 @@ mod tests {
             orientation: None,
             tracked: None,
             sender: SocketAddr::from(([127, 0, 0, 1], 9)),
+            sent: None,
             jumped: false,
         }
     }

@@ -28,7 +28,7 @@ pub use natnet::NatNetSettings;
 pub use osc::{OscMapping, QuaternionOrder};
 pub use plausibility::PlausibilityLimits;
 pub use receiver::{Controls, Counters, OscReceiver, ReceiverSettings, TrackerFeed, TrackerSample};
-pub use source::{SourceKind, SourceSettings, TrackingSource};
+pub use source::{LinkState, SourceKind, SourceSettings, TrackingSource};
 pub use vrpn::{VrpnClient, VrpnDevice, VrpnSettings};
 
 /// What a button of the tracked input device does: fly along the wand's ray while held, pick

@@ -18,15 +18,14 @@ use natnet::{Decoder, Message};
 use super::TrackingError;
 use super::osc::MAX_ABS_NUMBER;
 use super::receiver::{
-    Fate, LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerFeed, TrackerSample, held_back,
+    Fate, LOG_INTERVAL, LogLimiter, SentAt, TrackedOrientation, TrackerFeed, TrackerSample,
+    held_back,
 };
 
 /// Motive's command port.
 pub const DEFAULT_COMMAND_PORT: u16 = 1510;
 /// How long the handshake waits for Motive's answer.
 const HANDSHAKE_WAIT: Duration = Duration::from_secs(1);
-/// No frame for this long: the stream has stopped; connect again.
-const QUIET: Duration = Duration::from_secs(3);
 /// Unicast streams stop unless kept alive this often.
 const KEEPALIVE: Duration = Duration::from_millis(250);
 const POLL: Duration = Duration::from_millis(50);
@@ -46,6 +45,8 @@ pub struct NatNetSettings {
     pub retry: Duration,
     /// Addresses Motive may be at (`tracking.allowed_senders`; empty: any).
     pub allowed_senders: Vec<std::net::IpAddr>,
+    /// No frame for this long (`tracking.timeout_seconds`): reconnect.
+    pub idle: Duration,
 }
 
 /// A running NatNet client.
@@ -55,6 +56,8 @@ pub struct NatNetClient {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
     server: SocketAddrV4,
+    /// A session is up (handshake done, until the stream goes quiet).
+    connected: Arc<AtomicBool>,
 }
 
 impl NatNetClient {
@@ -62,10 +65,12 @@ impl NatNetClient {
     pub fn start(settings: &NatNetSettings) -> Result<Self, TrackingError> {
         let feed = TrackerFeed::default();
         let stop = Arc::new(AtomicBool::new(false));
+        let connected = Arc::new(AtomicBool::new(false));
         let link = Link {
             settings: settings.clone(),
             feed: feed.clone(),
             stop: stop.clone(),
+            connected: connected.clone(),
             head_seq: 0,
             wand_seq: 0,
             bad_log: LogLimiter::default(),
@@ -80,7 +85,13 @@ impl NatNetClient {
             stop,
             thread: Some(thread),
             server: settings.server,
+            connected,
         })
+    }
+
+    /// Whether a session with Motive is up now.
+    pub fn connected(&self) -> bool {
+        self.connected.load(Ordering::Acquire)
     }
 
     pub fn feed(&self) -> &TrackerFeed {
@@ -120,6 +131,7 @@ struct Link {
     settings: NatNetSettings,
     feed: TrackerFeed,
     stop: Arc<AtomicBool>,
+    connected: Arc<AtomicBool>,
     head_seq: u64,
     wand_seq: u64,
     bad_log: LogLimiter,
@@ -134,6 +146,7 @@ impl Link {
         let mut absent_log = LogLimiter::default();
         while !self.stopped() {
             let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.session()));
+            self.connected.store(false, Ordering::Release);
             match outcome {
                 Ok(Ok(())) => {}
                 Ok(Err(why)) => {
@@ -200,6 +213,7 @@ impl Link {
                 "unicast"
             }
         );
+        self.connected.store(true, Ordering::Release);
         let mut buf = vec![0u8; MAX_DATAGRAM];
         let mut last_frame = Instant::now();
         let mut last_keepalive: Option<Instant> = None;
@@ -210,8 +224,11 @@ impl Link {
                 let _ = raw.send(&natnet::command::keepalive_datagram());
                 last_keepalive = Some(Instant::now());
             }
-            if last_frame.elapsed() > QUIET {
-                tracing::warn!("NatNet {server}: no frame for {QUIET:?}; reconnecting");
+            if last_frame.elapsed() > self.settings.idle {
+                tracing::warn!(
+                    "NatNet {server}: no frame for {:.1} s; reconnecting",
+                    self.settings.idle.as_secs_f64()
+                );
                 return Ok(());
             }
             match stream.recv(&mut buf) {
@@ -263,6 +280,8 @@ impl Link {
             self.feed.count(Fate::Ignored);
             return false;
         };
+        // A frame number below zero is no order at all.
+        let sent = u64::try_from(frame.frame_number).ok().map(SentAt::Frame);
         let sample = |b: &natnet::RigidBody, seq: u64| -> Option<TrackerSample> {
             let numbers = b.position.iter().chain(&b.orientation);
             if numbers
@@ -280,6 +299,7 @@ impl Link {
                 orientation: Some(TrackedOrientation::Tracker(Quat::from_xyzw(x, y, z, w))),
                 tracked: Some(b.tracking_valid()),
                 sender: from,
+                sent,
                 jumped: false,
             })
         };

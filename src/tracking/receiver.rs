@@ -51,8 +51,31 @@ pub struct TrackerSample {
     /// sample says.
     pub tracked: Option<bool>,
     pub sender: SocketAddr,
+    /// When the sender says it took the sample (`None`: the protocol does not say, as OSC).
+    pub sent: Option<SentAt>,
     /// The gate took it as a confirmed jump (the filter starts afresh from it).
     pub jumped: bool,
+}
+
+/// When a sender says it took a sample: its clock or its frame counter. A sample older than
+/// the newest accepted from the same sender is stale (a reordered or replayed packet).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SentAt {
+    /// Seconds on the sender's clock (a VRPN message's time, DTrack's `ts`).
+    Seconds(f64),
+    /// The tracker's frame counter (DTrack's `fr`, NatNet's frame number).
+    Frame(u64),
+}
+
+impl SentAt {
+    /// Whether `self` comes before `newest` on the same clock (never across kinds).
+    pub fn is_before(self, newest: SentAt) -> bool {
+        match (self, newest) {
+            (Self::Seconds(a), Self::Seconds(b)) => a < b,
+            (Self::Frame(a), Self::Frame(b)) => a < b,
+            _ => false,
+        }
+    }
 }
 
 /// Packet counts. Every received packet is counted once in exactly one of accepted, ignored,
@@ -189,7 +212,7 @@ struct Shared {
     configured: Mutex<Configured>,
     gate: Mutex<GateState>,
     /// Samples the gate refused, in [`Refusal::counter_index`] order.
-    refusals: [AtomicU64; 4],
+    refusals: [AtomicU64; GateCounters::COUNT],
     /// Who drives each stream, as the gate last said.
     senders: Mutex<[StreamSenders; 3]>,
     refusal_log: Mutex<LogLimiter>,
@@ -359,6 +382,7 @@ impl TrackerFeed {
                     orientation: None,
                     tracked: None,
                     sender: from,
+                    sent: None,
                     jumped: false,
                 };
                 self.refused(Stream::Controls, &sample, refusal);
@@ -572,6 +596,8 @@ impl PacketSink {
                 .map(|(o, _)| o),
             tracked: update.tracked,
             sender: from,
+            // OSC carries no sample time (bundles' time tags say when to act, not when taken).
+            sent: None,
             jumped: false,
         };
         self.feed.publish_head(sample);

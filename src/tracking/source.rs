@@ -43,6 +43,26 @@ pub enum SourceSettings {
     NatNet(NatNetSettings),
 }
 
+/// How a source stands with its tracker: it listens (OSC, DTrack: the tracker sends to us),
+/// or it holds a connection (VRPN, NatNet) or is making one.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LinkState {
+    Listening,
+    Connected,
+    /// Connecting to these servers (at start, or again after they went silent or away).
+    Reconnecting(String),
+}
+
+impl LinkState {
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Listening => "listening".into(),
+            Self::Connected => "connected".into(),
+            Self::Reconnecting(to) => format!("reconnecting to {to}"),
+        }
+    }
+}
+
 /// A running source.
 #[derive(Debug)]
 pub enum TrackingSource {
@@ -96,6 +116,29 @@ impl TrackingSource {
                  list the tracker's address in tracking.allowed_senders"
             )
         })
+    }
+
+    /// How the source stands with its tracker now.
+    pub fn link(&self) -> LinkState {
+        match self {
+            Self::Osc(_) | Self::DTrack(_) => LinkState::Listening,
+            Self::Vrpn(c) => {
+                let absent: Vec<String> = c
+                    .servers()
+                    .iter()
+                    .zip(c.data_ports())
+                    .filter(|(_, port)| port.is_none())
+                    .map(|(server, _)| server.clone())
+                    .collect();
+                if absent.is_empty() {
+                    LinkState::Connected
+                } else {
+                    LinkState::Reconnecting(absent.join(", "))
+                }
+            }
+            Self::NatNet(c) if c.connected() => LinkState::Connected,
+            Self::NatNet(c) => LinkState::Reconnecting(c.server().to_string()),
+        }
     }
 
     /// One line for the panel: the source and where it listens or connects.

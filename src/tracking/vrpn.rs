@@ -19,7 +19,8 @@ use glam::{Quat, Vec3};
 use super::TrackingError;
 use super::osc::MAX_ABS_NUMBER;
 use super::receiver::{
-    Fate, LOG_INTERVAL, LogLimiter, TrackedOrientation, TrackerFeed, TrackerSample, held_back,
+    Fate, LOG_INTERVAL, LogLimiter, SentAt, TrackedOrientation, TrackerFeed, TrackerSample,
+    held_back,
 };
 use super::vrpn_wire::{self as wire, HEADER_SIZE, Header, WireError};
 
@@ -111,6 +112,10 @@ pub struct VrpnSettings {
     pub retry: Duration,
     /// Addresses a server may be at (`tracking.allowed_senders`; empty: any).
     pub allowed_senders: Vec<IpAddr>,
+    /// A server that reports a tracker and sent nothing for this long
+    /// (`tracking.timeout_seconds`) is reconnected: a connection can stay open with nobody
+    /// at the other end (the server's machine rebooted, a cable pulled).
+    pub idle: Duration,
 }
 
 /// Which of the configured roles a device name plays on one server.
@@ -204,6 +209,7 @@ impl VrpnClient {
                 port,
                 roles,
                 retry: settings.retry,
+                idle: settings.idle,
                 allowed: settings
                     .allowed_senders
                     .iter()
@@ -283,6 +289,8 @@ enum LinkError {
     Wire(#[from] WireError),
     #[error("the server closed the connection")]
     Closed,
+    #[error("no report for {:.1} s", .0.as_secs_f64())]
+    Idle(Duration),
     #[error("{0} is not in tracking.allowed_senders")]
     NotAllowed(IpAddr),
     #[error("stopped")]
@@ -295,6 +303,8 @@ struct ServerLink {
     port: u16,
     roles: Roles,
     retry: Duration,
+    /// No message for this long ends a session whose server reports a tracker.
+    idle: Duration,
     allowed: Vec<IpAddr>,
     feed: TrackerFeed,
     stop: Arc<AtomicBool>,
@@ -308,6 +318,8 @@ struct ServerLink {
 impl ServerLink {
     fn run(self) {
         let mut absent_log = LogLimiter::default();
+        let mut idle_log = LogLimiter::default();
+        let mut idle_before = false;
         while !self.stopped() {
             let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.session()));
             match outcome {
@@ -315,6 +327,24 @@ impl ServerLink {
                 // A connection that was up and ended (logged where it ended): try again now.
                 Ok(Ok(())) => {
                     absent_log = LogLimiter::default();
+                    idle_before = false;
+                    continue;
+                }
+                // Up, then silent: at once the first time (the server may have restarted and
+                // forgotten us); a server that answers but keeps silent, every retry.
+                Ok(Err(e @ LinkError::Idle(_))) => {
+                    if let Some(held) = idle_log.allow(Instant::now(), LOG_INTERVAL * 5) {
+                        tracing::warn!(
+                            "VRPN {}:{}: {e}; reconnecting{}",
+                            self.host,
+                            self.port,
+                            held_back(held)
+                        );
+                    }
+                    absent_log = LogLimiter::default();
+                    if std::mem::replace(&mut idle_before, true) {
+                        self.sleep(self.retry);
+                    }
                     continue;
                 }
                 Ok(Err(e)) => {
@@ -345,12 +375,35 @@ impl ServerLink {
         }
     }
 
+    /// The server's address. A name is resolved in a thread of its own, so that a slow DNS
+    /// server never keeps this link from honouring the stop flag (the lookup is abandoned).
     fn server_addr(&self) -> Result<SocketAddr, LinkError> {
         let name = format!("{}:{}", self.host, self.port);
-        let mut addrs = (self.host.as_str(), self.port)
-            .to_socket_addrs()
-            .map_err(|_| LinkError::Resolve(name.clone()))?
-            .collect::<Vec<_>>();
+        if let Ok(ip) = self.host.parse::<IpAddr>() {
+            return Ok(SocketAddr::new(ip, self.port));
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (host, port) = (self.host.clone(), self.port);
+        std::thread::Builder::new()
+            .name(format!("vrpn-resolve-{host}"))
+            .spawn(move || {
+                let found = (host.as_str(), port)
+                    .to_socket_addrs()
+                    .map(|a| a.collect::<Vec<_>>());
+                let _ = tx.send(found);
+            })?;
+        let mut addrs = loop {
+            match rx.recv_timeout(POLL) {
+                Ok(Ok(addrs)) => break addrs,
+                Ok(Err(_)) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(LinkError::Resolve(name));
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) if self.stopped() => {
+                    return Err(LinkError::Stopped);
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            }
+        };
         // VRPN servers listen on IPv4 unless built otherwise.
         addrs.sort_by_key(|a| !a.is_ipv4());
         addrs.into_iter().next().ok_or(LinkError::Resolve(name))
@@ -414,7 +467,12 @@ impl ServerLink {
         stream.set_read_timeout(Some(POLL))?;
         stream.write_all(&wire::cookie())?;
         let mut cookie = [0u8; wire::COOKIE_SIZE];
-        self.read_full(&mut stream, &mut cookie, Some(Instant::now() + COOKIE_WAIT))?;
+        self.read_full(
+            &mut stream,
+            &mut cookie,
+            Some(Instant::now() + COOKIE_WAIT),
+            None,
+        )?;
         wire::check_cookie(&cookie)?;
 
         let udp = UdpSocket::bind((unspecified, 0))?;
@@ -460,7 +518,7 @@ impl ServerLink {
         self.data_port.store(0, Ordering::Release);
         let _ = udp_thread.join();
         match result {
-            Err(LinkError::Stopped) => Err(LinkError::Stopped),
+            Err(e @ (LinkError::Stopped | LinkError::Idle(_))) => Err(e),
             Err(e) => {
                 tracing::warn!(
                     "VRPN {}:{}: connection lost ({e}); reconnecting",
@@ -480,23 +538,28 @@ impl ServerLink {
     ) -> Result<(), LinkError> {
         let mut head = [0u8; HEADER_SIZE];
         let mut payload = Vec::new();
+        // Trackers report at their rate; a server of buttons alone may be silent for hours.
+        let idle = (self.roles.head.is_some() || self.roles.wand.is_some()).then_some(self.idle);
+        let watch = idle.map(|limit| (dispatch, limit));
         loop {
-            self.read_full(stream, &mut head, None)?;
+            self.read_full(stream, &mut head, None, watch)?;
             let arrived = Instant::now();
             let header = wire::parse_header(&head)?;
             payload.resize(header.padded_payload_len(), 0);
-            self.read_full(stream, &mut payload, None)?;
+            self.read_full(stream, &mut payload, None, watch)?;
             let body = &payload[..header.payload_len()];
             lock(dispatch).message(&header, body, arrived, Channel::Tcp);
         }
     }
 
-    /// Fills `buf`, waking every [`POLL`] to honour the stop flag and the deadline.
+    /// Fills `buf`, waking every [`POLL`] to honour the stop flag, the deadline and, where
+    /// `idle` gives a limit, the time since the session's newest message (either channel).
     fn read_full(
         &self,
         stream: &mut TcpStream,
         buf: &mut [u8],
         deadline: Option<Instant>,
+        idle: Option<(&Mutex<Dispatch>, Duration)>,
     ) -> Result<(), LinkError> {
         let mut at = 0;
         while at < buf.len() {
@@ -505,6 +568,12 @@ impl ServerLink {
             }
             if deadline.is_some_and(|d| Instant::now() >= d) {
                 return Err(LinkError::NoAnswer);
+            }
+            if let Some((dispatch, limit)) = idle {
+                let silent = lock(dispatch).heard.elapsed();
+                if silent > limit {
+                    return Err(LinkError::Idle(silent));
+                }
             }
             match stream.read(&mut buf[at..]) {
                 Ok(0) => return Err(LinkError::Closed),
@@ -613,6 +682,8 @@ struct Dispatch {
     head_seq: u64,
     wand_seq: u64,
     bad_log: LogLimiter,
+    /// When the server's newest message arrived (or the session began).
+    heard: Instant,
 }
 
 impl Dispatch {
@@ -627,6 +698,7 @@ impl Dispatch {
             head_seq: 0,
             wand_seq: 0,
             bad_log: LogLimiter::default(),
+            heard: Instant::now(),
         }
     }
 
@@ -642,6 +714,7 @@ impl Dispatch {
     }
 
     fn message(&mut self, header: &Header, payload: &[u8], arrived: Instant, via: Channel) {
+        self.heard = arrived;
         match header.kind {
             wire::SENDER_DESCRIPTION | wire::TYPE_DESCRIPTION => {
                 // Names come from the server's own connection, once per id: a datagram cannot
@@ -679,7 +752,12 @@ impl Dispatch {
                     return;
                 };
                 let fate = match kind_name.as_str() {
-                    wire::TRACKER_POS_QUAT => self.tracker(sender.clone(), payload, arrived),
+                    wire::TRACKER_POS_QUAT => {
+                        // The server's clock when it sent the report.
+                        let sent =
+                            f64::from(header.seconds) + f64::from(header.microseconds) * 1e-6;
+                        self.tracker(sender.clone(), payload, arrived, SentAt::Seconds(sent))
+                    }
                     wire::BUTTON_CHANGE | wire::BUTTON_STATES
                         if self.roles.buttons.as_ref() == Some(sender) =>
                     {
@@ -714,6 +792,7 @@ impl Dispatch {
         sender: String,
         payload: &[u8],
         arrived: Instant,
+        sent: SentAt,
     ) -> Result<(), (Fate, String)> {
         let report = wire::parse_pos_quat(payload).map_err(|e| (Fate::Malformed, e.to_string()))?;
         let is = |role: &Option<(String, i32)>| {
@@ -745,6 +824,7 @@ impl Dispatch {
             orientation: Some(TrackedOrientation::Tracker(Quat::from_xyzw(qx, qy, qz, qw))),
             tracked: None,
             sender: self.server,
+            sent: Some(sent),
             jumped: false,
         };
         if head {
