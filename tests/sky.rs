@@ -18,6 +18,7 @@ use common::{NO_MSAA, cave_at, fit_line, gpu, test_frame, tmp_dir};
 use omnicave::cave::omni::{OmniSettings, PoleMerge, omni_eye};
 use omnicave::cave::{Cave, Eye, Head, RenderMode, Wall, eye_positions};
 use omnicave::render::{Renderer, WallImages};
+use omnicave::scene::Scene;
 use omnicave::sky::bundled::{BEACONS, Beacon, RING_ELEVATION_DEGREES};
 use omnicave::sky::cubemap::srgb_to_linear;
 use omnicave::sky::lookup::{
@@ -41,21 +42,25 @@ fn bundled_sky() -> &'static CubeMap {
 
 /// Renders only the sky (no scene) in omni-offaxis mode with the given sky mode.
 fn render_sky(cave: &Cave, head: Vec3, sky_mode: SkyMode) -> Vec<WallImages> {
-    let mut renderer = Renderer::new(gpu(), cave, NO_MSAA).expect("renderer");
-    renderer.set_sky(Some(bundled_sky())).expect("sky");
-    let mut frame = test_frame(
-        cave,
-        Head::at(head),
-        RenderMode::OmniOffAxis,
-        OmniSettings::default(),
-        TessSettings::default(),
-    );
-    frame.sky = SkySettings {
-        mode: sky_mode,
-        ..SkySettings::default()
-    };
-    renderer.render(&frame).expect("render");
-    renderer.read_images().expect("read back")
+    common::with_renderer(cave, NO_MSAA, None, |renderer| {
+        renderer.set_scene(&Scene::default()).expect("no scene");
+        renderer.set_sky(Some(bundled_sky())).expect("sky");
+        let mut frame = test_frame(
+            cave,
+            Head::at(head),
+            RenderMode::OmniOffAxis,
+            OmniSettings::default(),
+            TessSettings::default(),
+        );
+        frame.sky = SkySettings {
+            mode: sky_mode,
+            ..SkySettings::default()
+        };
+        renderer.render(&frame).expect("render");
+        let images = renderer.read_images().expect("read back");
+        renderer.set_sky(None).expect("no sky");
+        images
+    })
 }
 
 /// The CPU eye model: the (unnormalised) direction the sky shows at pixel `px` of `wall`.
@@ -547,11 +552,22 @@ fn the_sky_fills_only_the_background_in_every_render_mode() {
         Vec3::new(0.9, 2.0, -1.2),
     ];
     let scene = common::marker_scene(&points, head, 0.15);
+    // Two renderers, one without a sky and one with it, each switched between modes and
+    // sky modes as the application switches them (a renderer each time would spend most of
+    // this test building pipelines).
+    let renderer = |sky: Option<&CubeMap>| {
+        let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
+        renderer.set_scene(&scene).expect("scene upload");
+        renderer.set_sky(sky).expect("sky");
+        std::cell::RefCell::new(renderer)
+    };
+    let (without_sky, with_sky_loaded) = (renderer(None), renderer(Some(bundled_sky())));
     for mode in RenderMode::ALL {
         let render = |sky: Option<SkyMode>| {
-            let mut renderer = Renderer::new(gpu(), &cave, NO_MSAA).expect("renderer");
-            renderer.set_scene(&scene).expect("scene upload");
-            renderer.set_sky(sky.map(|_| bundled_sky())).expect("sky");
+            let mut renderer = match sky {
+                None => without_sky.borrow_mut(),
+                Some(_) => with_sky_loaded.borrow_mut(),
+            };
             let mut frame = test_frame(
                 &cave,
                 Head::at(head),
@@ -611,7 +627,7 @@ fn the_sky_lights_the_scene_as_its_irradiance_says() {
     use omnicave::render::pbr::{LIT, SurfacePoint, shade_pbr};
     use omnicave::render::uniforms::{FrameLights, FrameUniforms, SkyLight};
     use omnicave::scene::build::grid;
-    use omnicave::scene::{Lighting, Material, Scene, Shading};
+    use omnicave::scene::{Lighting, Material, Shading};
     use omnicave::sky::irradiance::SkyIrradiance;
 
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));

@@ -162,19 +162,58 @@ pub fn render_tess(
     Vec<omnicave::tess::TessStats>,
     Vec<omnicave::render::tessellator::GpuTessEntry>,
 ) {
-    let mut renderer = Renderer::new(gpu(), cave, NO_MSAA).expect("renderer");
-    if let Some(c) = capacity {
-        renderer.set_tess_capacity(c);
-    }
-    renderer.set_scene(scene).expect("scene upload");
-    renderer
-        .render(&test_frame(cave, head, mode, OmniSettings::default(), tess))
-        .expect("render");
-    (
-        renderer.read_images().expect("read back"),
-        renderer.read_tess_stats().expect("stats"),
-        renderer.read_tess_entries().expect("entries"),
-    )
+    with_renderer(cave, NO_MSAA, capacity, |renderer| {
+        renderer.set_scene(scene).expect("scene upload");
+        renderer
+            .render(&test_frame(cave, head, mode, OmniSettings::default(), tess))
+            .expect("render");
+        (
+            renderer.read_images().expect("read back"),
+            renderer.read_tess_stats().expect("stats"),
+            renderer.read_tess_entries().expect("entries"),
+        )
+    })
+}
+
+/// A renderer for this CAVE, settings and tessellation budget: one made before, if any is
+/// free (the newest few are kept for the whole test binary, in a static: a thread-local one
+/// would drop them while the thread's other locals go away, which aborts). `f` leaves it as
+/// it found it but for the scene: no sky, the same budget. Building a renderer's pipelines costs lavapipe
+/// far more than a test frame, and the application too renders frame after frame with one
+/// renderer while the head, the mode and the scene change.
+pub fn with_renderer<T>(
+    cave: &Cave,
+    settings: RenderSettings,
+    capacity: Option<u32>,
+    f: impl FnOnce(&mut Renderer) -> T,
+) -> T {
+    type Key = (Cave, RenderSettings, Option<u32>);
+    /// Renderers kept (each holds its CAVE's targets).
+    const KEPT: usize = 4;
+    static RENDERERS: std::sync::Mutex<Vec<(Key, Renderer)>> = std::sync::Mutex::new(Vec::new());
+    let kept = || RENDERERS.lock().unwrap_or_else(|e| e.into_inner());
+    let key = (cave.clone(), settings, capacity);
+    let found = {
+        let mut kept = kept();
+        kept.iter()
+            .position(|(k, _)| *k == key)
+            .map(|i| kept.remove(i).1)
+    };
+    let mut renderer = found.unwrap_or_else(|| {
+        let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
+        if let Some(c) = capacity {
+            renderer.set_tess_capacity(c);
+        }
+        renderer
+    });
+    let out = f(&mut renderer);
+    let evicted = {
+        let mut kept = kept();
+        kept.push((key, renderer));
+        (kept.len() > KEPT).then(|| kept.remove(0))
+    };
+    drop(evicted);
+    out
 }
 
 /// As [`render`], with explicit omnistereo settings.
@@ -186,12 +225,13 @@ pub fn render_omni(
     settings: RenderSettings,
     omni: OmniSettings,
 ) -> Vec<WallImages> {
-    let mut renderer = Renderer::new(gpu(), cave, settings).expect("renderer");
-    renderer.set_scene(scene).expect("scene upload");
-    renderer
-        .render(&test_frame(cave, head, mode, omni, TessSettings::default()))
-        .expect("render");
-    renderer.read_images().expect("read back")
+    with_renderer(cave, settings, None, |renderer| {
+        renderer.set_scene(scene).expect("scene upload");
+        renderer
+            .render(&test_frame(cave, head, mode, omni, TessSettings::default()))
+            .expect("render");
+        renderer.read_images().expect("read back")
+    })
 }
 
 /// The thesis CAVE at a test resolution.
