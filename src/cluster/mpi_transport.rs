@@ -39,6 +39,46 @@ enum Waited {
     TimedOut,
 }
 
+/// What a receive's wait leaves: the message, an error with the buffer ours again, or an error
+/// with the request still pending (the buffer and the peer must be given up).
+#[derive(Debug)]
+enum Received {
+    Whole,
+    Failed(ClusterError),
+    GiveUp(ClusterError),
+}
+
+/// Judges a receive of `len` bytes (`capped` of them read) from rank `from` after
+/// [`wait_for_request`]; `pending`: the request handle is not null (MPI may still write).
+fn after_receive(
+    waited: Waited,
+    pending: bool,
+    len: usize,
+    capped: usize,
+    from: usize,
+) -> Received {
+    match waited {
+        Waited::Done => Received::Whole,
+        // Completed with an error (MPI set the handle to null): the buffer is ours again.
+        Waited::Failed(_) if !pending && len > capped => {
+            Received::Failed(ClusterError::Malformed(format!(
+                "a message of {len} bytes from rank {from}, over the {MAX_MESSAGE_BYTES}-byte budget"
+            )))
+        }
+        Waited::Failed(code) if !pending => Received::Failed(ClusterError::Mpi(format!(
+            "receiving {len} bytes from rank {from}: MPI_Test failed with MPI error code {code}"
+        ))),
+        Waited::Failed(code) => Received::GiveUp(ClusterError::Mpi(format!(
+            "receiving {len} bytes from rank {from}: MPI_Test failed with MPI error code \
+             {code} and the receive is still pending; rank {from} is given up"
+        ))),
+        Waited::TimedOut => Received::GiveUp(ClusterError::Mpi(format!(
+            "a message of {len} bytes from rank {from} did not arrive within {} s",
+            RECEIVE_LIMIT.as_secs()
+        ))),
+    }
+}
+
 /// Tests a request (`test` gives MPI_Test's code and flag) until it completes, fails or
 /// `limit` passes, sleeping [`TEST_INTERVAL`] between tests. After `Failed` or `TimedOut`
 /// MPI may still write the request's buffer: the caller must give it up.
@@ -260,36 +300,15 @@ impl Transport for MpiTransport {
         });
         // SAFETY: comparing two request handles reads neither's buffer.
         let pending = request != unsafe { ffi::RSMPI_REQUEST_NULL };
-        match waited {
-            Waited::Done => {}
-            // Completed with an error (MPI set the handle to null): the buffer is ours again.
-            Waited::Failed(_) if !pending && len > capped => {
-                return Err(ClusterError::Malformed(format!(
-                    "a message of {len} bytes from rank {from}, over the {MAX_MESSAGE_BYTES}-byte budget"
-                )));
-            }
-            Waited::Failed(code) if !pending => {
-                return Err(ClusterError::Mpi(format!(
-                    "receiving {len} bytes from rank {from}: MPI_Test failed with MPI error code {code}"
-                )));
-            }
-            // Still pending: MPI may still write into the buffer. Give it up for good, and
-            // the peer with it (its next message could not be told from this one's rest).
-            Waited::Failed(code) => {
+        match after_receive(waited, pending, len, capped, from) {
+            Received::Whole => {}
+            Received::Failed(e) => return Err(e),
+            // MPI may still write into the buffer: give it up for good, and the peer with it
+            // (its next message could not be told from this one's rest).
+            Received::GiveUp(e) => {
                 std::mem::forget(std::mem::take(into));
                 self.abandon(from);
-                return Err(ClusterError::Mpi(format!(
-                    "receiving {len} bytes from rank {from}: MPI_Test failed with MPI error code \
-                     {code} and the receive is still pending; rank {from} is given up"
-                )));
-            }
-            Waited::TimedOut => {
-                std::mem::forget(std::mem::take(into));
-                self.abandon(from);
-                return Err(ClusterError::Mpi(format!(
-                    "a message of {len} bytes from rank {from} did not arrive within {} s",
-                    RECEIVE_LIMIT.as_secs()
-                )));
+                return Err(e);
             }
         }
         if len > capped {
@@ -378,5 +397,36 @@ mod tests {
         // 20 ms at one test per 200 µs sleep is at most ~100 tests; a spin would make
         // hundreds of thousands.
         assert!(tests <= 150, "{tests} tests in 20 ms");
+    }
+
+    #[test]
+    fn a_failed_receive_still_pending_gives_up_the_buffer_and_the_peer() {
+        let (len, from) = (4096, 2);
+        assert!(matches!(
+            after_receive(Waited::Done, false, len, len, from),
+            Received::Whole
+        ));
+        // MPI_Test failed and nulled the handle: an error, the buffer is ours to reuse.
+        let failed = after_receive(Waited::Failed(15), false, len, len, from);
+        assert!(
+            matches!(&failed, Received::Failed(ClusterError::Mpi(m)) if m.contains("code 15")),
+            "{failed:?}"
+        );
+        // Over the budget and failed (truncated): named as the budget.
+        let over = after_receive(Waited::Failed(15), false, len, 1024, from);
+        assert!(
+            matches!(&over, Received::Failed(ClusterError::Malformed(m)) if m.contains("budget")),
+            "{over:?}"
+        );
+        // Failed with the request still pending, or never completing: give up, naming the rank.
+        for waited in [Waited::Failed(15), Waited::TimedOut] {
+            let pending = after_receive(waited, true, len, len, from);
+            assert!(
+                matches!(&pending, Received::GiveUp(ClusterError::Mpi(m)) if m.contains("rank 2")),
+                "{pending:?}"
+            );
+        }
+        let timed_out = after_receive(Waited::TimedOut, false, len, len, from);
+        assert!(matches!(timed_out, Received::GiveUp(_)), "{timed_out:?}");
     }
 }

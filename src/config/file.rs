@@ -262,7 +262,8 @@ pub struct TrackingSection {
     pub natnet_address: String,
     /// The rigid body id that is the head, in the NatNet form.
     pub natnet_rigid_body: i64,
-    /// No packet for this long: "tracking lost", the head holds its last pose.
+    /// No packet for this long: "tracking lost", the head holds its last pose; a VRPN server
+    /// reporting a tracker, or Motive, is connected to again.
     #[schemars(range(min = 0.01, max = 60.0))]
     pub timeout_seconds: f32,
     pub calibration: CalibrationSection,

@@ -261,6 +261,12 @@ impl StreamGate {
         timeout: Duration,
     ) -> Result<(), Refusal> {
         match self.owner {
+            // Back after a silence: it may have restarted (its counter from zero), and a slow
+            // tracker's restart would never look confirmed against a time from before.
+            Some(o) if o.sender == from && at.saturating_duration_since(o.heard) > timeout => {
+                self.newest_sent = None;
+                self.behind = None;
+            }
             Some(o) if o.sender == from => {}
             Some(o) if at.saturating_duration_since(o.heard) <= timeout => {
                 self.conflicting = Some((from, at));
@@ -361,9 +367,11 @@ impl StreamGate {
         }
     }
 
-    /// Refuses a sample taken before the newest one from this sender, unless such samples keep
-    /// coming for [`CONFIRMATION_TIME`] (the sender's clock or frame counter restarted, or
-    /// wrapped at midnight: it is followed from there).
+    /// Refuses a sample taken before the newest one accepted from this sender, unless such
+    /// samples keep coming for [`CONFIRMATION_TIME`] (the sender's clock or frame counter
+    /// restarted, or wrapped at midnight: it is followed from there). Only an accepted sample
+    /// moves the newest time on ([`Self::accepted_sent`]): a refused one (out of bounds, say)
+    /// with a time far ahead cannot make the tracker's own samples stale.
     fn judge_sent(&mut self, stream: Stream, sample: &TrackerSample) -> Result<(), Refusal> {
         let Some(sent) = sample.sent else {
             return Ok(());
@@ -383,9 +391,15 @@ impl StreamGate {
                 sample.sender
             );
         }
-        self.newest_sent = Some(sent);
-        self.behind = None;
         Ok(())
+    }
+
+    /// The sample was accepted: its time is the newest.
+    fn accepted_sent(&mut self, sent: Option<SentAt>) {
+        if sent.is_some() {
+            self.newest_sent = sent;
+            self.behind = None;
+        }
     }
 
     /// A "not tracked" sample: published once [`JUMP_CONFIRMATIONS`] claims, each within
@@ -432,7 +446,10 @@ impl SourceGate {
                     _ => settings.limits,
                 };
                 gate.judge_sent(stream, &sample)?;
-                gate.judge_pose(sample, settings, &limits)
+                let sent = sample.sent;
+                let accepted = gate.judge_pose(sample, settings, &limits)?;
+                gate.accepted_sent(sent);
+                Ok(accepted)
             })
     }
 
@@ -669,5 +686,26 @@ mod tests {
             ..sample(2, 1000, t0, p)
         };
         assert!(gate.judge(Stream::Head, other, &settings).is_ok());
+        // A refused sample (a kilometre away) with a frame far ahead, every 30 ms, under the
+        // tracker's address: it moves nothing on, the tracker's frames stay accepted.
+        let mut gate = Counting::default();
+        for i in 0..20u64 {
+            assert!(
+                gate.judge(Stream::Head, at(8 * i, 10 + i), &settings)
+                    .is_ok()
+            );
+            if i % 4 == 0 {
+                let future = TrackerSample {
+                    sent: Some(SentAt::Frame(u64::from(u32::MAX))),
+                    ..sample(1, 8 * i + 1, t0, Some(Vec3::new(1000.0, 1.6, 0.0)))
+                };
+                assert!(gate.judge(Stream::Head, future, &settings).is_err());
+            }
+        }
+        assert_eq!(gate.counters.stale, 0);
+        // The same tracker silent for longer than the timeout, back with its counter from
+        // zero at 5 Hz (each frame 200 ms apart): followed at once.
+        assert!(gate.judge(Stream::Head, at(2000, 0), &settings).is_ok());
+        assert!(gate.judge(Stream::Head, at(2200, 1), &settings).is_ok());
     }
 }

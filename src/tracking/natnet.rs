@@ -71,6 +71,7 @@ impl NatNetClient {
             feed: feed.clone(),
             stop: stop.clone(),
             connected: connected.clone(),
+            quiet_log: LogLimiter::default(),
             head_seq: 0,
             wand_seq: 0,
             bad_log: LogLimiter::default(),
@@ -132,6 +133,7 @@ struct Link {
     feed: TrackerFeed,
     stop: Arc<AtomicBool>,
     connected: Arc<AtomicBool>,
+    quiet_log: LogLimiter,
     head_seq: u64,
     wand_seq: u64,
     bad_log: LogLimiter,
@@ -225,10 +227,14 @@ impl Link {
                 last_keepalive = Some(Instant::now());
             }
             if last_frame.elapsed() > self.settings.idle {
-                tracing::warn!(
-                    "NatNet {server}: no frame for {:.1} s; reconnecting",
-                    self.settings.idle.as_secs_f64()
-                );
+                // Motive paused or its multicast blocked: this repeats every retry.
+                if let Some(held) = self.quiet_log.allow(Instant::now(), LOG_INTERVAL * 5) {
+                    tracing::warn!(
+                        "NatNet {server}: no frame for {:.1} s; reconnecting{}",
+                        self.settings.idle.as_secs_f64(),
+                        held_back(held)
+                    );
+                }
                 return Ok(());
             }
             match stream.recv(&mut buf) {

@@ -322,6 +322,8 @@ impl ServerLink {
         let mut idle_before = false;
         while !self.stopped() {
             let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.session()));
+            // However the session ended (an early error included), it is not connected now.
+            self.data_port.store(0, Ordering::Release);
             match outcome {
                 Ok(Err(LinkError::Stopped)) => break,
                 // A connection that was up and ended (logged where it ended): try again now.
