@@ -489,3 +489,128 @@ fn assert_chart_png(path: &std::path::Path) {
         .count();
     assert!(ink > 5_000, "{}: {ink} inked pixels", path.display());
 }
+
+/// The config's tracking source runs beside the bench, and the report and `tracking.csv` say
+/// what it received, accepted and refused by reason. An honest tracker at 120 Hz with a
+/// second sender at three times its rate, a jump far outside the CAVE and malformed datagrams,
+/// sent over a real loopback socket while a minimal bench renders.
+#[test]
+fn the_bench_reports_what_the_tracker_sent_and_the_gate_refused() {
+    use std::net::UdpSocket;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::time::Duration;
+
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let out = root.join("target/test-out/bench-tracking");
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    // A free loopback port (bound, read, released: the bench binds it a moment later).
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let config_text = std::fs::read_to_string(root.join("config/cave.toml"))
+        .unwrap()
+        .replace("\"0.0.0.0:7000\"", &format!("\"127.0.0.1:{port}\""))
+        // This test counts refusals; liveness margins under load are tracking_trust's.
+        .replace("timeout_seconds = 0.5", "timeout_seconds = 1.0")
+        .replace("\"../assets/", &format!("\"{}/assets/", root.display()));
+    assert!(config_text.contains(&format!("127.0.0.1:{port}")));
+    let config = out.join("cave.toml");
+    std::fs::write(&config, config_text).unwrap();
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let target = format!("127.0.0.1:{port}");
+    let senders = {
+        let (stop, target) = (Arc::clone(&stop), target.clone());
+        std::thread::spawn(move || {
+            let honest = UdpSocket::bind("127.0.0.1:0").unwrap();
+            let hostile = UdpSocket::bind("127.0.0.1:0").unwrap();
+            let position = |p: [f32; 3]| {
+                rosc::encoder::encode(&rosc::OscPacket::Message(rosc::OscMessage {
+                    addr: "/head/position".into(),
+                    args: p.iter().map(|&v| rosc::OscType::Float(v)).collect(),
+                }))
+                .unwrap()
+            };
+            let mut sent = 0u64;
+            while !stop.load(Ordering::Relaxed) {
+                // Every 60th honest sample jumps 40 m out of the CAVE, once.
+                let z = if sent % 60 == 59 { 40.0 } else { 0.0 };
+                let _ = honest.send_to(&position([0.0, 1.7, z]), &target);
+                for _ in 0..3 {
+                    let _ = hostile.send_to(&position([1.0, 1.2, 0.5]), &target);
+                }
+                let _ = hostile.send_to(b"not OSC", &target);
+                sent += 1;
+                std::thread::sleep(Duration::from_micros(8_333));
+            }
+        })
+    };
+    let run = Command::new(env!("CARGO_BIN_EXE_omnicave"))
+        .args([
+            "bench", "--quick", "--frames", "1", "--size", "64x36", "--method", "mono", "--scene",
+        ])
+        .arg(root.join("assets/living-room.glb"))
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(&out)
+        .current_dir(&root)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run the bench");
+    stop.store(true, Ordering::Relaxed);
+    senders.join().unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "bench failed:\n{stderr}");
+
+    let mut reader = csv::Reader::from_path(out.join("tracking.csv")).expect("tracking.csv");
+    let header = reader.headers().unwrap().clone();
+    let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+    assert_eq!(rows.len(), 1, "one row for the one source: {rows:?}");
+    let row = &rows[0];
+    let num = |name: &str| -> u64 {
+        let i = header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+        row[i]
+            .parse()
+            .unwrap_or_else(|_| panic!("{name}: {}", &row[i]))
+    };
+    assert!(row[0].starts_with("OSC on 127.0.0.1:"), "{row:?}");
+    assert!(num("accepted") > 10, "{row:?}");
+    // Three hostile samples to every honest one: most of the well-formed packets (3 in 4) were
+    // refused as conflicting; half is a bound that loopback loss cannot break.
+    assert!(num("conflicting") > num("accepted") / 2, "{row:?}");
+    assert!(num("malformed") > 0, "{row:?}");
+    // The jump, 40 m outside a 3 m CAVE, is refused (beyond the CAVE's margin, or unconfirmed).
+    assert!(num("implausible") + num("unconfirmed_jump") > 0, "{row:?}");
+    assert_eq!(num("lost_events"), 0, "an honest tracker was lost: {row:?}");
+    // Every packet is counted once: accepted (then judged), ignored, malformed, …
+    let packets = [
+        "accepted",
+        "ignored",
+        "malformed",
+        "non_finite",
+        "not_allowed",
+    ]
+    .map(num)
+    .iter()
+    .sum::<u64>();
+    assert_eq!(packets, num("received"), "{row:?}");
+
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let section = report
+        .split("## Tracking during the run")
+        .nth(1)
+        .expect("the report's tracking section");
+    assert!(section.contains("OSC on 127.0.0.1:"), "{section}");
+    assert!(
+        section.contains(&format!("{} conflicting", num("conflicting"))),
+        "{section}"
+    );
+}

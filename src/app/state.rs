@@ -174,8 +174,6 @@ const MIN_SHOWN_SIDE: u32 = 16;
 
 /// Smallest CAVE side the panel accepts (a wall cannot shrink to nothing).
 const MIN_CAVE_SIDE_M: f32 = 0.5;
-/// The head is kept this far inside the walls when they move.
-const HEAD_MARGIN_M: f32 = 0.05;
 
 impl AppState {
     pub fn new(config: Config) -> Self {
@@ -343,17 +341,7 @@ impl AppState {
     /// Where the head may be: the walls' bounding box less a margin (flat axes, as of a single
     /// wall, are unbounded).
     pub fn head_bounds(&self) -> (Vec3, Vec3) {
-        let (min, max) = Cave::bounding_box(&self.cave.walls);
-        let margin = Vec3::splat(HEAD_MARGIN_M);
-        let mut lo = min + margin;
-        let mut hi = (max - margin).max(lo);
-        for axis in 0..3 {
-            if max[axis] - min[axis] <= 2.0 * HEAD_MARGIN_M {
-                lo[axis] = f32::NEG_INFINITY;
-                hi[axis] = f32::INFINITY;
-            }
-        }
-        (lo, hi)
+        Cave::head_bounds(&self.cave.walls)
     }
 
     /// Sets the head, kept inside the walls' bounding box; a position behind a wall (a CAVE

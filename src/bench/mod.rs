@@ -1,7 +1,7 @@
 //! The benchmark (`omnicave bench`), one job per file: the methods compared (`methods`), the
 //! situations measured (`cases`), measuring them (`measure`), running it all (`run`), the
 //! reports (`report`, `chart`), the accuracy against the omnistereo ideal (`accuracy`), the
-//! panorama methods (`panorama`) and the stability sweep (`stability`, run by
+//! panorama methods (`panorama`), the tracking source heard during the run (`tracking`) and the stability sweep (`stability`, run by
 //! `stability_run`). No file imports this one; each imports the siblings it uses.
 
 pub mod accuracy;
@@ -17,6 +17,7 @@ pub mod report;
 pub mod run;
 pub mod stability;
 pub mod stability_run;
+pub mod tracking;
 
 pub use error::BenchError;
 pub use measure::{Row, VISIBLE_DIFFERENCE, image_difference_pct, percentile};

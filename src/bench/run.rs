@@ -10,6 +10,7 @@ use super::methods::{Method, methods, select_methods};
 use super::options::{BenchOptions, QUICK_SIZE};
 use super::panorama;
 use super::report::{write_file, write_outputs};
+use super::tracking::{TrackingOutcome, Watching, tracking_markdown, write_tracking_csv};
 use crate::config::Config;
 use crate::render::Gpu;
 use crate::render::tessellator::DEFAULT_CAPACITY;
@@ -26,6 +27,8 @@ pub struct BenchReport {
     pub pano_rows: Vec<panorama::PanoRow>,
     pub adapter: String,
     pub files: Vec<PathBuf>,
+    /// What the config's tracking source did during the run.
+    pub tracking: TrackingOutcome,
 }
 
 /// The methods a scene of `triangles` triangles is measured with: uniform subdivision is left
@@ -96,6 +99,8 @@ pub fn run(
         frames,
     };
     let total = run.case_count(&scenes);
+    // The tracker is heard while the machine is loaded, as in the lab.
+    let watching = Watching::start(&config);
     let rows = run.measure_walls(&scenes, &methods, total, progress)?;
     progress(
         total,
@@ -103,13 +108,15 @@ pub fn run(
         "panorama methods (geometric and image routes, against the CPU ray caster)",
     );
     let (pano_rows, pano_files) = run.panoramas(&scenes)?;
+    let tracking = watching.finish();
     progress(total, total, "done");
-    let files = run.finish_report(&rows, &pano_rows, pano_files)?;
+    let files = run.finish_report(&rows, &pano_rows, pano_files, &tracking)?;
     Ok(BenchReport {
         pano_rows,
         rows,
         adapter,
         files,
+        tracking,
     })
 }
 
@@ -246,13 +253,14 @@ impl BenchRun<'_> {
         )
     }
 
-    /// Writes the final reports with the panorama section at the end of `report.md`;
-    /// returns every file written.
+    /// Writes the final reports with the panorama and tracking sections at the end of
+    /// `report.md`, and `tracking.csv`; returns every file written.
     fn finish_report(
         &self,
         rows: &[Row],
         pano_rows: &[panorama::PanoRow],
         pano_files: Vec<PathBuf>,
+        tracking: &TrackingOutcome,
     ) -> Result<Vec<PathBuf>, BenchError> {
         let options = self.options;
         let adapter = self.adapter;
@@ -284,11 +292,15 @@ impl BenchRun<'_> {
             panorama::pano_size(options.quick),
             &images,
         ));
+        md.push_str(&tracking_markdown(tracking));
         write_file(&md_path, &md)?;
         if options.panorama_only {
             files.push(md_path);
         }
         files.extend(pano_files);
+        let csv_path = options.out.join("tracking.csv");
+        write_tracking_csv(&csv_path, tracking)?;
+        files.push(csv_path);
         Ok(files)
     }
 }

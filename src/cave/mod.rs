@@ -144,6 +144,9 @@ pub struct Cave {
     pub projection_centre: Vec3,
 }
 
+/// A head is kept this far inside the walls.
+pub const HEAD_MARGIN_M: f32 = 0.05;
+
 impl Cave {
     /// The default on-axis projective viewpoint: the centre of the walls' bounding box (the
     /// room's centre) when it lies at least 1 cm in front of every wall; otherwise (a single
@@ -159,6 +162,22 @@ impl Cave {
             .map(|w| w.centre() + 0.5 * w.size_m().x * w.normal())
             .sum();
         sum / walls.len().max(1) as f32
+    }
+
+    /// Where a head may be: the walls' bounding box less [`HEAD_MARGIN_M`] (flat axes, as of
+    /// a single wall, are unbounded). The tracking gate and the head's clamp use it.
+    pub fn head_bounds(walls: &[Wall]) -> (Vec3, Vec3) {
+        let (min, max) = Self::bounding_box(walls);
+        let margin = Vec3::splat(HEAD_MARGIN_M);
+        let mut lo = min + margin;
+        let mut hi = (max - margin).max(lo);
+        for axis in 0..3 {
+            if max[axis] - min[axis] <= 2.0 * HEAD_MARGIN_M {
+                lo[axis] = f32::NEG_INFINITY;
+                hi[axis] = f32::INFINITY;
+            }
+        }
+        (lo, hi)
     }
 
     /// The walls' axis-aligned bounding box (min, max corners; inverted infinities for no

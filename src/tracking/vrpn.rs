@@ -289,8 +289,12 @@ enum LinkError {
     Wire(#[from] WireError),
     #[error("the server closed the connection")]
     Closed,
-    #[error("no report for {:.1} s", .0.as_secs_f64())]
-    Idle(Duration),
+    /// Up, then silent; `after_reports`: reports had come on this connection before.
+    #[error("no report for {:.1} s", .silent.as_secs_f64())]
+    Idle {
+        silent: Duration,
+        after_reports: bool,
+    },
     #[error("{0} is not in tracking.allowed_senders")]
     NotAllowed(IpAddr),
     #[error("stopped")]
@@ -315,13 +319,23 @@ struct ServerLink {
     controls_sender: Arc<Mutex<Option<SocketAddr>>>,
 }
 
+/// Whether a link whose session went silent waits one retry before connecting again. A server
+/// that went silent after reporting (it may have restarted and forgotten us), or silent for the
+/// first time, is asked again at once; one that answers but never reports, twice in a row
+/// (`silent_before`), every retry.
+fn wait_after_silence(after_reports: bool, silent_before: bool) -> bool {
+    !after_reports && silent_before
+}
+
 impl ServerLink {
     fn run(self) {
         let mut absent_log = LogLimiter::default();
         let mut idle_log = LogLimiter::default();
-        let mut idle_before = false;
+        // The last session was up and ended silent without a single report.
+        let mut silent_before = false;
         while !self.stopped() {
-            let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.session()));
+            let quiet = std::mem::take(&mut silent_before);
+            let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| self.session(quiet)));
             // However the session ended (an early error included), it is not connected now.
             self.data_port.store(0, Ordering::Release);
             match outcome {
@@ -329,12 +343,9 @@ impl ServerLink {
                 // A connection that was up and ended (logged where it ended): try again now.
                 Ok(Ok(())) => {
                     absent_log = LogLimiter::default();
-                    idle_before = false;
                     continue;
                 }
-                // Up, then silent: at once the first time (the server may have restarted and
-                // forgotten us); a server that answers but keeps silent, every retry.
-                Ok(Err(e @ LinkError::Idle(_))) => {
+                Ok(Err(e @ LinkError::Idle { after_reports, .. })) => {
                     if let Some(held) = idle_log.allow(Instant::now(), LOG_INTERVAL * 5) {
                         tracing::warn!(
                             "VRPN {}:{}: {e}; reconnecting{}",
@@ -344,9 +355,10 @@ impl ServerLink {
                         );
                     }
                     absent_log = LogLimiter::default();
-                    if std::mem::replace(&mut idle_before, true) {
+                    if wait_after_silence(after_reports, quiet) {
                         self.sleep(self.retry);
                     }
+                    silent_before = !after_reports;
                     continue;
                 }
                 Ok(Err(e)) => {
@@ -411,8 +423,9 @@ impl ServerLink {
         addrs.into_iter().next().ok_or(LinkError::Resolve(name))
     }
 
-    /// One connection, from the request to its end.
-    fn session(&self) -> Result<(), LinkError> {
+    /// One connection, from the request to its end; `quiet`: the last one was up but never reported (do not
+    /// announce every retry of a server that answers and keeps silent).
+    fn session(&self, quiet: bool) -> Result<(), LinkError> {
         let server = self.server_addr()?;
         let server_ip = server.ip().to_canonical();
         if !self.allowed.is_empty() && !self.allowed.contains(&server_ip) {
@@ -492,12 +505,14 @@ impl ServerLink {
             &ip,
         ))?;
 
-        tracing::info!(
-            "VRPN {}:{}: connected ({})",
-            self.host,
-            self.port,
-            self.roles.describe()
-        );
+        if !quiet {
+            tracing::info!(
+                "VRPN {}:{}: connected ({})",
+                self.host,
+                self.port,
+                self.roles.describe()
+            );
+        }
         let controls_from = *lock(&self.controls_sender).get_or_insert(server);
         let dispatch = Arc::new(Mutex::new(Dispatch::new(
             self.roles.clone(),
@@ -520,7 +535,7 @@ impl ServerLink {
         self.data_port.store(0, Ordering::Release);
         let _ = udp_thread.join();
         match result {
-            Err(e @ (LinkError::Stopped | LinkError::Idle(_))) => Err(e),
+            Err(e @ (LinkError::Stopped | LinkError::Idle { .. })) => Err(e),
             Err(e) => {
                 tracing::warn!(
                     "VRPN {}:{}: connection lost ({e}); reconnecting",
@@ -572,9 +587,15 @@ impl ServerLink {
                 return Err(LinkError::NoAnswer);
             }
             if let Some((dispatch, limit)) = idle {
-                let silent = lock(dispatch).heard.elapsed();
+                let (silent, after_reports) = {
+                    let d = lock(dispatch);
+                    (d.heard.elapsed(), d.reported)
+                };
                 if silent > limit {
-                    return Err(LinkError::Idle(silent));
+                    return Err(LinkError::Idle {
+                        silent,
+                        after_reports,
+                    });
                 }
             }
             match stream.read(&mut buf[at..]) {
@@ -686,6 +707,8 @@ struct Dispatch {
     bad_log: LogLimiter,
     /// When the server's newest message arrived (or the session began).
     heard: Instant,
+    /// A report was accepted on this connection.
+    reported: bool,
 }
 
 impl Dispatch {
@@ -701,6 +724,7 @@ impl Dispatch {
             wand_seq: 0,
             bad_log: LogLimiter::default(),
             heard: Instant::now(),
+            reported: false,
         }
     }
 
@@ -782,7 +806,10 @@ impl Dispatch {
                     }
                 };
                 match fate {
-                    Ok(()) => self.feed.count(Fate::Accepted),
+                    Ok(()) => {
+                        self.reported = true;
+                        self.feed.count(Fate::Accepted);
+                    }
                     Err((fate, why)) => self.bad(fate, &why, arrived),
                 }
             }
@@ -875,6 +902,16 @@ impl Dispatch {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_silent_server_is_asked_again_at_once_unless_it_never_reports() {
+        // Gone silent after reports, however often it happened before: at once.
+        assert!(!wait_after_silence(true, false));
+        assert!(!wait_after_silence(true, true));
+        // Silent from the start: at once the first time, then every retry.
+        assert!(!wait_after_silence(false, false));
+        assert!(wait_after_silence(false, true));
+    }
 
     #[test]
     fn device_names_as_vrpn_users_write_them() {
