@@ -82,8 +82,8 @@ enum ConfigCommand {
     /// Print the config file's JSON Schema (what `config/omnicave.schema.json` holds), for
     /// editors that validate and complete TOML.
     Schema,
-    /// Convert the walls of an Equalizer `.eqc`, a CalVR XML or an nDisplay `.ndisplay` file
-    /// into omnicave's `[[wall]]` tables (CAVE space: metres, +y up).
+    /// Convert the walls of an Equalizer, CalVR, nDisplay (JSON or legacy .cfg), Vrui or MinVR
+    /// file into omnicave's `[[wall]]` tables (CAVE space: metres, +y up).
     Import(ImportArgs),
 }
 
@@ -91,12 +91,22 @@ enum ConfigCommand {
 struct ImportArgs {
     /// The file to read.
     file: PathBuf,
-    /// Its format; default: from the extension (.eqc, .xml, .ndisplay/.json).
+    /// Its format; default: from its content, else its extension (.eqc, .ndisplay/.json,
+    /// .minvr/.vrsetup).
     #[arg(long)]
     format: Option<omnicave::config::import::ImportFormat>,
-    /// The file's length unit; default: the format's (Equalizer m, CalVR mm, nDisplay cm).
+    /// The file's length unit; default: the file's own (Vrui's inchScale or meterScale), else
+    /// the format's (Equalizer m, CalVR mm, nDisplay JSON cm, nDisplay .cfg m, Vrui inch,
+    /// MinVR foot).
     #[arg(long)]
     units: Option<omnicave::cave::placement::LengthUnit>,
+    /// Vrui: the root section (installation) to read, where the file has several.
+    #[arg(long)]
+    section: Option<String>,
+    /// Print each wall's size, centre and normal and how the walls meet at their edges (gaps
+    /// and overlaps in mm); write nothing.
+    #[arg(long, conflicts_with_all = ["base", "output"])]
+    check: bool,
     /// Pixels of a wall whose window or viewport the file does not give, WxH.
     #[arg(long, value_parser = parse_size, default_value = "1920x1080")]
     resolution: [u32; 2],
@@ -669,9 +679,22 @@ impl Progress {
 /// `config import`: the walls, as tables or in a whole config, checked by loading the result.
 fn import_walls(args: &ImportArgs) -> anyhow::Result<()> {
     use omnicave::config::import;
-    let walls = import::import_walls(&args.file, args.format, args.units)?;
+    let import =
+        import::import_walls(&args.file, args.format, args.units, args.section.as_deref())?;
+    tracing::info!(
+        "{}: converted from {}",
+        args.file.display(),
+        import.conversion
+    );
+    for note in &import.notes {
+        tracing::warn!("{}: {note}", args.file.display());
+    }
+    if args.check {
+        return write_stdout(import::check_report(&import.walls).as_bytes());
+    }
+    let walls = &import.walls;
     let text = match &args.base {
-        None => import::walls_toml(&walls, args.resolution, &args.file),
+        None => import::walls_toml(&import, args.resolution, &args.file),
         Some(base) => {
             let base_text = omnicave::read_capped::read_capped_text(
                 base,
@@ -679,7 +702,7 @@ fn import_walls(args: &ImportArgs) -> anyhow::Result<()> {
                 "config files",
             )
             .with_context(|| format!("cannot read {}", base.display()))?;
-            let text = import::replace_walls(&base_text, &walls, args.resolution)
+            let text = import::replace_walls(&base_text, &import, args.resolution, &args.file)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", base.display()))?;
             // The result must load: its walls are checked as any config's are.
             omnicave::config::Config::from_toml(&text, base)
@@ -687,7 +710,7 @@ fn import_walls(args: &ImportArgs) -> anyhow::Result<()> {
             text
         }
     };
-    for w in &walls {
+    for w in walls {
         tracing::info!(
             "wall {}: {:.3} × {:.3} m",
             w.name,

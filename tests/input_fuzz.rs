@@ -362,3 +362,146 @@ fn the_gltf_loader_never_panics_or_hangs_on_mutated_files() {
         assert!(peak < PEAK_RSS_LIMIT, "peak memory {peak} bytes");
     }
 }
+
+// ---------------------------------------------------------------- wall imports
+
+/// Tokens that matter to the importers' grammars, spliced into their files.
+const IMPORT_TOKENS: &[&str] = &[
+    "<",
+    ">",
+    "/>",
+    "</",
+    "<!--",
+    "-->",
+    "<INCLUDE>x.xml</INCLUDE>",
+    "<Screen",
+    "\"",
+    "=",
+    "{",
+    "}",
+    "[",
+    "]",
+    "(",
+    ")",
+    ",",
+    "\n",
+    "section ",
+    "endsection\n",
+    "parentId",
+    "\"parentId\":\"",
+    "1e308",
+    "-1e308",
+    "nan",
+    "inf",
+    "0.40.0",
+    "+",
+    "X=",
+    "[screen] id=s size=\"X=1,Y=1\" ",
+    "#",
+    "\\\n",
+    "TopLeft",
+    "_BotLeft (",
+    "deviceMounted true\n",
+    "wall {",
+];
+
+/// One edit of an import file: splice a token in, cut a range, or double one.
+#[derive(Debug, Clone)]
+enum ImportEdit {
+    Splice(usize, usize),
+    Cut(usize, usize),
+    Double(usize, usize),
+}
+
+fn import_edit() -> impl Strategy<Value = ImportEdit> {
+    prop_oneof![
+        3 => (any::<usize>(), 0..IMPORT_TOKENS.len()).prop_map(|(at, t)| ImportEdit::Splice(at, t)),
+        1 => (any::<usize>(), 1usize..400).prop_map(|(at, n)| ImportEdit::Cut(at, n)),
+        1 => (any::<usize>(), 1usize..400).prop_map(|(at, n)| ImportEdit::Double(at, n)),
+    ]
+}
+
+fn apply_import(text: &str, edit: &ImportEdit) -> String {
+    let mut bytes = text.as_bytes().to_vec();
+    let len = bytes.len().max(1);
+    match *edit {
+        ImportEdit::Splice(at, t) => {
+            let at = at % len;
+            bytes.splice(at..at, IMPORT_TOKENS[t].bytes());
+        }
+        ImportEdit::Cut(at, n) => {
+            let at = at % len;
+            let end = (at + n).min(bytes.len());
+            bytes.drain(at..end);
+        }
+        ImportEdit::Double(at, n) => {
+            let at = at % len;
+            let end = (at + n).min(bytes.len());
+            let copy = bytes[at..end].to_vec();
+            bytes.splice(end..end, copy);
+        }
+    }
+    String::from_utf8_lossy(&bytes).into_owned()
+}
+
+#[test]
+fn the_wall_importers_never_panic_or_hang_on_mutated_files() {
+    use omnicave::config::import::import_text;
+    let n = cases(1500);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/import");
+    // Every format's files as their owners publish them (the licences aside).
+    let seeds: Vec<(String, String)> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            let name = p.file_name().unwrap().to_string_lossy();
+            !name.starts_with("LICENSE") && !name.starts_with("COPYING") && !name.ends_with(".md")
+        })
+        .map(|p| {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            (name, std::fs::read_to_string(&p).unwrap())
+        })
+        .collect();
+    assert!(seeds.len() >= 10, "{} seed files", seeds.len());
+    let refused = within(Duration::from_secs(600), move || {
+        let refused = Cell::new(0u32);
+        runner(n)
+            .run(
+                &(0..seeds.len(), vec(import_edit(), 1..4)),
+                |(seed, edits)| {
+                    let (name, text) = &seeds[seed];
+                    let mut text = text.clone();
+                    for e in &edits {
+                        text = apply_import(&text, e);
+                    }
+                    // A Vrui file with several installations is read as one (the first).
+                    let section = name
+                        .contains("Vrui")
+                        .then_some("caveman.geology.ucdavis.edu");
+                    match import_text(&text, &dir.join(name), None, None, section) {
+                        Ok(import) => {
+                            for w in &import.walls {
+                                for c in [w.lower_left, w.lower_right, w.upper_left] {
+                                    prop_assert!(c.is_finite() && c.abs().max_element() <= 1000.0);
+                                }
+                            }
+                        }
+                        Err(e) => {
+                            let message = e.to_string();
+                            prop_assert!(message.contains(name.as_str()), "{}", message);
+                            prop_assert!(message.len() < 4096, "{} bytes", message.len());
+                            refused.set(refused.get() + 1);
+                        }
+                    }
+                    Ok(())
+                },
+            )
+            .map_err(|e| e.to_string())
+            .unwrap();
+        refused.get()
+    });
+    // Most single edits leave a file readable (a token inside a comment or a name); some break
+    // it. Both happen, or the mutations miss the grammar.
+    assert!(refused > n / 20 && refused < n, "{refused} of {n} refused");
+}

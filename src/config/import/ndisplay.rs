@@ -1,118 +1,148 @@
-//! Unreal nDisplay's `.ndisplay` JSON: `nDisplay.scene.screens` (each a plane centred at its
-//! `location`, turned by its `rotation`, `size` width × height), placed through the
-//! `scene.xforms` it is parented to. Unreal's frame is left-handed: x forward, y right, z up,
-//! in centimetres. A viewport whose projection policy names a screen gives its pixel size.
+//! Unreal nDisplay's `.ndisplay` JSON (UE 4.27 on): `nDisplay.scene.screens` (each a plane
+//! centred at its `location`, turned by its `rotation`, `size` width × height times its
+//! `scale`), placed through any depth of `parentId`s among the scene's components. Unreal's
+//! frame is left-handed: x forward, y right, z up, in centimetres. A screen under a camera or a
+//! tracked component moves with the viewer: it is reported and skipped. A viewport whose
+//! projection policy names a screen gives its pixel size.
 
 use std::collections::HashMap;
 
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 use serde_json::Value;
 
-use super::{ImportedWall, clean_name};
+use super::unreal::{Component, Graph, MAX_SCREENS, Placer, conversion, wall};
+use super::{Reading, clean_name};
 use crate::cave::placement::LengthUnit;
 
-/// Budget: the longest chain of parents followed (a cycle is an error, not a hang).
-const MAX_PARENTS: usize = 32;
+/// Budget: scene components in one file (a 4 MiB file holds about 20 000).
+const MAX_COMPONENTS: usize = 100_000;
 
-fn number(v: &Value, key: &str, at: &str) -> Result<f64, String> {
+fn number(v: &Value, key: &str, at: &str, default: f64) -> Result<f64, String> {
     match v.get(key) {
-        None => Ok(0.0),
+        None | Some(Value::Null) => Ok(default),
         Some(n) => n
             .as_f64()
             .filter(|x| x.is_finite())
-            .ok_or(format!("{at}.{key} is not a number")),
+            .ok_or(format!("{at}.{key} is not a finite number")),
     }
 }
 
-/// A component's placement in Unreal's frame: its location and the images of its x, y, z axes
-/// (Unreal's FRotationMatrix of pitch, yaw, roll).
-fn placement(c: &Value, at: &str) -> Result<(DVec3, DMat3), String> {
-    let l = c.get("location").unwrap_or(&Value::Null);
-    let r = c.get("rotation").unwrap_or(&Value::Null);
-    let location = DVec3::new(
-        number(l, "x", at)?,
-        number(l, "y", at)?,
-        number(l, "z", at)?,
-    );
-    let (sp, cp) = number(r, "pitch", at)?.to_radians().sin_cos();
-    let (sy, cy) = number(r, "yaw", at)?.to_radians().sin_cos();
-    let (sr, cr) = number(r, "roll", at)?.to_radians().sin_cos();
-    let x = DVec3::new(cp * cy, cp * sy, sp);
-    let y = DVec3::new(sr * sp * cy - cr * sy, sr * sp * sy + cr * cy, -sr * cp);
-    let z = DVec3::new(-(cr * sp * cy + sr * sy), cy * sr - cr * sp * sy, cr * cp);
-    Ok((location, DMat3::from_cols(x, y, z)))
+fn vector(c: &Value, key: &str, names: [&str; 3], at: &str, default: f64) -> Result<DVec3, String> {
+    let v = c.get(key).unwrap_or(&Value::Null);
+    let at = format!("{at}.{key}");
+    Ok(DVec3::new(
+        number(v, names[0], &at, default)?,
+        number(v, names[1], &at, default)?,
+        number(v, names[2], &at, default)?,
+    ))
 }
 
-/// Unreal (x forward, y right, z up) to CAVE (x right, y up, −z forward), both unscaled.
-fn to_cave(v: DVec3) -> DVec3 {
-    DVec3::new(v.y, v.z, -v.x)
+/// A scene component as the graph needs it.
+fn component(kind: &str, id: &str, c: &Value) -> Result<Component, String> {
+    let at = format!("scene.{kind}.{id}");
+    let rotation = vector(c, "rotation", ["pitch", "yaw", "roll"], &at, 0.0)?;
+    let tracker = c
+        .get("trackerId")
+        .and_then(Value::as_str)
+        .filter(|t| !t.is_empty());
+    let follows = if kind == "cameras" {
+        Some(format!(
+            "it is under the camera '{id}', which moves with the viewer"
+        ))
+    } else {
+        tracker.map(|t| format!("it is under '{id}', which follows the tracker '{t}'"))
+    };
+    Ok(Component {
+        parent: c.get("parentId").and_then(Value::as_str).map(String::from),
+        location: vector(c, "location", ["x", "y", "z"], &at, 0.0)?,
+        rotation: rotation.to_array(),
+        scale: vector(c, "scale", ["x", "y", "z"], &at, 1.0)?,
+        follows,
+        at,
+    })
 }
 
 /// The screens of an nDisplay config.
-pub fn walls(text: &str, unit: LengthUnit) -> Result<Vec<ImportedWall>, String> {
+pub fn walls(text: &str, reading: &mut Reading<'_>) -> Result<Vec<super::ImportedWall>, String> {
     let root: Value = serde_json::from_str(text).map_err(|e| e.to_string())?;
     let nd = root.get("nDisplay").unwrap_or(&root);
     let scene = nd.get("scene").ok_or("no nDisplay.scene")?;
-    let empty = serde_json::Map::new();
-    let object = |key: &str| scene.get(key).and_then(Value::as_object).unwrap_or(&empty);
-    let screens = object("screens");
-    // Components that can be parents: xforms, and any other scene component by id.
-    let mut parents: HashMap<&str, &Value> = HashMap::new();
-    for key in ["xforms", "cameras", "screens"] {
-        for (id, c) in object(key) {
-            parents.insert(id, c);
+    let unit = reading.unit.unwrap_or(LengthUnit::Centimetre);
+    reading.conversion = conversion(unit.name(), unit.metres());
+    // Every scene component (xforms, cameras, screens, meshes, …) can be a parent.
+    let mut graph = Graph::default();
+    let mut screens: Vec<(&str, &Value)> = Vec::new();
+    for (kind, group) in scene.as_object().into_iter().flatten() {
+        let Some(group) = group.as_object() else {
+            continue;
+        };
+        for (id, c) in group {
+            if !c.is_object() {
+                continue;
+            }
+            if graph.components.len() >= MAX_COMPONENTS {
+                return Err(format!("more than {MAX_COMPONENTS} scene components"));
+            }
+            if graph.components.contains_key(id) {
+                reading.notes.push(format!(
+                    "the id '{id}' names two scene components; scene.{kind}.{id} is used"
+                ));
+            }
+            graph.components.insert(id.clone(), component(kind, id, c)?);
+            if kind == "screens" {
+                if screens.len() >= MAX_SCREENS {
+                    return Err(format!("more than {MAX_SCREENS} screens"));
+                }
+                screens.push((id, c));
+            }
         }
     }
+    let cameras: Vec<&str> = scene
+        .get("cameras")
+        .and_then(Value::as_object)
+        .map(|c| c.keys().map(String::as_str).collect())
+        .unwrap_or_default();
+    let screen_ids: Vec<&str> = screens.iter().map(|(id, _)| *id).collect();
+    graph.mark_viewer_nodes(&cameras, &screen_ids);
     let (resolutions, order) = viewport_sizes(nd);
-    let m = unit.metres();
+    let mut placer = Placer::new(&graph);
     let mut out = Vec::new();
     for (id, screen) in screens {
         let at = format!("scene.screens.{id}");
-        let size = screen.get("size").ok_or(format!("{at} has no size"))?;
-        let (w, h) = (number(size, "width", &at)?, number(size, "height", &at)?);
-        if w <= 0.0 || h <= 0.0 {
+        let scaled = screen.get("scale").is_some();
+        let size = match screen.get("size") {
+            Some(size) => [
+                number(size, "width", &at, f64::NAN)?,
+                number(size, "height", &at, f64::NAN)?,
+            ],
+            // The size carried by the scale alone (a unit plane scaled).
+            None if scaled => [1.0, 1.0],
+            None => return Err(format!("{at} has neither a size nor a scale")),
+        };
+        if !size.iter().all(|v| *v > 0.0) {
             return Err(format!("{at}.size must be positive"));
         }
-        let (mut centre, mut axes) = placement(screen, &at)?;
-        let mut parent = screen.get("parentId").and_then(Value::as_str).unwrap_or("");
-        let mut depth = 0;
-        while !parent.is_empty() {
-            depth += 1;
-            if depth > MAX_PARENTS {
-                return Err(format!(
-                    "{at}: parents deeper than {MAX_PARENTS} (a cycle?)"
-                ));
-            }
-            let p = parents
-                .get(parent)
-                .ok_or(format!("{at}: parent '{parent}' is not in the scene"))?;
-            let (loc, rot) = placement(p, &format!("scene.{parent}"))?;
-            centre = loc + rot * centre;
-            axes = rot * axes;
-            parent = p.get("parentId").and_then(Value::as_str).unwrap_or("");
+        match placer
+            .screen(id, size, unit.metres())
+            .map_err(|e| format!("{at}: {e}"))?
+        {
+            Ok(corners) => out.push((
+                order.get(id).copied(),
+                wall(
+                    clean_name(id, &format!("screen{}", out.len())),
+                    corners,
+                    resolutions.get(id).copied(),
+                ),
+            )),
+            Err(why) => reading
+                .notes
+                .push(format!("{at} skipped, not a wall: {why}")),
         }
-        // A screen faces back along its x; its width runs along y, its height along z.
-        let right = to_cave(axes.y_axis);
-        let up = to_cave(axes.z_axis);
-        let c = to_cave(centre) * m;
-        let ll = c - 0.5 * w * m * right - 0.5 * h * m * up;
-        out.push(ImportedWall {
-            name: clean_name(id, &format!("screen{}", out.len())),
-            lower_left: ll,
-            lower_right: ll + w * m * right,
-            upper_left: ll + h * m * up,
-            resolution: resolutions.get(id.as_str()).copied(),
-        });
     }
     // In the order of their viewports on the nodes' windows (left to right), as the walls'
     // windows are; screens without a viewport after, by name.
-    out.sort_by_key(|w| {
-        order
-            .get(w.name.as_str())
-            .copied()
-            .unwrap_or((u64::MAX, u64::MAX))
-    });
-    Ok(out)
+    out.sort_by_key(|(place, _)| place.unwrap_or((u64::MAX, u64::MAX)));
+    Ok(out.into_iter().map(|(_, w)| w).collect())
 }
 
 /// Screen id → pixels of the viewport that projects onto it.
