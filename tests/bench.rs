@@ -596,7 +596,7 @@ fn the_bench_reports_what_the_tracker_sent_and_the_gate_refused() {
         "ignored",
         "malformed",
         "non_finite",
-        "not_allowed",
+        "refused",
     ]
     .map(num)
     .iter()
