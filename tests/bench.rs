@@ -591,16 +591,10 @@ fn the_bench_reports_what_the_tracker_sent_and_the_gate_refused() {
     assert!(num("implausible") + num("unconfirmed_jump") > 0, "{row:?}");
     assert_eq!(num("lost_events"), 0, "an honest tracker was lost: {row:?}");
     // Every packet is counted once: accepted (then judged), ignored, malformed, …
-    let packets = [
-        "accepted",
-        "ignored",
-        "malformed",
-        "non_finite",
-        "refused",
-    ]
-    .map(num)
-    .iter()
-    .sum::<u64>();
+    let packets = ["accepted", "ignored", "malformed", "non_finite", "refused"]
+        .map(num)
+        .iter()
+        .sum::<u64>();
     assert_eq!(packets, num("received"), "{row:?}");
 
     let report = std::fs::read_to_string(out.join("report.md")).unwrap();
