@@ -348,6 +348,19 @@ fn assert_all_meet(import: &omnicave::config::import::Import, joins: usize) {
 /// documented conventions.
 #[test]
 fn real_installations_files_import_to_hand_worked_corners() {
+    // Equalizer's own three-sided CAVE example: metres, y up, as omnicave.
+    let eq = import("3-channel.cave.eqc", None);
+    assert_eq!(
+        names(&eq),
+        ["channel-left", "channel-middle", "channel-right"]
+    );
+    assert_corners(
+        &eq,
+        "channel-left",
+        [[-1.0, -1.0, 1.0], [-1.0, -1.0, -1.0], [-1.0, 1.0, 1.0]],
+    );
+    assert_all_meet(&eq, 2);
+
     // RWTH Aachen's aixCAVE, nDisplay JSON (UE 5): cm, Unreal axes, 5.25 m wide walls of 2×2
     // overlapping projector tiles. The front wall's lower-left tile: centre (262.5,
     // −105.3575, 98.214249) cm, 314.285 × 196.428497 cm → CAVE (−1.053575, 0.982142, −2.625).
