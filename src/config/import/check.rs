@@ -297,6 +297,12 @@ mod tests {
         }
     }
 
+    /// The first join reads as `ends`.
+    fn assert_join(joins: &[EdgeJoin], ends: &str) {
+        let said = joins[0].describe();
+        assert!(said.ends_with(ends), "{said}");
+    }
+
     #[test]
     fn corners_meet_gap_and_overlap() {
         let left = wall(
@@ -319,24 +325,12 @@ mod tests {
         assert_eq!(checks[1].size, [2.0, 2.0]);
         assert_eq!(joins.len(), 1);
         assert_eq!((joins[0].a_edge, joins[0].b_edge), ("right", "left"));
-        assert!(
-            joins[0].describe().ends_with("meet"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "meet");
         // The front wall 12 mm short of the corner: a gap; 12 mm past it: an overlap.
         let (_, joins) = check_walls(&[left.clone(), front(-0.988)]);
-        assert!(
-            joins[0].describe().ends_with("gap 12.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "gap 12.0 mm");
         let (_, joins) = check_walls(&[left.clone(), front(-1.012)]);
-        assert!(
-            joins[0].describe().ends_with("overlap 12.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "overlap 12.0 mm");
         // Far apart: no join.
         // Two tiles of one wall, 0.3 m blended over each other, then 5 mm apart.
         let tile = |x0: f64| {
@@ -349,21 +343,9 @@ mod tests {
         };
         let (_, joins) = check_walls(&[tile(0.0), tile(0.7)]);
         assert_eq!(joins.len(), 1);
-        assert!(
-            joins[0]
-                .describe()
-                .ends_with("right edge – tile left edge: overlap 300.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "right edge – tile left edge: overlap 300.0 mm");
         let (_, joins) = check_walls(&[tile(1.005), tile(0.0)]);
-        assert!(
-            joins[0]
-                .describe()
-                .ends_with("left edge – tile right edge: gap 5.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "left edge – tile right edge: gap 5.0 mm");
         // Blended tiles 0.2 mm apart in depth are still tiles of one wall.
         let mut deeper = tile(0.7);
         for c in [
@@ -374,13 +356,7 @@ mod tests {
             c.z -= 0.0002;
         }
         let (_, joins) = check_walls(&[tile(0.0), deeper]);
-        assert!(
-            joins[0]
-                .describe()
-                .ends_with("right edge – tile left edge: overlap 300.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "right edge – tile left edge: overlap 300.0 mm");
         // The right tile turned 180° in its plane: its touching side is its own right.
         let turned = wall(
             "turned",
@@ -389,13 +365,7 @@ mod tests {
             DVec3::new(1.7, 0.0, -1.0),
         );
         let (_, joins) = check_walls(&[tile(0.0), turned]);
-        assert!(
-            joins[0]
-                .describe()
-                .ends_with("right edge – turned right edge: overlap 300.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "right edge – turned right edge: overlap 300.0 mm");
         // A short front wall poking 12 mm through the left wall's plane, low down: an overlap.
         let short = wall(
             "short",
@@ -404,11 +374,7 @@ mod tests {
             DVec3::new(-1.012, 0.8, -1.0),
         );
         let (_, joins) = check_walls(&[left.clone(), short]);
-        assert!(
-            joins[0].describe().ends_with("overlap 12.0 mm"),
-            "{}",
-            joins[0].describe()
-        );
+        assert_join(&joins, "overlap 12.0 mm");
         let far = wall(
             "far",
             DVec3::new(5.0, 0.0, 0.0),

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::{ImportedWall, clean_name};
+use super::{ImportedWall, clean_name, finite};
 use crate::cave::placement::{FileFrame, LengthUnit, UpAxis};
 
 /// Budget: how deep blocks may nest (real files nest about 8 deep).
@@ -197,12 +197,9 @@ fn numbers(toks: &[(Token<'_>, usize)], at: usize, n: usize) -> Result<Option<Ve
     let mut v = Vec::with_capacity(n);
     for k in 0..n {
         match toks.get(at + 1 + k) {
-            Some((Token::Word(w), _)) => v.push(
-                w.parse::<f64>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or(format!("line {line}: '{w}' is not a number"))?,
-            ),
+            Some((Token::Word(w), _)) => {
+                v.push(finite(w).ok_or(format!("line {line}: '{w}' is not a number"))?)
+            }
             _ => return Err(format!("line {line}: expected {n} numbers in [ ]")),
         }
     }

@@ -13,7 +13,7 @@ use glam::DVec3;
 
 use super::calvr::{parse_xml, strict_xml};
 use super::lines::LineIndex;
-use super::{ImportedWall, Reading, clean_name, excerpt};
+use super::{ImportedWall, Reading, clean_name, excerpt, finite};
 use crate::cave::placement::LengthUnit;
 
 /// How far a tile's fourth corner may be from the rectangle the other three make, metres,
@@ -29,10 +29,7 @@ pub(super) fn is_vrsetup_text(lower: &str) -> bool {
 /// character between numbers in parentheses).
 fn three(text: &str) -> Option<DVec3> {
     let inner = text.trim().trim_start_matches('(').trim_end_matches(')');
-    let v: Vec<f64> = inner
-        .split(',')
-        .map(|p| p.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
-        .collect::<Option<_>>()?;
+    let v: Vec<f64> = inner.split(',').map(finite).collect::<Option<_>>()?;
     (v.len() == 3).then(|| DVec3::new(v[0], v[1], v[2]))
 }
 

@@ -12,7 +12,7 @@ use std::collections::HashMap;
 
 use glam::{DQuat, DVec3};
 
-use super::{ImportedWall, Reading, clean_name, excerpt};
+use super::{ImportedWall, Reading, clean_name, excerpt, finite};
 use crate::cave::placement::corners_from_axes;
 
 /// Budget: how deep sections nest (the file itself is at most 4 MiB).
@@ -199,10 +199,7 @@ fn number_prefix(text: &str) -> Option<(f64, bool)> {
 /// `(x, y, z)`: each element a whole number (Vrui refuses `(4.5.0, 1, 2)`).
 fn vector(text: &str) -> Option<DVec3> {
     let inner = text.trim().strip_prefix('(')?.strip_suffix(')')?;
-    let v: Vec<f64> = inner
-        .split(',')
-        .map(|p| p.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
-        .collect::<Option<_>>()?;
+    let v: Vec<f64> = inner.split(',').map(finite).collect::<Option<_>>()?;
     (v.len() == 3).then(|| DVec3::new(v[0], v[1], v[2]))
 }
 
@@ -456,10 +453,7 @@ fn environment_unit(text: &str) -> Option<(f64, String)> {
     let mut parts = inner.split(',').map(str::trim);
     let name = parts.next()?;
     let factor = match parts.next() {
-        Some(f) => f
-            .parse::<f64>()
-            .ok()
-            .filter(|f| f.is_finite() && *f > 0.0)?,
+        Some(f) => finite(f).filter(|f| *f > 0.0)?,
         None => 1.0,
     };
     let metres = match name.to_ascii_lowercase().as_str() {
