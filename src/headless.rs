@@ -25,6 +25,8 @@ pub enum HeadlessError {
     Output(#[from] OutputError),
     #[error("no scene given: pass --scene or set [scene] path in {0}")]
     NoScene(PathBuf),
+    #[error("--viewer {0}")]
+    Viewer(String),
 }
 
 /// Per-run overrides of the config (what the CLI flags set).
@@ -159,6 +161,24 @@ impl Overrides {
     }
 }
 
+/// `render --viewer`: a guest standing at `position` (cyclopean eye, CAVE space), facing
+/// `yaw_degrees`, seen through a perspective camera per eye.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewerRequest {
+    pub position: glam::Vec3,
+    /// Facing (positive turns left; 0 faces the front wall); default: the head's yaw.
+    pub yaw_degrees: Option<f32>,
+    /// The eye images' horizontal and vertical field of view, degrees (each below 180).
+    pub fov_degrees: [f32; 2],
+    pub size: [u32; 2],
+}
+
+impl ViewerRequest {
+    /// 100° × 75°, 800 × 600: about what a pair of shutter glasses lets through.
+    pub const DEFAULT_FOV_DEGREES: [f32; 2] = [100.0, 75.0];
+    pub const DEFAULT_SIZE: [u32; 2] = [800, 600];
+}
+
 /// Files written by [`render_to_dir`].
 #[derive(Debug, Clone)]
 pub struct Written {
@@ -199,6 +219,185 @@ pub fn render_to_dir(
     // A device fault makes whatever was written untrustworthy, and explains a failure.
     gpu.check()?;
     written
+}
+
+/// `render --viewer`: renders the walls for the config's head and mode, and the walls a
+/// tracked-stereo render for the viewer would show; re-projects both to the viewer's eyes.
+/// Writes `seen-left.png`, `seen-right.png` (what the viewer sees of the walls rendered for
+/// the head), `correct-left.png`, `correct-right.png` (what they would see if tracked), their
+/// anaglyphs, `compare.png` (seen | correct, anaglyphs side by side) and `viewer.md` (the
+/// ray-intersection model's figures for this viewer over the scene).
+pub fn render_viewer_to_dir(
+    config_path: &Path,
+    overrides: &Overrides,
+    viewer: &ViewerRequest,
+    out_dir: &Path,
+) -> Result<Written, HeadlessError> {
+    use crate::guests::reproject::{EyeCamera, reproject};
+
+    let loaded = Config::load(config_path)?;
+    let mut settings = loaded.settings;
+    overrides.apply(&mut settings);
+    let mut config = settings.validate(config_path)?;
+    if let Some(sky) = &overrides.sky {
+        config.sky_path = sky.clone();
+    }
+    if let Some(problem) = config.cave.head_problem(viewer.position) {
+        return Err(HeadlessError::Viewer(format!(
+            "{:?} {problem}",
+            viewer.position.to_array()
+        )));
+    }
+    if !viewer.fov_degrees.iter().all(|f| (1.0..=170.0).contains(f)) {
+        return Err(HeadlessError::Viewer(format!(
+            "field of view {:?}° must be 1 to 170 degrees each way (a perspective image)",
+            viewer.fov_degrees
+        )));
+    }
+    if !viewer.size.iter().all(|s| (16..=8192).contains(s)) {
+        return Err(HeadlessError::Viewer(format!(
+            "image size {:?} must be 16 to 8192 pixels each way",
+            viewer.size
+        )));
+    }
+    // The viewer as a tracked head: what correct stereo for them would draw.
+    let mut for_viewer = config.settings.clone();
+    for_viewer.head.position = viewer.position.to_array();
+    let yaw = viewer.yaw_degrees.unwrap_or(for_viewer.head.yaw_degrees);
+    for_viewer.head.yaw_degrees = yaw;
+    for_viewer.head.pitch_degrees = 0.0;
+    for_viewer.head.roll_degrees = 0.0;
+    for_viewer.render.mode = RenderMode::TrackedStereo;
+    let mut correct_config = for_viewer.validate(config_path)?;
+    correct_config.sky_path = config.sky_path.clone();
+
+    let scene_path = overrides
+        .scene
+        .clone()
+        .or_else(|| config.scene_path.clone())
+        .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
+    let scene = load_scene(&config.settings, &scene_path)?;
+    crate::setup::place_at_camera(&mut config.settings, &scene)?;
+    let sky = load_config_sky(&config);
+    let gpu = Gpu::headless()?;
+    gpu.apply_test_fault_hook();
+    let seen = crate::setup::render_images(&gpu, &config, &scene, sky.as_ref())?;
+    let correct = crate::setup::render_images(&gpu, &correct_config, &scene, sky.as_ref())?;
+    gpu.check()?;
+
+    let ipd = f64::from(config.settings.cave.eye_separation);
+    let forward =
+        (crate::cave::Head::orientation_from_degrees(yaw, 0.0, 0.0) * glam::Vec3::NEG_Z).as_dvec3();
+    let g = viewer.position.as_dvec3();
+    let ([left_eye, right_eye], _) =
+        crate::guests::viewer_eyes(g, ipd, crate::guests::Gaze::Along(forward), g + forward)
+            .ok_or_else(|| HeadlessError::Viewer("has no horizontal facing".into()))?;
+    let fov = viewer.fov_degrees.map(f64::from);
+    let camera = |eye| {
+        EyeCamera::new(eye, forward, fov, viewer.size)
+            .ok_or_else(|| HeadlessError::Viewer("has no horizontal facing".into()))
+    };
+    let (left_camera, right_camera) = (camera(left_eye)?, camera(right_eye)?);
+    let eye_images = |images: &[WallImages]| {
+        let lefts: Vec<&image::RgbaImage> = images.iter().map(|w| &w.left).collect();
+        let rights: Vec<&image::RgbaImage> = images.iter().map(|w| &w.right).collect();
+        (
+            reproject(&config.cave, &lefts, &left_camera),
+            reproject(&config.cave, &rights, &right_camera),
+        )
+    };
+    let (seen_left, seen_right) = eye_images(&seen);
+    let (correct_left, correct_right) = eye_images(&correct);
+    output::ensure_dir(out_dir)?;
+    let mut files = Vec::new();
+    let mut write = |name: &str, img: &image::RgbaImage| -> Result<(), OutputError> {
+        let path = out_dir.join(name);
+        output::write_png(&path, img)?;
+        files.push(path);
+        Ok(())
+    };
+    write("seen-left.png", &seen_left)?;
+    write("seen-right.png", &seen_right)?;
+    write("correct-left.png", &correct_left)?;
+    write("correct-right.png", &correct_right)?;
+    let seen_anaglyph = output::anaglyph(&seen_left, &seen_right)?;
+    let correct_anaglyph = output::anaglyph(&correct_left, &correct_right)?;
+    write("seen-anaglyph.png", &seen_anaglyph)?;
+    write("correct-anaglyph.png", &correct_anaglyph)?;
+    write(
+        "compare.png",
+        &output::unfold(&[&seen_anaglyph, &correct_anaglyph]),
+    )?;
+    let path = out_dir.join("viewer.md");
+    let text = viewer_figures_text(&config, &scene, viewer.position);
+    std::fs::write(&path, text).map_err(|source| {
+        HeadlessError::Viewer(format!("cannot write {}: {source}", path.display()))
+    })?;
+    files.push(path);
+    Ok(Written { files })
+}
+
+/// The ray-intersection model's figures for a viewer at `viewer` (turning to each point) over
+/// what the config's head sees of `scene`, for the config's mode.
+fn viewer_figures_text(config: &Config, scene: &Scene, viewer: glam::Vec3) -> String {
+    use crate::guests::grid::{Scratch, Thresholds, drawn, viewer_figures};
+    use crate::guests::{Assumed, Gaze, Method, Setup, points};
+
+    let settings = &config.settings;
+    let head = settings.head();
+    let ipd = f64::from(settings.cave.eye_separation);
+    let setup = Setup::new(&config.cave, head, ipd, settings.omni().pole_merge);
+    let method = Method {
+        mode: settings.render.mode,
+        assumed: Assumed::Head,
+    };
+    let points = points::visible_surface(
+        scene,
+        settings.world_from_cave().inverse(),
+        head.position.as_dvec3(),
+        4000,
+        f64::from(config.cave.far),
+    );
+    let drawn = drawn(&setup, method, &points);
+    let figures = viewer_figures(
+        ipd,
+        viewer.as_dvec3(),
+        Gaze::AtPoint,
+        &drawn,
+        &mut Scratch::default(),
+    );
+    let limits = Thresholds::default();
+    match figures {
+        None => format!(
+            "# Viewer at {:?}\n\nNone of the {} scene points {} draws is in front of this viewer.\n",
+            viewer.to_array(),
+            drawn.len(),
+            method.name()
+        ),
+        Some(f) => format!(
+            "# Viewer at {:?}\n\nMethod {} (head at {:?}); {} of {} scene points seen, the viewer turning to each.\n\n\
+             | figure | 95th percentile |\n|---|---|\n\
+             | vertical disparity (arcmin) | {:.2} |\n\
+             | direction error (arcmin) | {:.2} |\n\
+             | horizontal disparity error (arcmin) | {:.2} |\n\n\
+             Depth ratio: 5th percentile {:.3}, median {:.3}, 95th percentile {:.3}.\n\n\
+             Within the sweet-area limits (vertical < {} arcmin, direction < {}°): {}.\n",
+            viewer.to_array(),
+            method.name(),
+            head.position.to_array(),
+            f.seen,
+            drawn.len(),
+            f.vertical_p95,
+            f.direction_p95,
+            f.horizontal_p95,
+            f.depth_p5,
+            f.depth_median,
+            f.depth_p95,
+            limits.vertical_arcmin,
+            limits.direction_degrees,
+            if f.within(&limits) { "yes" } else { "no" }
+        ),
+    }
 }
 
 /// Writes each wall's eye images, the anaglyph and each of `formats`.

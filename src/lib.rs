@@ -15,6 +15,7 @@ pub mod cluster;
 pub mod config;
 pub mod docs;
 pub mod gamepad;
+pub mod guests;
 pub mod headless;
 pub mod messages;
 pub mod named;

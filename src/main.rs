@@ -46,6 +46,9 @@ enum Command {
     Render(RenderArgs),
     /// Measure the frame time of every method in one run; write results.csv and report.md.
     Bench(BenchArgs),
+    /// Where guests may stand: each method's disparity distortion for viewers away from the
+    /// assumed head, over the floor (heat maps, grid.csv, the sweet area per method).
+    Guests(GuestsArgs),
     /// Send a moving head over OSC (circle, figure eight or a recorded path), as a tracker
     /// would: to test head tracking without one.
     TrackSim(TrackSimArgs),
@@ -429,6 +432,77 @@ struct RenderArgs {
     /// Panorama image size, WxH.
     #[arg(long, value_parser = parse_size)]
     pano_size: Option<[u32; 2]>,
+    /// Show what a guest standing at X,Y,Z (metres, the eyes' midpoint) sees of the walls
+    /// rendered for the head, beside what tracked stereo for them would show (seen-*.png,
+    /// correct-*.png, compare.png, viewer.md) instead of the wall images.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, conflicts_with = "view")]
+    viewer: Option<Vec3>,
+    /// The guest's facing in degrees (positive turns left; 0 faces the front wall); default:
+    /// the head's yaw.
+    #[arg(long, value_parser = parse_yaw, allow_hyphen_values = true, requires = "viewer")]
+    viewer_yaw: Option<f32>,
+    /// The guest's eye images' field of view in degrees, H,V (each up to 170).
+    #[arg(long, value_parser = parse_fov, requires = "viewer")]
+    viewer_fov: Option<[f32; 2]>,
+    /// The guest's eye images' size, WxH.
+    #[arg(long, value_parser = parse_size, requires = "viewer")]
+    viewer_size: Option<[u32; 2]>,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+struct GuestsArgs {
+    /// CAVE configuration (TOML).
+    #[arg(long, default_value = "config/cave.toml")]
+    config: PathBuf,
+    /// glTF scene whose visible surface is judged; default: the config's [scene] path.
+    #[arg(long, conflicts_with = "shells")]
+    scene: Option<PathBuf>,
+    /// Judge shells of points at these distances (metres) around the assumed head instead of
+    /// a scene, e.g. 0.5,1,2,4.
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
+    shells: Option<Vec<f64>>,
+    /// Scene points judged: rays cast from the assumed head (or points on the shells).
+    #[arg(long, default_value_t = 10_000)]
+    points: usize,
+    /// Methods: render mode, optionally @head (the tracked head, default) or @centre, e.g.
+    /// tracked-stereo,stereo,omni-onaxis@centre. Default: tracked-stereo, stereo, omni-onaxis,
+    /// omni-offaxis for the head and omni-onaxis@centre.
+    #[arg(long, value_delimiter = ',', value_parser = omnicave::guests::Method::parse)]
+    methods: Vec<omnicave::guests::Method>,
+    /// Grid cell size on the floor, metres.
+    #[arg(long, default_value_t = 0.1)]
+    step: f64,
+    /// Viewer eye heights in metres (a map each), e.g. 1.2,1.7; default: the head's.
+    #[arg(long, value_delimiter = ',')]
+    eye_heights: Vec<f64>,
+    /// Tracked head position in CAVE space, metres: X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    head: Option<Vec3>,
+    /// Tracked head yaw in degrees (positive turns left), for tracked-stereo.
+    #[arg(long, value_parser = parse_yaw, allow_hyphen_values = true)]
+    head_yaw: Option<f32>,
+    /// Eye separation in metres (default: the config's).
+    #[arg(long)]
+    ipd: Option<f64>,
+    /// Sweet area limit: 95th percentile of vertical disparity, arcmin.
+    #[arg(long, default_value_t = 20.0)]
+    vertical_arcmin: f64,
+    /// Sweet area limit: 95th percentile of the direction error, degrees.
+    #[arg(long, default_value_t = 1.0)]
+    direction_degrees: f64,
+    /// Draw wall points at their pixel's centre (the walls' resolution quantises disparity).
+    #[arg(long)]
+    quantise: bool,
+    /// Also sweep the sweet area against CAVE size, head distance to the front wall and
+    /// resolution (sweep.csv and charts).
+    #[arg(long)]
+    sweep: bool,
+    /// Worker threads (0: every core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -798,6 +872,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Config(ConfigCommand::Import(args)) => import_walls(&args),
         Command::Render(args) => render(args),
+        Command::Guests(args) => guests(args),
         Command::Docs(args) => docs(&args),
     }
 }
@@ -938,11 +1013,78 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         pano_yaw_degrees: args.pano_yaw,
         pano_size: args.pano_size,
     };
-    let written = headless::render_to_dir(&args.config, &overrides, &args.out, &args.formats)
-        .context("render failed")?;
+    let written = match args.viewer {
+        Some(position) => {
+            let viewer = headless::ViewerRequest {
+                position,
+                yaw_degrees: args.viewer_yaw,
+                fov_degrees: args
+                    .viewer_fov
+                    .unwrap_or(headless::ViewerRequest::DEFAULT_FOV_DEGREES),
+                size: args
+                    .viewer_size
+                    .unwrap_or(headless::ViewerRequest::DEFAULT_SIZE),
+            };
+            headless::render_viewer_to_dir(&args.config, &overrides, &viewer, &args.out)
+        }
+        None => headless::render_to_dir(&args.config, &overrides, &args.out, &args.formats),
+    }
+    .context("render failed")?;
     for f in &written.files {
         tracing::info!("wrote {}", f.display());
     }
+    Ok(())
+}
+
+fn guests(args: GuestsArgs) -> anyhow::Result<()> {
+    use omnicave::guests::grid::Thresholds;
+    use omnicave::guests::report::{GuestsRequest, PointSource};
+
+    let limits = Thresholds {
+        vertical_arcmin: args.vertical_arcmin,
+        direction_degrees: args.direction_degrees,
+    };
+    let request = GuestsRequest {
+        config: args.config,
+        source: match args.shells {
+            Some(radii) => PointSource::Shells(radii),
+            None => PointSource::Scene(args.scene),
+        },
+        points: args.points,
+        methods: if args.methods.is_empty() {
+            omnicave::guests::Method::defaults()
+        } else {
+            args.methods
+        },
+        step: args.step,
+        eye_heights: args.eye_heights,
+        head: args.head,
+        head_yaw_degrees: args.head_yaw,
+        ipd: args.ipd,
+        limits,
+        quantise: args.quantise,
+        sweep: args.sweep,
+        threads: args.threads,
+        out: args.out,
+    };
+    let outcome = omnicave::guests::report::run(&request).context("guests failed")?;
+    for a in &outcome.areas {
+        tracing::info!(
+            "{} (eye height {:.2} m): sweet area {:.2} m² of {:.2} m²",
+            a.method.name(),
+            a.eye_height,
+            a.sweet_area_m2,
+            a.floor_area_m2
+        );
+    }
+    tracing::info!(
+        "{} points × {} viewer positions: the maps took {:.2} s; wrote {} files to {}",
+        outcome.points,
+        outcome.cells,
+        outcome.map_seconds,
+        outcome.files.len(),
+        request.out.display()
+    );
     Ok(())
 }
 

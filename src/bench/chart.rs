@@ -24,6 +24,8 @@ pub struct Axes {
     pub y_floor: Option<(f64, String)>,
     /// Ring the points nothing beats in both x and y, joined by a dashed staircase.
     pub pareto: bool,
+    /// Logarithmic axes (the bench's charts); linear from zero otherwise.
+    pub log: bool,
 }
 
 impl Axes {
@@ -34,6 +36,7 @@ impl Axes {
             y_label: "99th-percentile geometric error, px (log)".into(),
             y_floor: Some((ERROR_FLOOR_PX, "≤ 0.001".into())),
             pareto: true,
+            log: true,
         }
     }
 
@@ -44,6 +47,18 @@ impl Axes {
             y_label: "frame time of the whole stereo frame, ms (log)".into(),
             y_floor: None,
             pareto: false,
+            log: true,
+        }
+    }
+
+    /// Linear axes from zero (x from its smallest value) with these labels.
+    pub fn linear(x_label: &str, y_label: &str) -> Self {
+        Self {
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            y_floor: None,
+            pareto: false,
+            log: false,
         }
     }
 }
@@ -108,6 +123,50 @@ fn tick_label(v: f64) -> String {
     }
 }
 
+/// Linear axis: 4 to 10 steps of 1, 2, 2.5 or 5 × 10ⁿ covering `lo..hi`.
+fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let step = linear_step(hi - lo);
+    let first = (lo / step).ceil() as i64;
+    let last = (hi / step + 1e-9).floor() as i64;
+    (first..=last).map(|k| k as f64 * step).collect()
+}
+
+fn linear_step(span: f64) -> f64 {
+    let rough = (span / 6.0).max(1e-12);
+    let decade = 10f64.powf(rough.log10().floor());
+    [1.0, 2.0, 2.5, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * decade)
+        .find(|s| span / s <= 10.0)
+        .unwrap_or(10.0 * decade)
+}
+
+/// Linear range: x from its smallest to its largest value, y from 0 to a tick above the
+/// largest.
+fn linear_range(values: impl Iterator<Item = f64>, from_zero: bool) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in values.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    if from_zero {
+        lo = lo.min(0.0);
+    }
+    if hi - lo < 1e-12 {
+        hi = lo + 1.0;
+    }
+    let step = linear_step(hi - lo);
+    let hi = if from_zero {
+        (hi / step).ceil() * step
+    } else {
+        hi
+    };
+    (lo, hi)
+}
+
 /// Padded log range of positive values.
 fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
@@ -146,6 +205,7 @@ struct Plot {
     y1: f64,
     /// Smallest y drawn (0: none).
     floor: f64,
+    log: bool,
 }
 
 impl Plot {
@@ -155,9 +215,18 @@ impl Plot {
         let (left, right, top, bottom) = (80.0, 290.0, 70.0, 70.0);
         let (pw, ph) = (w - left - right, h - top - bottom);
         let floor = axes.y_floor.as_ref().map_or(0.0, |(v, _)| *v);
-        let (x0, x1) = log_range(points.iter().map(|p| p.x));
-        let (y0, y1) = log_range(points.iter().map(|p| p.y.max(floor)));
-        let y0 = if floor > 0.0 { y0.min(floor) } else { y0 };
+        let ((x0, x1), (y0, y1)) = if axes.log {
+            let (y0, y1) = log_range(points.iter().map(|p| p.y.max(floor)));
+            (
+                log_range(points.iter().map(|p| p.x)),
+                (if floor > 0.0 { y0.min(floor) } else { y0 }, y1),
+            )
+        } else {
+            (
+                linear_range(points.iter().map(|p| p.x), false),
+                linear_range(points.iter().map(|p| p.y), true),
+            )
+        };
         Self {
             w,
             h,
@@ -170,6 +239,7 @@ impl Plot {
             y0,
             y1,
             floor,
+            log: axes.log,
         }
     }
 
@@ -181,12 +251,18 @@ impl Plot {
     /// Page x of a value on the x axis.
     fn sx(&self, v: f64) -> f64 {
         let (x0, x1) = (self.x0, self.x1);
+        if !self.log {
+            return self.left + (v - x0) / (x1 - x0) * self.pw;
+        }
         self.left + (v.log10() - x0.log10()) / (x1.log10() - x0.log10()) * self.pw
     }
 
     /// Page y of a value on the y axis.
     fn sy(&self, v: f64) -> f64 {
         let (y0, y1) = (self.y0, self.y1);
+        if !self.log {
+            return self.top + self.ph - (v - y0) / (y1 - y0) * self.ph;
+        }
         self.top + self.ph - (v.log10() - y0.log10()) / (y1.log10() - y0.log10()) * self.ph
     }
 
@@ -213,21 +289,38 @@ impl Plot {
     /// The grid with its tick labels, the plot's frame and the axis labels.
     fn write_axes(&self, out: &mut String, axes: &Axes) {
         let (h, left, top, pw, ph) = (self.h, self.left, self.top, self.pw, self.ph);
-        for t in log_ticks(self.x0, self.x1) {
+        let ticks = |lo, hi| {
+            if self.log {
+                log_ticks(lo, hi)
+            } else {
+                linear_ticks(lo, hi)
+            }
+        };
+        let label = |t: f64| {
+            if self.log {
+                tick_label(t)
+            } else {
+                format!("{t:.3}")
+                    .trim_end_matches('0')
+                    .trim_end_matches('.')
+                    .to_string()
+            }
+        };
+        for t in ticks(self.x0, self.x1) {
             let x = self.sx(t);
             let _ = writeln!(
                 out,
                 r##"<line x1="{x:.1}" y1="{top}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
                 top + ph,
                 top + ph + 18.0,
-                tick_label(t)
+                label(t)
             );
         }
-        for t in log_ticks(self.y0, self.y1) {
+        for t in ticks(self.y0, self.y1) {
             let y = self.sy(t);
             let label = match &axes.y_floor {
-                Some((v, label)) if (t - v).abs() < 1e-12 => label.clone(),
-                _ => tick_label(t),
+                Some((v, floor_label)) if (t - v).abs() < 1e-12 => floor_label.clone(),
+                _ => label(t),
             };
             let _ = writeln!(
                 out,
