@@ -233,14 +233,84 @@ pub fn render_viewer_to_dir(
     viewer: &ViewerRequest,
     out_dir: &Path,
 ) -> Result<Written, HeadlessError> {
-    use crate::guests::reproject::{EyeCamera, reproject};
-
     let loaded = Config::load(config_path)?;
     let mut settings = loaded.settings;
     overrides.apply(&mut settings);
     let mut config = settings.validate(config_path)?;
     if let Some(sky) = &overrides.sky {
         config.sky_path = sky.clone();
+    }
+    let scene_path = overrides
+        .scene
+        .clone()
+        .or_else(|| config.scene_path.clone())
+        .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
+    let scene = load_scene(&config.settings, &scene_path)?;
+    crate::setup::place_at_camera(&mut config.settings, &scene)?;
+    let sky = load_config_sky(&config);
+    let gpu = Gpu::headless()?;
+    gpu.apply_test_fault_hook();
+    let images = viewer_images(&gpu, &config, &scene, sky.as_ref(), viewer)?;
+    gpu.check()?;
+    let [seen_left, seen_right] = &images.seen;
+    let [correct_left, correct_right] = &images.correct;
+    output::ensure_dir(out_dir)?;
+    let mut files = Vec::new();
+    let mut write = |name: &str, img: &image::RgbaImage| -> Result<(), OutputError> {
+        let path = out_dir.join(name);
+        output::write_png(&path, img)?;
+        files.push(path);
+        Ok(())
+    };
+    write("seen-left.png", seen_left)?;
+    write("seen-right.png", seen_right)?;
+    write("correct-left.png", correct_left)?;
+    write("correct-right.png", correct_right)?;
+    let seen_anaglyph = output::anaglyph(seen_left, seen_right)?;
+    let correct_anaglyph = output::anaglyph(correct_left, correct_right)?;
+    write("seen-anaglyph.png", &seen_anaglyph)?;
+    write("correct-anaglyph.png", &correct_anaglyph)?;
+    write(
+        "compare.png",
+        &output::unfold(&[&seen_anaglyph, &correct_anaglyph]),
+    )?;
+    let path = out_dir.join("viewer.md");
+    let text = viewer_figures_text(&config, &scene, viewer.position);
+    std::fs::write(&path, text).map_err(|source| {
+        HeadlessError::Viewer(format!("cannot write {}: {source}", path.display()))
+    })?;
+    files.push(path);
+    Ok(Written { files })
+}
+
+/// What a guest sees ([`viewer_images`]): per eye (left, right) the walls rendered for the
+/// config's head and those rendered for the guest as a tracked head, through `cameras`.
+#[derive(Debug, Clone)]
+pub struct ViewerImages {
+    pub seen: [image::RgbaImage; 2],
+    pub correct: [image::RgbaImage; 2],
+    pub cameras: [crate::guests::reproject::EyeCamera; 2],
+}
+
+/// Renders `scene` for the config's head and mode and for the viewer as a tracked head
+/// (tracked stereo, facing the viewer's yaw), and re-projects both to the viewer's eyes.
+pub fn viewer_images(
+    gpu: &Gpu,
+    config: &Config,
+    scene: &Scene,
+    sky: Option<&CubeMap>,
+    viewer: &ViewerRequest,
+) -> Result<ViewerImages, HeadlessError> {
+    use crate::guests::reproject::{EyeCamera, reproject};
+
+    let (lo, hi) = crate::cave::Cave::head_bounds(&config.cave.walls);
+    if viewer.position.cmplt(lo).any() || viewer.position.cmpgt(hi).any() {
+        return Err(HeadlessError::Viewer(format!(
+            "{:?} is outside the CAVE (a guest stands between {:?} and {:?})",
+            viewer.position.to_array(),
+            lo.to_array(),
+            hi.to_array()
+        )));
     }
     if let Some(problem) = config.cave.head_problem(viewer.position) {
         return Err(HeadlessError::Viewer(format!(
@@ -268,22 +338,10 @@ pub fn render_viewer_to_dir(
     for_viewer.head.pitch_degrees = 0.0;
     for_viewer.head.roll_degrees = 0.0;
     for_viewer.render.mode = RenderMode::TrackedStereo;
-    let mut correct_config = for_viewer.validate(config_path)?;
+    let mut correct_config = for_viewer.validate(&config.source)?;
     correct_config.sky_path = config.sky_path.clone();
-
-    let scene_path = overrides
-        .scene
-        .clone()
-        .or_else(|| config.scene_path.clone())
-        .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
-    let scene = load_scene(&config.settings, &scene_path)?;
-    crate::setup::place_at_camera(&mut config.settings, &scene)?;
-    let sky = load_config_sky(&config);
-    let gpu = Gpu::headless()?;
-    gpu.apply_test_fault_hook();
-    let seen = crate::setup::render_images(&gpu, &config, &scene, sky.as_ref())?;
-    let correct = crate::setup::render_images(&gpu, &correct_config, &scene, sky.as_ref())?;
-    gpu.check()?;
+    let seen = crate::setup::render_images(gpu, config, scene, sky)?;
+    let correct = crate::setup::render_images(gpu, &correct_config, scene, sky)?;
 
     let ipd = f64::from(config.settings.cave.eye_separation);
     let forward =
@@ -297,44 +355,20 @@ pub fn render_viewer_to_dir(
         EyeCamera::new(eye, forward, fov, viewer.size)
             .ok_or_else(|| HeadlessError::Viewer("has no horizontal facing".into()))
     };
-    let (left_camera, right_camera) = (camera(left_eye)?, camera(right_eye)?);
+    let cameras = [camera(left_eye)?, camera(right_eye)?];
     let eye_images = |images: &[WallImages]| {
         let lefts: Vec<&image::RgbaImage> = images.iter().map(|w| &w.left).collect();
         let rights: Vec<&image::RgbaImage> = images.iter().map(|w| &w.right).collect();
-        (
-            reproject(&config.cave, &lefts, &left_camera),
-            reproject(&config.cave, &rights, &right_camera),
-        )
+        [
+            reproject(&config.cave, &lefts, &cameras[0]),
+            reproject(&config.cave, &rights, &cameras[1]),
+        ]
     };
-    let (seen_left, seen_right) = eye_images(&seen);
-    let (correct_left, correct_right) = eye_images(&correct);
-    output::ensure_dir(out_dir)?;
-    let mut files = Vec::new();
-    let mut write = |name: &str, img: &image::RgbaImage| -> Result<(), OutputError> {
-        let path = out_dir.join(name);
-        output::write_png(&path, img)?;
-        files.push(path);
-        Ok(())
-    };
-    write("seen-left.png", &seen_left)?;
-    write("seen-right.png", &seen_right)?;
-    write("correct-left.png", &correct_left)?;
-    write("correct-right.png", &correct_right)?;
-    let seen_anaglyph = output::anaglyph(&seen_left, &seen_right)?;
-    let correct_anaglyph = output::anaglyph(&correct_left, &correct_right)?;
-    write("seen-anaglyph.png", &seen_anaglyph)?;
-    write("correct-anaglyph.png", &correct_anaglyph)?;
-    write(
-        "compare.png",
-        &output::unfold(&[&seen_anaglyph, &correct_anaglyph]),
-    )?;
-    let path = out_dir.join("viewer.md");
-    let text = viewer_figures_text(&config, &scene, viewer.position);
-    std::fs::write(&path, text).map_err(|source| {
-        HeadlessError::Viewer(format!("cannot write {}: {source}", path.display()))
-    })?;
-    files.push(path);
-    Ok(Written { files })
+    Ok(ViewerImages {
+        seen: eye_images(&seen),
+        correct: eye_images(&correct),
+        cameras,
+    })
 }
 
 /// The ray-intersection model's figures for a viewer at `viewer` (turning to each point) over

@@ -462,7 +462,7 @@ struct GuestsArgs {
     scene: Option<PathBuf>,
     /// Judge shells of points at these distances (metres) around the assumed head instead of
     /// a scene, e.g. 0.5,1,2,4.
-    #[arg(long, value_delimiter = ',', num_args = 1..)]
+    #[arg(long, value_delimiter = ',', num_args = 1.., allow_negative_numbers = true)]
     shells: Option<Vec<f64>>,
     /// Scene points judged: rays cast from the assumed head (or points on the shells).
     #[arg(long, default_value_t = 10_000)]
