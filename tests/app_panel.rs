@@ -618,3 +618,64 @@ fn the_preview_renders_each_wall_at_the_size_it_is_shown() {
         assert_eq!(r.resolution, [100, 88]);
     }
 }
+
+#[test]
+fn the_panel_shows_the_guest_map_for_the_current_mode_from_its_worker() {
+    use omnicave::app::guest_map::{GuestMapRequest, GuestMapWorker};
+
+    let config = config();
+    let scene = std::sync::Arc::new(
+        omnicave::setup::load_scene(&config.settings, &common::repo("assets/living-room.glb"))
+            .unwrap(),
+    );
+    let mut state = AppState::new(config);
+    state.settings.render.mode = RenderMode::OmniOnAxis;
+    let mut driver = PanelDriver::new();
+    driver.click(&mut state, "Where guests may stand");
+    driver.click(&mut state, "Show the floor map");
+    assert!(state.guest_map.show, "the checkbox turns the map on");
+    let nodes = driver.frame(&mut state);
+    let values: Vec<_> = nodes.iter().filter_map(|n| n.value()).collect();
+    assert!(values.contains(&"computing…"), "{values:?}");
+    // What the application asks its worker each frame (it never waits for the answer).
+    let mut worker = GuestMapWorker::start(scene);
+    worker.request(GuestMapRequest {
+        cave: state.cave().clone(),
+        head: state.head(),
+        mode: state.settings.render.mode,
+        ipd: f64::from(state.settings.cave.eye_separation),
+        pole_merge: state.settings.omni().pole_merge,
+        cave_from_world: state.world_from_cave().inverse(),
+    });
+    let started = std::time::Instant::now();
+    let map = loop {
+        if let Some(map) = worker.newest() {
+            break map;
+        }
+        assert!(started.elapsed().as_secs() < 60, "no map within a minute");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    driver.info.guest_map = Some(std::sync::Arc::new(map));
+    let nodes = driver.frame(&mut state);
+    let values: Vec<_> = nodes.iter().filter_map(|n| n.value()).collect();
+    assert!(
+        values
+            .iter()
+            .any(|v| v.starts_with("omni-onaxis for the head at")),
+        "{values:?}"
+    );
+    assert!(
+        values.iter().any(|v| v.starts_with("fusion area")),
+        "{values:?}"
+    );
+    // Another mode: the panel says the shown map is the previous mode's until the next one.
+    state.settings.render.mode = RenderMode::Stereo;
+    let nodes = driver.frame(&mut state);
+    let values: Vec<_> = nodes.iter().filter_map(|n| n.value()).collect();
+    assert!(
+        values
+            .iter()
+            .any(|v| v.contains("computing the map for the new mode")),
+        "{values:?}"
+    );
+}

@@ -4,6 +4,7 @@
 pub mod cluster_link;
 pub mod devices;
 mod error;
+pub mod guest_map;
 pub mod keys;
 pub mod monitors;
 pub mod panel;
@@ -38,6 +39,7 @@ use keys::HeldKeys;
 use panel::PanelInfo;
 use state::AppState;
 use stats::FrameClock;
+use std::sync::Arc;
 use window::{EguiHost, OutputWindow, Role};
 
 /// How to start the application.
@@ -116,7 +118,7 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
     };
     let mut app = App {
         state: AppState::new(config),
-        scene,
+        scene: Arc::new(scene),
         sky,
         options,
         gfx: None,
@@ -137,6 +139,7 @@ pub fn run(options: RunOptions) -> Result<(), AppError> {
         gamepads,
         cluster,
         own_walls: Vec::new(),
+        guest_map: None,
     };
     event_loop
         .run_app(&mut app)
@@ -154,7 +157,8 @@ struct Graphics {
 
 struct App {
     state: AppState,
-    scene: Scene,
+    /// Shared with the guest map's worker.
+    scene: Arc<Scene>,
     sky: Option<CubeMap>,
     options: RunOptions,
     gfx: Option<Graphics>,
@@ -181,6 +185,8 @@ struct App {
     cluster: Option<ClusterLink>,
     /// The walls this process renders and shows (all but in cluster mode).
     own_walls: Vec<bool>,
+    /// The panel's floor map of where guests may stand (started when first shown).
+    guest_map: Option<guest_map::GuestMapWorker>,
 }
 
 /// Starts cluster mode: MPI, then the start-up check with every other rank.
@@ -469,6 +475,9 @@ impl App {
             self.fail(event_loop, e);
             return None;
         }
+        if self.state.guest_map.show && !node {
+            self.update_guest_map();
+        }
         if self.state.select_requested {
             self.state.select_requested = false;
             self.info.tracking.selection = Some(select(&self.scene, &self.state));
@@ -477,6 +486,26 @@ impl App {
             }
         }
         Some(())
+    }
+
+    /// Asks the guest map's worker for the current head, mode and eyes, and hands its newest
+    /// map to the panel; neither waits.
+    fn update_guest_map(&mut self) {
+        let worker = self
+            .guest_map
+            .get_or_insert_with(|| guest_map::GuestMapWorker::start(Arc::clone(&self.scene)));
+        let settings = &self.state.settings;
+        worker.request(guest_map::GuestMapRequest {
+            cave: self.state.cave().clone(),
+            head: self.state.head(),
+            mode: settings.render.mode,
+            ipd: f64::from(settings.cave.eye_separation),
+            pole_merge: settings.omni().pole_merge,
+            cave_from_world: self.state.world_from_cave().inverse(),
+        });
+        if let Some(map) = worker.newest() {
+            self.info.guest_map = Some(Arc::new(map));
+        }
     }
 
     /// Writes this frame's screenshot (`id` names its folder) and says where in the panel.

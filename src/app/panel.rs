@@ -50,6 +50,8 @@ pub struct PanelInfo {
     pub fine_triangles: usize,
     /// Cluster mode (master): the frame's broadcast and barrier, and every node.
     pub cluster: Option<ClusterInfo>,
+    /// The newest floor map of where guests may stand (while the panel shows it).
+    pub guest_map: Option<std::sync::Arc<super::guest_map::GuestMap>>,
 }
 
 /// The master's view of the cluster, for the panel.
@@ -77,6 +79,93 @@ fn combo<T: Copy + PartialEq>(
         });
 }
 
+/// Where guests may stand: the current mode's floor map for the current head (computed off
+/// the render thread; the newest finished one is shown).
+fn guests_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    use crate::guests::heatmap::{Metric, Scale, colour_rgb};
+
+    egui::CollapsingHeader::new("Where guests may stand").show(ui, |ui| {
+        ui.checkbox(&mut state.guest_map.show, "Show the floor map");
+        if !state.guest_map.show {
+            return;
+        }
+        combo(
+            ui,
+            "Map metric",
+            &mut state.guest_map.metric,
+            &Metric::ALL,
+            Metric::name,
+        );
+        let Some(map) = &info.guest_map else {
+            ui.label("computing…");
+            return;
+        };
+        let metric = state.guest_map.metric;
+        let scale = Scale::shared(metric, std::slice::from_ref(&map.map), &map.limits);
+        let grid = &map.grid;
+        let cell = (240.0 / grid.columns.max(grid.rows).max(1) as f32).max(1.0);
+        let size = egui::vec2(cell * grid.columns as f32, cell * grid.rows as f32);
+        let (response, painter) = ui.allocate_painter(size, egui::Sense::hover());
+        let origin = response.rect.min;
+        let x0 = grid.first[0] - 0.5 * grid.step;
+        let z0 = grid.first[1] - 0.5 * grid.step;
+        let to_screen = |x: f64, z: f64| {
+            origin
+                + egui::vec2(
+                    ((x - x0) / grid.step) as f32 * cell,
+                    ((z - z0) / grid.step) as f32 * cell,
+                )
+        };
+        for (index, figures) in map.map.cells.iter().enumerate() {
+            let v = grid.viewer(index);
+            let fill = match figures {
+                Some(f) => {
+                    let [r, g, b] = colour_rgb(metric, scale.position(metric.of(f)));
+                    egui::Color32::from_rgb(r, g, b)
+                }
+                None if grid.inside[index] => egui::Color32::GRAY,
+                None => continue,
+            };
+            let min = to_screen(v.x - 0.5 * grid.step, v.z - 0.5 * grid.step);
+            painter.rect_filled(egui::Rect::from_min_size(min, egui::vec2(cell, cell)), 0.0, fill);
+        }
+        for wall in &map.request.cave.walls {
+            let (a, b) = (wall.lower_left.as_dvec3(), wall.lower_right.as_dvec3());
+            painter.line_segment(
+                [to_screen(a.x, a.z), to_screen(b.x, b.z)],
+                egui::Stroke::new(3.0, egui::Color32::BLACK),
+            );
+        }
+        painter.circle(
+            to_screen(map.head.x, map.head.z),
+            4.0,
+            egui::Color32::WHITE,
+            egui::Stroke::new(1.0, egui::Color32::BLACK),
+        );
+        ui.label(format!(
+            "{} for the head at ({:.2}, {:.2}) m: {}; scale {:.3} to {:.3}",
+            map.map.method.mode.name(),
+            map.head.x,
+            map.head.z,
+            metric.title(),
+            scale.lo,
+            scale.hi,
+        ));
+        ui.label(format!(
+            "fusion area {:.2} m² (p95 vertical < {} arcmin); sweet area within reach {:.4} m² (and direction < {}°); {} points, {:.2} s",
+            map.map.sweet_area(grid, &map.limits.fusion_only()),
+            map.limits.vertical_arcmin,
+            map.map.reach_area_m2,
+            map.limits.direction_degrees,
+            map.map.shown_points,
+            map.seconds
+        ));
+        if map.request.mode != state.settings.render.mode {
+            ui.label("(computing the map for the new mode…)");
+        }
+    });
+}
+
 /// Draws the whole panel into `ui` (scrolls when the window is short).
 pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     egui::ScrollArea::vertical().show(ui, |ui| {
@@ -92,6 +181,8 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         tessellation_section(ui, state, info);
         ui.separator();
         head_and_cave_section(ui, state);
+        ui.separator();
+        guests_section(ui, state, info);
         ui.separator();
         tracking_section(ui, state, &info.tracking);
         ui.separator();

@@ -123,6 +123,22 @@ pub struct WandPose {
     pub orientation: Quat,
 }
 
+/// The panel's floor map of where guests may stand: shown or not, and which metric.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuestMapView {
+    pub show: bool,
+    pub metric: crate::guests::heatmap::Metric,
+}
+
+impl Default for GuestMapView {
+    fn default() -> Self {
+        Self {
+            show: false,
+            metric: crate::guests::heatmap::Metric::Vertical,
+        }
+    }
+}
+
 /// The application's state: the live settings (the config file's model, edited by the panel,
 /// keys, buttons and trackers, and saved as it is) and what only a running application has
 /// (navigation, the moved walls, the tracked orientation, requests).
@@ -141,6 +157,8 @@ pub struct AppState {
     pub tracked_orientation: Option<Quat>,
     pub swap_eyes: bool,
     pub show_help: bool,
+    /// The panel's guest map.
+    pub guest_map: GuestMapView,
     pub show_panel: bool,
     pub quit_requested: bool,
     pub save_requested: bool,
@@ -197,6 +215,7 @@ impl AppState {
             tracked_orientation: None,
             swap_eyes: false,
             show_help: false,
+            guest_map: GuestMapView::default(),
             show_panel: true,
             quit_requested: false,
             save_requested: false,

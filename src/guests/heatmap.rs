@@ -101,7 +101,7 @@ impl Scale {
     }
 
     /// 0..1 along the scale (clamped; logarithmic).
-    fn position(&self, v: f64) -> f64 {
+    pub fn position(&self, v: f64) -> f64 {
         let t = (v.max(1e-12).ln() - self.lo.ln()) / (self.hi.ln() - self.lo.ln());
         if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) }
     }
@@ -141,6 +141,12 @@ fn nice_ceiling(v: f64) -> f64 {
 /// Viridis at `t` in 0..1 (eight stops, linearly between), as `#rrggbb`; the depth ratio
 /// uses a diverging blue–white–red instead.
 fn colour(metric: Metric, t: f64) -> String {
+    let [r, g, b] = colour_rgb(metric, t);
+    format!("#{r:02x}{g:02x}{b:02x}")
+}
+
+/// [`colour`] as sRGB bytes (the panel's map).
+pub fn colour_rgb(metric: Metric, t: f64) -> [u8; 3] {
     const VIRIDIS: [[f64; 3]; 8] = [
         [68.0, 1.0, 84.0],
         [70.0, 50.0, 127.0],
@@ -164,10 +170,7 @@ fn colour(metric: Metric, t: f64) -> String {
     let x = t.clamp(0.0, 1.0) * (stops.len() - 1) as f64;
     let i = (x.floor() as usize).min(stops.len() - 2);
     let f = x - i as f64;
-    let c: Vec<u8> = (0..3)
-        .map(|k| (stops[i][k] + f * (stops[i + 1][k] - stops[i][k])).round() as u8)
-        .collect();
-    format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
+    std::array::from_fn(|k| (stops[i][k] + f * (stops[i + 1][k] - stops[i][k])).round() as u8)
 }
 
 /// One map as SVG: `map`'s `scale.metric` over `grid`, the walls of `cave`, the assumed head

@@ -47,7 +47,11 @@ pub fn visible_surface(
     count: usize,
     far: f64,
 ) -> Vec<DVec3> {
-    let caster = RayCaster::new(scene, cave_from_world);
+    visible_from(&RayCaster::new(scene, cave_from_world), eye, count, far)
+}
+
+/// [`visible_surface`] with the scene's ray caster already built.
+pub fn visible_from(caster: &RayCaster, eye: DVec3, count: usize, far: f64) -> Vec<DVec3> {
     let origin = eye.as_vec3();
     fibonacci_directions(count)
         .into_iter()
