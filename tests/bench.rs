@@ -284,6 +284,29 @@ fn quick_bench_writes_complete_and_sane_results() {
     }
     assert_chart_png(&out.join("speed-vs-accuracy.png"));
 
+    // Where guests may stand: the map's time and each default method's areas, and the
+    // sweep's table and charts.
+    let guests = report
+        .split("## Where guests may stand (thesis 8.1)")
+        .nth(1)
+        .expect("report.md has the guests section");
+    for needle in [
+        "s on ",
+        "| omni-onaxis@head |",
+        "| tracked-stereo@head |",
+        "guests/sweep.csv",
+    ] {
+        assert!(
+            guests.contains(needle),
+            "guests section lacks '{needle}':\n{guests}"
+        );
+    }
+    let sweep = std::fs::read_to_string(out.join("guests/sweep.csv")).expect("sweep.csv");
+    for parameter in ["cave-size-m", "head-to-front-wall-m", "wall-pixels-wide"] {
+        assert!(sweep.contains(parameter), "sweep.csv lacks {parameter}");
+        assert_chart_png(&out.join(format!("guests/sweep-{parameter}.png")));
+    }
+
     // Scaling with scene size: a row per scene with its triangles (as the CSV counts them)
     // and the three series' times, and the chart of time against triangles.
     let scaling = report

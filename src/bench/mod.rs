@@ -1,12 +1,14 @@
 //! The benchmark (`omnicave bench`), one job per file: the methods compared (`methods`), the
 //! situations measured (`cases`), measuring them (`measure`), running it all (`run`), the
-//! reports (`report`, `chart`), the accuracy against the omnistereo ideal (`accuracy`), the
+//! reports (`report`, and `chart` from the output layer), the accuracy against the omnistereo ideal (`accuracy`), the
 //! panorama methods (`panorama`), the tracking source heard during the run (`tracking`) and the stability sweep (`stability`, run by
 //! `stability_run`). No file imports this one; each imports the siblings it uses.
 
 pub mod accuracy;
 pub mod cases;
-pub mod chart;
+/// The charts the reports draw (in the output layer, shared with `omnicave guests`).
+pub use crate::output::chart;
+
 pub mod cluster;
 pub mod error;
 pub mod measure;

@@ -246,11 +246,96 @@ pub(super) fn write_outputs(
             .join(", "),
     };
     let summary = summarise(rows);
+    // A CAVE without a floor to stand on (one flat wall) has no map; the bench goes on.
+    let (guests_md, guest_files) = guests_outputs(options, config).unwrap_or_else(|e| {
+        tracing::warn!("where guests may stand: {e}");
+        (
+            format!("\n## Where guests may stand (thesis 8.1)\n\nNot computed: {e}\n"),
+            Vec::new(),
+        )
+    });
     let md_path = options.out.join("report.md");
-    write_file(&md_path, &inputs.report(&summary))?;
+    write_file(&md_path, &(inputs.report(&summary) + &guests_md))?;
     let mut files = vec![csv_path, md_path];
     inputs.write_charts(&summary, &mut files)?;
+    files.extend(guest_files);
     Ok(files)
+}
+
+/// The thesis's open question (8.1) for this config: how long a floor map takes (a 0.1 m grid,
+/// every default method, points on shells around the head), and the sweep of the sweet area
+/// against CAVE size, head distance and resolution, written to `guests/` (`sweep.csv` and
+/// charts); returns the report's section and the files.
+fn guests_outputs(
+    options: &BenchOptions,
+    config: &Config,
+) -> Result<(String, Vec<PathBuf>), BenchError> {
+    use crate::guests::grid::{Grid, MethodMap, Thresholds, compute};
+    use crate::guests::sweep::{self, SweepSettings};
+    use crate::guests::{Gaze, Method, Setup, points};
+
+    let dir = options.out.join("guests");
+    let fail = |message: String| BenchError::Chart {
+        path: dir.clone(),
+        message,
+    };
+    let settings = &config.settings;
+    let head = settings.head();
+    let ipd = f64::from(settings.cave.eye_separation);
+    let pole = settings.omni().pole_merge;
+    let methods = Method::defaults();
+    let limits = Thresholds::default();
+    let setup = Setup::new(&config.cave, head, ipd, pole);
+    let map_points = if options.quick { 2_000 } else { 10_000 };
+    let grid = Grid::over(&config.cave, 0.1, f64::from(head.position.y)).map_err(fail)?;
+    let shells = points::shells(head.position.as_dvec3(), &[1.0, 2.0, 4.0, 8.0], map_points);
+    let started = std::time::Instant::now();
+    let maps = compute(&setup, &methods, &shells, &grid, Gaze::AtPoint, &limits, 0);
+    let map_seconds = started.elapsed().as_secs_f64();
+    let sweep_settings = SweepSettings {
+        points: if options.quick { 500 } else { 2_000 },
+        ..SweepSettings::default()
+    };
+    let started = std::time::Instant::now();
+    let rows =
+        sweep::run(&config.cave, head, ipd, pole, &methods, &sweep_settings).map_err(fail)?;
+    let sweep_seconds = started.elapsed().as_secs_f64();
+    std::fs::create_dir_all(&dir).map_err(|source| BenchError::Write {
+        path: dir.clone(),
+        source,
+    })?;
+    let files = crate::guests::report::write_sweep(&dir, &rows).map_err(|e| fail(e.to_string()))?;
+    let mut md = String::new();
+    let _ = writeln!(md, "\n## Where guests may stand (thesis 8.1)\n");
+    let _ = writeln!(
+        md,
+        "One floor map (`omnicave guests`): a 0.1 m grid of {} viewer positions, {} points on shells at 1, 2, 4 and 8 m around the head, {} methods: {map_seconds:.2} s on {} threads. The sweep ({} points a case): {sweep_seconds:.1} s.\n",
+        grid.inside.iter().filter(|i| **i).count(),
+        shells.len(),
+        methods.len(),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        sweep_settings.points,
+    );
+    let _ = writeln!(
+        md,
+        "| method | fusion area, grid (m², p95 vertical < {} arcmin) | sweet area within reach (m², and direction < {}°) |\n|---|---|---|",
+        limits.vertical_arcmin, limits.direction_degrees
+    );
+    for map in &maps {
+        let _ = writeln!(
+            md,
+            "| {} | {:.2} of {:.2} | {:.4} |",
+            map.method.name(),
+            map.sweet_area(&grid, &limits.fusion_only()),
+            MethodMap::floor_area(&grid),
+            map.reach_area_m2
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nThe sweep against CAVE size, the head's distance to the front wall and the walls' resolution: `guests/sweep.csv` and `guests/sweep-*.png`.\n"
+    );
+    Ok((md, files))
 }
 
 impl ReportInputs<'_> {

@@ -423,7 +423,7 @@ fn write_text(path: &Path, text: &str) -> Result<(), GuestsError> {
 
 fn write_svg_png(dir: &Path, name: &str, svg: &str) -> Result<PathBuf, GuestsError> {
     let path = dir.join(name);
-    let png = crate::bench::chart::png(svg).map_err(|message| GuestsError::Write {
+    let png = crate::output::chart::png(svg).map_err(|message| GuestsError::Write {
         path: path.clone(),
         message,
     })?;
@@ -470,7 +470,7 @@ pub fn write_sweep(dir: &Path, rows: &[SweepRow]) -> Result<Vec<PathBuf>, Guests
                     "",
                 )
             };
-            let chart = crate::bench::chart::svg(
+            let chart = crate::output::chart::svg(
                 &points,
                 &sweep::axes(parameter, fusion),
                 &format!("{title} {}", parameter.axis_label()),

@@ -9,9 +9,9 @@ use super::grid::{
 };
 use super::points::shells;
 use super::{Method, Setup};
-use crate::bench::chart::{Axes, ChartPoint};
 use crate::cave::omni::PoleMerge;
 use crate::cave::{Cave, Head};
+use crate::output::chart::{Axes, ChartPoint};
 
 /// What the sweep varies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -1,10 +1,12 @@
-//! Composes eye images into viewable outputs (anaglyph, walls unfolded side by side) and writes
-//! PNG files. CPU-side: used by the headless `render` command and as the reference for tests.
+//! Composes eye images into viewable outputs (anaglyph, walls unfolded side by side), draws
+//! charts, and writes PNG files. CPU-side: used by the headless `render` command, the bench and
+//! `omnicave guests`, and as the reference for tests.
 
 use std::path::{Path, PathBuf};
 
 use image::{Rgba, RgbaImage};
 
+pub mod chart;
 pub mod formats;
 
 /// Writing output files failed.

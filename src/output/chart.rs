@@ -1,6 +1,7 @@
-//! The bench's charts, written as SVG by hand (no plotting dependency): one series per family
-//! on log-log axes. Speed against accuracy (frame time against 99th-percentile error, the
-//! Pareto front marked) and scaling (frame time against the scene's triangles).
+//! Charts written as SVG by hand (no plotting dependency), one series per family. The bench's
+//! on log-log axes: speed against accuracy (frame time against 99th-percentile error, the
+//! Pareto front marked) and scaling (frame time against the scene's triangles); on linear
+//! axes, the guests sweep (sweet area against CAVE size, head distance and resolution).
 
 use std::fmt::Write as _;
 
