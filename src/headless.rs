@@ -409,7 +409,7 @@ fn viewer_figures_text(config: &Config, scene: &Scene, viewer: glam::Vec3) -> St
             method.name()
         ),
         Some(f) => format!(
-            "# Viewer at {:?}\n\nMethod {} (head at {:?}); {} of {} scene points seen, the viewer turning to each.\n\n\
+            "# Viewer at {:?}\n\nMethod {} (head at {:?}): of {} scene points the head sees, {} are drawn on the walls for both eyes and {} are in front of this viewer, who turns to each.\n\n\
              | figure | 95th percentile |\n|---|---|\n\
              | vertical disparity (arcmin) | {:.2} |\n\
              | direction error (arcmin) | {:.2} |\n\
@@ -419,8 +419,9 @@ fn viewer_figures_text(config: &Config, scene: &Scene, viewer: glam::Vec3) -> St
             viewer.to_array(),
             method.name(),
             head.position.to_array(),
-            f.seen,
+            points.len(),
             drawn.len(),
+            f.seen,
             f.vertical_p95,
             f.direction_p95,
             f.horizontal_p95,

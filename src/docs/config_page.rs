@@ -302,9 +302,24 @@ struct FixedLimit {
 
 /// The limits no setting changes, from the constants that enforce them.
 fn fixed_limits() -> Vec<FixedLimit> {
-    use crate::{cluster, config, read_capped, scene, sky, tess, tracking};
+    use crate::{cluster, config, guests, read_capped, scene, sky, tess, tracking};
     let mib = |b: u64| format!("{} MiB", b >> 20);
     vec![
+        FixedLimit {
+            what: "`omnicave guests`: scene points judged",
+            value: guests::grid::MAX_POINTS.to_string(),
+            source: "guests::grid::MAX_POINTS",
+        },
+        FixedLimit {
+            what: "`omnicave guests`: grid cells (the step is at least 5 mm)",
+            value: guests::grid::MAX_CELLS.to_string(),
+            source: "guests::grid::MAX_CELLS",
+        },
+        FixedLimit {
+            what: "`omnicave guests`: eye heights mapped in one run",
+            value: guests::report::MAX_EYE_HEIGHTS.to_string(),
+            source: "guests::report::MAX_EYE_HEIGHTS",
+        },
         FixedLimit {
             what: "Config file size",
             value: mib(read_capped::MAX_CONFIG_BYTES),

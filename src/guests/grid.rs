@@ -27,14 +27,19 @@ pub struct Grid {
 /// the f32 rounding of the walls).
 const INSIDE_M: f64 = crate::cave::HEAD_MARGIN_M as f64 - 1e-4;
 
+/// The finest grid step, metres.
+pub const MIN_STEP_M: f64 = 0.005;
+
 /// Most cells a grid may have (a 0.01 m grid over a 10 m room): bounds memory and time.
 pub const MAX_CELLS: usize = 1_000_000;
 
 impl Grid {
     /// A grid of `step`-metre cells over the floor of `cave` at `eye_height`.
     pub fn over(cave: &Cave, step: f64, eye_height: f64) -> Result<Self, String> {
-        if !(step.is_finite() && step >= 0.005) {
-            return Err(format!("grid step {step} m must be at least 0.005 m"));
+        if !(step.is_finite() && step >= MIN_STEP_M) {
+            return Err(format!(
+                "grid step {step} m must be at least {MIN_STEP_M} m"
+            ));
         }
         let (lo, hi) = Cave::head_bounds(&cave.walls);
         let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
