@@ -185,14 +185,17 @@ pub struct Written {
     pub files: Vec<PathBuf>,
 }
 
-/// Loads config and scene, renders, writes `<wall>-left.png`, `<wall>-right.png` for every wall,
-/// `unfolded-anaglyph.png`, and `<wall>-<format>.png` for each of `formats` into `out_dir`.
-pub fn render_to_dir(
-    config_path: &Path,
-    overrides: &Overrides,
-    out_dir: &Path,
-    formats: &[StereoFormat],
-) -> Result<Written, HeadlessError> {
+/// What a headless render starts from.
+struct Loaded {
+    config: Config,
+    scene: Scene,
+    sky: Option<CubeMap>,
+    gpu: Gpu,
+}
+
+/// The config with `overrides` applied and validated, its scene placed (at its camera if the
+/// config says so), its sky, and a headless device.
+fn load(config_path: &Path, overrides: &Overrides) -> Result<Loaded, HeadlessError> {
     let loaded = Config::load(config_path)?;
     let mut settings = loaded.settings;
     overrides.apply(&mut settings);
@@ -211,6 +214,28 @@ pub fn render_to_dir(
     let sky = load_config_sky(&config);
     let gpu = Gpu::headless()?;
     gpu.apply_test_fault_hook();
+    Ok(Loaded {
+        config,
+        scene,
+        sky,
+        gpu,
+    })
+}
+
+/// Loads config and scene, renders, writes `<wall>-left.png`, `<wall>-right.png` for every wall,
+/// `unfolded-anaglyph.png`, and `<wall>-<format>.png` for each of `formats` into `out_dir`.
+pub fn render_to_dir(
+    config_path: &Path,
+    overrides: &Overrides,
+    out_dir: &Path,
+    formats: &[StereoFormat],
+) -> Result<Written, HeadlessError> {
+    let Loaded {
+        config,
+        scene,
+        sky,
+        gpu,
+    } = load(config_path, overrides)?;
     let written = if overrides.panorama {
         render_panorama_to_dir(&gpu, &config, &scene, sky.as_ref(), out_dir, formats)
     } else {
@@ -233,23 +258,12 @@ pub fn render_viewer_to_dir(
     viewer: &ViewerRequest,
     out_dir: &Path,
 ) -> Result<Written, HeadlessError> {
-    let loaded = Config::load(config_path)?;
-    let mut settings = loaded.settings;
-    overrides.apply(&mut settings);
-    let mut config = settings.validate(config_path)?;
-    if let Some(sky) = &overrides.sky {
-        config.sky_path = sky.clone();
-    }
-    let scene_path = overrides
-        .scene
-        .clone()
-        .or_else(|| config.scene_path.clone())
-        .ok_or_else(|| HeadlessError::NoScene(config_path.to_owned()))?;
-    let scene = load_scene(&config.settings, &scene_path)?;
-    crate::setup::place_at_camera(&mut config.settings, &scene)?;
-    let sky = load_config_sky(&config);
-    let gpu = Gpu::headless()?;
-    gpu.apply_test_fault_hook();
+    let Loaded {
+        config,
+        scene,
+        sky,
+        gpu,
+    } = load(config_path, overrides)?;
     let images = viewer_images(&gpu, &config, &scene, sky.as_ref(), viewer)?;
     gpu.check()?;
     let [seen_left, seen_right] = &images.seen;

@@ -8,15 +8,14 @@ mod common;
 use std::collections::HashMap;
 
 use common::{MARKER_COLOURS, gpu, repo, run_omnicave, tmp_dir};
-use glam::{DVec2, Mat4, Vec3};
+use glam::{DVec2, Vec3};
 use image::RgbaImage;
 use omnicave::cave::{Head, RenderMode};
 use omnicave::config::Config;
 use omnicave::guests::reproject::EyeCamera;
 use omnicave::guests::{Assumed, Gaze, Method, Setup, closest_midpoint, judge};
 use omnicave::headless::{ViewerRequest, viewer_images};
-use omnicave::scene::build::uv_sphere;
-use omnicave::scene::{Material, Scene};
+use omnicave::scene::Scene;
 
 /// The bundled config with `mode`, the head at `head`, walls of `size` pixels, no sky, and
 /// `msaa` samples (4: marker edges blend linearly with the background, so a weighted centroid
@@ -37,24 +36,11 @@ fn config(mode: RenderMode, head: Vec3, size: [u32; 2], msaa: u32) -> Config {
     config
 }
 
-/// An unlit sphere at each point, coloured `MARKER_COLOURS[i % 7]`, about 4 wall pixels in
-/// radius seen from `head` (the thesis walls at 960 px: 2.1 mrad a pixel from the centre).
-/// Finely tessellated (48 × 64): the common markers' 12 × 16 polygon has a silhouette whose
-/// centroid sits up to 0.3 px off the centre's image when seen obliquely, which would use up
-/// most of this test's 0.5 px.
+/// An unlit sphere at each point, about 4 wall pixels in radius seen from `head` (the thesis
+/// walls at 960 px: 2.1 mrad a pixel from the centre), finely tessellated (see
+/// `common::markers_tessellated`).
 fn fine_markers(points: &[Vec3], head: Vec3) -> Scene {
-    let mut scene = Scene::default();
-    for (i, p) in points.iter().enumerate() {
-        let c = MARKER_COLOURS[i % MARKER_COLOURS.len()];
-        let m = scene.add_material(Material::unlit(
-            &format!("marker {i}"),
-            c.map(|v| f32::from(v) / 255.0),
-        ));
-        let radius = 4.0 * 2.1e-3 * (*p - head).length();
-        let mesh = uv_sphere(radius, 48, 64).transformed(Mat4::from_translation(*p));
-        scene.add_mesh(&mesh.vertices, &mesh.indices, m);
-    }
-    scene
+    common::markers_tessellated(points, |p| 4.0 * 2.1e-3 * (p - head).length(), 48, 64)
 }
 
 /// Each marker colour's centroid near `expected` (within `window` px), weighted by how much
