@@ -4,9 +4,11 @@
 //! (walls, head, eyes, projections) and [`tess`] (tessellation criteria, CPU twin) and [`sky`]
 //! (cube maps, the sky's eye model) and [`tracking`] (OSC head tracking, calibration, filter,
 //! simulator) and [`gamepad`] (the gamepad mapping) and [`pano`] (the panorama view's
-//! cartographic projections) know nothing of the GPU or windows;
-//! [`render`] owns GPU resources; [`output`] composes eye images; [`headless`] and [`bench`]
-//! tie them together for the CLI; [`app`] owns windows, the control panel and input devices.
+//! cartographic projections) and [`guests`] (the disparity distortion guests see) know nothing
+//! of the GPU or windows;
+//! [`render`] owns GPU resources; [`output`] composes eye images and draws charts;
+//! [`headless`], [`bench`] and `guests::report` tie them together for the CLI; [`app`] owns
+//! windows, the control panel and input devices.
 
 pub mod app;
 pub mod bench;

@@ -621,7 +621,7 @@ fn the_preview_renders_each_wall_at_the_size_it_is_shown() {
 
 #[test]
 fn the_panel_shows_the_guest_map_for_the_current_mode_from_its_worker() {
-    use omnicave::app::guest_map::{GuestMapRequest, GuestMapWorker};
+    use omnicave::app::guest_map::{GuestMapPose, GuestMapWorker};
 
     let config = config();
     let scene = std::sync::Arc::new(
@@ -639,14 +639,16 @@ fn the_panel_shows_the_guest_map_for_the_current_mode_from_its_worker() {
     assert!(values.contains(&"computing…"), "{values:?}");
     // What the application asks its worker each frame (it never waits for the answer).
     let mut worker = GuestMapWorker::start(scene);
-    worker.request(GuestMapRequest {
-        cave: state.cave().clone(),
-        head: state.head(),
-        mode: state.settings.render.mode,
-        ipd: f64::from(state.settings.cave.eye_separation),
-        pole_merge: state.settings.omni().pole_merge,
-        cave_from_world: state.world_from_cave().inverse(),
-    });
+    worker.request(
+        state.cave(),
+        GuestMapPose {
+            head: state.head(),
+            mode: state.settings.render.mode,
+            ipd: f64::from(state.settings.cave.eye_separation),
+            pole_merge: state.settings.omni().pole_merge,
+            cave_from_world: state.world_from_cave().inverse(),
+        },
+    );
     let started = std::time::Instant::now();
     let map = loop {
         if let Some(map) = worker.newest() {

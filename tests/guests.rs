@@ -144,10 +144,11 @@ fn re_projected_markers_land_where_the_model_says() {
     for mode in [RenderMode::Stereo, RenderMode::OmniOnAxis] {
         let config = config(mode, head, size, 4);
         let scene = fine_markers(&markers, head);
+        let ipd = f64::from(config.settings.cave.eye_separation);
         let setup = Setup::new(
             &config.cave,
             Head::at(head),
-            0.064,
+            ipd,
             config.settings.omni().pole_merge,
         );
         let method = Method {
@@ -198,7 +199,7 @@ fn re_projected_markers_land_where_the_model_says() {
                 );
                 worst_eye = worst_eye.max(dl).max(dr);
                 // The perceived point from the measured images against the model's P′.
-                let judged = judge(guest.as_dvec3(), 0.064, Gaze::Along(forward), p, shown)
+                let judged = judge(guest.as_dvec3(), ipd, Gaze::Along(forward), p, shown)
                     .expect("in front of the guest");
                 let measured = closest_midpoint(
                     left_cam.eye,
@@ -314,7 +315,13 @@ fn guests_writes_maps_grid_and_summary_for_shells() {
 fn guests_refuses_bad_requests_with_the_value_named() {
     let out = tmp_dir("guests-bad");
     let out_s = out.to_str().unwrap();
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 8] = [
+        // 410 881 cells × 200 000 points: over the judgement budget, refused before any work.
+        (
+            &["--shells", "1", "--step", "0.005", "--points", "200000"],
+            "judgements",
+        ),
+        (&["--shells", "1", "--points", "200001"], "200001 points"),
         (&["--shells", "1", "--points", "0"], "0 points"),
         (&["--shells", "1", "--eye-heights", "7.5"], "eye height 7.5"),
         (&["--shells", "1", "--step", "0.001"], "grid step 0.001"),

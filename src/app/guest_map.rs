@@ -3,7 +3,6 @@
 
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
-use std::thread::JoinHandle;
 
 use glam::{DVec3, Mat4};
 
@@ -13,10 +12,9 @@ use crate::guests::grid::{Grid, MethodMap, Thresholds, compute};
 use crate::guests::{Assumed, Gaze, Method, Setup, points};
 use crate::scene::Scene;
 
-/// What a map is computed for.
-#[derive(Debug, Clone, PartialEq)]
-pub struct GuestMapRequest {
-    pub cave: Cave,
+/// What a map is computed for, besides the walls: the head, the mode and the eyes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuestMapPose {
     pub head: Head,
     pub mode: RenderMode,
     pub ipd: f64,
@@ -24,15 +22,24 @@ pub struct GuestMapRequest {
     pub cave_from_world: Mat4,
 }
 
-impl GuestMapRequest {
+/// What a map is computed for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuestMapRequest {
+    pub cave: Cave,
+    pub pose: GuestMapPose,
+}
+
+impl GuestMapPose {
     /// Whether `self` needs a new map where `older` has one: anything but the head changed,
     /// or the head moved more than [`HEAD_STEP_M`] or turned (tracked stereo).
-    pub fn differs_from(&self, older: &GuestMapRequest) -> bool {
-        self.cave != older.cave
-            || self.mode != older.mode
+    pub fn differs_from(&self, older: &GuestMapPose) -> bool {
+        self.mode != older.mode
             || self.ipd != older.ipd
             || self.pole_merge != older.pole_merge
-            || self.cave_from_world != older.cave_from_world
+            // Navigation moves the scene: a new map once it has moved about a centimetre.
+            || !self
+                .cave_from_world
+                .abs_diff_eq(older.cave_from_world, 0.01)
             || self.head.position.distance(older.head.position) > HEAD_STEP_M
             || (self.mode == RenderMode::TrackedStereo
                 && self.head.orientation.angle_between(older.head.orientation) > 0.02)
@@ -59,18 +66,21 @@ pub struct GuestMap {
     pub seconds: f64,
 }
 
-/// The worker thread and its two channels.
+/// The worker thread's two channels (the thread ends by itself once its request channel
+/// closes; nobody waits for it).
 pub struct GuestMapWorker {
+    /// `None` once the worker is gone: nothing more is asked or copied.
     requests: Option<Sender<GuestMapRequest>>,
     results: Receiver<GuestMap>,
-    thread: Option<JoinHandle<()>>,
     last_sent: Option<GuestMapRequest>,
+    sent: u64,
 }
 
 impl std::fmt::Debug for GuestMapWorker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("GuestMapWorker")
             .field("last_sent", &self.last_sent)
+            .field("sent", &self.sent)
             .finish_non_exhaustive()
     }
 }
@@ -83,13 +93,15 @@ impl GuestMapWorker {
         let thread = std::thread::Builder::new()
             .name("guest map".into())
             .spawn(move || {
-                let mut caster: Option<(Mat4, crate::pano::raycast::RayCaster)> = None;
+                // The scene in its own (world) space, built once: navigation moves the eye
+                // and the rays instead.
+                let caster = crate::pano::raycast::RayCaster::new(&scene, Mat4::IDENTITY);
                 while let Ok(mut request) = inbox.recv() {
                     // Only the newest request matters.
                     while let Ok(newer) = inbox.try_recv() {
                         request = newer;
                     }
-                    let map = compute_map(&scene, &mut caster, request);
+                    let map = compute_map(&caster, request);
                     if outbox.send(map).is_err() {
                         break;
                     }
@@ -100,27 +112,41 @@ impl GuestMapWorker {
             tracing::warn!("cannot start the guest map's thread; the panel shows no map");
         }
         Self {
-            requests: thread.as_ref().map(|_| requests),
+            requests: thread.map(|_| requests),
             results,
-            thread,
             last_sent: None,
+            sent: 0,
         }
     }
 
-    /// Asks for a map for `request` unless the last one asked for is still close enough.
-    /// Never blocks.
-    pub fn request(&mut self, request: GuestMapRequest) {
+    /// Requests sent to the worker so far.
+    pub fn requests_sent(&self) -> u64 {
+        self.sent
+    }
+
+    /// Asks for a map for `cave` and `pose` unless the last one asked for is still close
+    /// enough. Never blocks, and copies the walls only when it asks (not every frame).
+    pub fn request(&mut self, cave: &Cave, pose: GuestMapPose) {
+        let Some(sender) = &self.requests else {
+            return;
+        };
         if self
             .last_sent
             .as_ref()
-            .is_some_and(|last| !request.differs_from(last))
+            .is_some_and(|last| last.cave == *cave && !pose.differs_from(&last.pose))
         {
             return;
         }
-        if let Some(sender) = &self.requests
-            && sender.send(request.clone()).is_ok()
-        {
+        let request = GuestMapRequest {
+            cave: cave.clone(),
+            pose,
+        };
+        if sender.send(request.clone()).is_ok() {
             self.last_sent = Some(request);
+            self.sent += 1;
+        } else {
+            tracing::warn!("the guest map's thread has stopped; the panel shows no new map");
+            self.requests = None;
         }
     }
 
@@ -136,62 +162,49 @@ impl GuestMapWorker {
     }
 }
 
-impl Drop for GuestMapWorker {
-    fn drop(&mut self) {
-        // Closing the request channel ends the worker's loop after its current map.
-        self.requests = None;
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
-}
-
-/// One map: the scene's points visible from the head (the ray caster kept while the scene's
-/// placement stays), judged over the floor for the request's mode.
-fn compute_map(
-    scene: &Scene,
-    caster: &mut Option<(Mat4, crate::pano::raycast::RayCaster)>,
-    request: GuestMapRequest,
-) -> GuestMap {
+/// One map: the scene's points visible from the head, cast in the scene's space through the
+/// request's placement, judged over the floor for the request's mode.
+fn compute_map(caster: &crate::pano::raycast::RayCaster, request: GuestMapRequest) -> GuestMap {
     let started = std::time::Instant::now();
-    if caster
-        .as_ref()
-        .is_none_or(|(m, _)| *m != request.cave_from_world)
-    {
-        *caster = Some((
-            request.cave_from_world,
-            crate::pano::raycast::RayCaster::new(scene, request.cave_from_world),
-        ));
-    }
-    let head = request.head.position.as_dvec3();
-    let points = caster.as_ref().map_or_else(Vec::new, |(_, c)| {
-        points::visible_from(c, head, LIVE_POINTS, f64::from(request.cave.far))
-    });
-    let setup = Setup::new(&request.cave, request.head, request.ipd, request.pole_merge);
+    let pose = request.pose;
+    let head = pose.head.position.as_dvec3();
+    let world_from_cave = pose.cave_from_world.inverse().as_dmat4();
+    let cave_from_world = pose.cave_from_world.as_dmat4();
+    let far = f64::from(request.cave.far);
+    let points: Vec<DVec3> = points::visible_from(
+        caster,
+        world_from_cave.transform_point3(head),
+        LIVE_POINTS,
+        far * world_from_cave.transform_vector3(DVec3::X).length(),
+        world_from_cave,
+    )
+    .into_iter()
+    .map(|p| cave_from_world.transform_point3(p))
+    .collect();
+    let setup = Setup::new(&request.cave, pose.head, pose.ipd, pose.pole_merge);
     let method = Method {
-        mode: request.mode,
+        mode: pose.mode,
         assumed: Assumed::Head,
     };
     let limits = Thresholds::default();
-    let grid = Grid::over(&request.cave, LIVE_STEP_M, head.y).unwrap_or(Grid {
-        first: [0.0; 2],
-        step: LIVE_STEP_M,
-        columns: 0,
-        rows: 0,
-        eye_height: head.y,
-        inside: Vec::new(),
+    // A CAVE with no floor to stand on (one flat wall) has no map.
+    let (grid, maps) = match Grid::over(&request.cave, LIVE_STEP_M, head.y) {
+        // One thread: the render thread keeps the other core.
+        Ok(grid) => {
+            let maps = compute(&setup, &[method], &points, &grid, Gaze::AtPoint, &limits, 1);
+            (grid, maps)
+        }
+        Err(_) => (Grid::empty(LIVE_STEP_M, head.y), Vec::new()),
+    };
+    let map = maps.into_iter().next().unwrap_or(MethodMap {
+        method,
+        computed_as: method,
+        cells: Vec::new(),
+        shown_points: 0,
+        reach_m: Vec::new(),
+        reach_area_m2: 0.0,
+        fusion_reach_area_m2: 0.0,
     });
-    // One thread: the render thread keeps the other core.
-    let map = compute(&setup, &[method], &points, &grid, Gaze::AtPoint, &limits, 1)
-        .pop()
-        .unwrap_or(MethodMap {
-            method,
-            cells: Vec::new(),
-            shown_points: 0,
-            reach_m: Vec::new(),
-            reach_area_m2: 0.0,
-            fusion_reach_area_m2: 0.0,
-        });
     GuestMap {
         request,
         grid,
@@ -207,9 +220,8 @@ mod tests {
     use super::*;
     use crate::cave::thesis_cave;
 
-    fn request(head: glam::Vec3, mode: RenderMode) -> GuestMapRequest {
-        GuestMapRequest {
-            cave: thesis_cave(),
+    fn pose(head: glam::Vec3, mode: RenderMode) -> GuestMapPose {
+        GuestMapPose {
             head: Head::at(head),
             mode,
             ipd: 0.064,
@@ -231,12 +243,14 @@ mod tests {
         scene.add_mesh(&room.vertices, &room.indices, m);
         let mut worker = GuestMapWorker::start(Arc::new(scene));
         let head = glam::Vec3::new(0.0, 1.7, 0.0);
-        worker.request(request(head, RenderMode::OmniOnAxis));
-        // 5 mm: below the step, not asked again.
-        worker.request(request(
-            head + glam::Vec3::X * 0.005,
-            RenderMode::OmniOnAxis,
-        ));
+        let cave = thesis_cave();
+        worker.request(&cave, pose(head, RenderMode::OmniOnAxis));
+        // 5 mm: below the step, not asked again; another mode is.
+        worker.request(
+            &cave,
+            pose(head + glam::Vec3::X * 0.005, RenderMode::OmniOnAxis),
+        );
+        assert_eq!(worker.requests_sent(), 1, "a 5 mm move was asked again");
         let started = std::time::Instant::now();
         let map = loop {
             if let Some(map) = worker.newest() {
@@ -245,7 +259,7 @@ mod tests {
             assert!(started.elapsed().as_secs() < 60, "no map within a minute");
             std::thread::sleep(std::time::Duration::from_millis(10));
         };
-        assert_eq!(map.request.head.position, head);
+        assert_eq!(map.request.pose.head.position, head);
         assert_eq!(map.map.method.mode, RenderMode::OmniOnAxis);
         assert!(map.map.shown_points > 1000, "{}", map.map.shown_points);
         // The cell at the head sees omnistereo exactly.
@@ -261,6 +275,7 @@ mod tests {
             cell.vertical_p95 < 1e-3 && cell.direction_p95 < 1e-3,
             "{cell:?}"
         );
-        assert!(worker.newest().is_none(), "the 5 mm move was mapped again");
+        worker.request(&cave, pose(head, RenderMode::Stereo));
+        assert_eq!(worker.requests_sent(), 2, "another mode was not asked");
     }
 }

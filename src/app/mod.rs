@@ -495,14 +495,16 @@ impl App {
             .guest_map
             .get_or_insert_with(|| guest_map::GuestMapWorker::start(Arc::clone(&self.scene)));
         let settings = &self.state.settings;
-        worker.request(guest_map::GuestMapRequest {
-            cave: self.state.cave().clone(),
-            head: self.state.head(),
-            mode: settings.render.mode,
-            ipd: f64::from(settings.cave.eye_separation),
-            pole_merge: settings.omni().pole_merge,
-            cave_from_world: self.state.world_from_cave().inverse(),
-        });
+        worker.request(
+            self.state.cave(),
+            guest_map::GuestMapPose {
+                head: self.state.head(),
+                mode: settings.render.mode,
+                ipd: f64::from(settings.cave.eye_separation),
+                pole_merge: settings.omni().pole_merge,
+                cave_from_world: self.state.world_from_cave().inverse(),
+            },
+        );
         if let Some(map) = worker.newest() {
             self.info.guest_map = Some(Arc::new(map));
         }

@@ -144,7 +144,7 @@ fn guests_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         );
         ui.label(format!(
             "{} for the head at ({:.2}, {:.2}) m: {}; scale {:.3} to {:.3}",
-            map.map.method.mode.name(),
+            map.request.pose.mode.name(),
             map.head.x,
             map.head.z,
             metric.title(),
@@ -160,7 +160,7 @@ fn guests_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             map.map.shown_points,
             map.seconds
         ));
-        if map.request.mode != state.settings.render.mode {
+        if map.request.pose.mode != state.settings.render.mode {
             ui.label("(computing the map for the new mode…)");
         }
     });

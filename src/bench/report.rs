@@ -270,7 +270,7 @@ fn guests_outputs(
     options: &BenchOptions,
     config: &Config,
 ) -> Result<(String, Vec<PathBuf>), BenchError> {
-    use crate::guests::grid::{Grid, MethodMap, Thresholds, compute};
+    use crate::guests::grid::{Grid, MethodMap, Thresholds, compute_each_assumed};
     use crate::guests::sweep::{self, SweepSettings};
     use crate::guests::{Gaze, Method, Setup, points};
 
@@ -288,9 +288,17 @@ fn guests_outputs(
     let setup = Setup::new(&config.cave, head, ipd, pole);
     let map_points = if options.quick { 2_000 } else { 10_000 };
     let grid = Grid::over(&config.cave, 0.1, f64::from(head.position.y)).map_err(fail)?;
-    let shells = points::shells(head.position.as_dvec3(), &[1.0, 2.0, 4.0, 8.0], map_points);
+    let radii = [1.0, 2.0, 4.0, 8.0];
     let started = std::time::Instant::now();
-    let maps = compute(&setup, &methods, &shells, &grid, Gaze::AtPoint, &limits, 0);
+    let (maps, points_judged) = compute_each_assumed(
+        &setup,
+        &methods,
+        |centre| points::shells(centre, &radii, map_points),
+        &grid,
+        Gaze::AtPoint,
+        &limits,
+        0,
+    );
     let map_seconds = started.elapsed().as_secs_f64();
     let sweep_settings = SweepSettings {
         points: if options.quick { 500 } else { 2_000 },
@@ -309,9 +317,9 @@ fn guests_outputs(
     let _ = writeln!(md, "\n## Where guests may stand (thesis 8.1)\n");
     let _ = writeln!(
         md,
-        "One floor map (`omnicave guests`): a 0.1 m grid of {} viewer positions, {} points on shells at 1, 2, 4 and 8 m around the head, {} methods: {map_seconds:.2} s on {} threads. The sweep ({} points a case): {sweep_seconds:.1} s.\n",
+        "One floor map (`omnicave guests`): a 0.1 m grid of {} viewer positions, {} points on shells at 1, 2, 4 and 8 m around each assumed head, {} methods: {map_seconds:.2} s on {} threads. The sweep ({} points a case): {sweep_seconds:.1} s.\n",
         grid.inside.iter().filter(|i| **i).count(),
-        shells.len(),
+        points_judged,
         methods.len(),
         std::thread::available_parallelism().map_or(1, |n| n.get()),
         sweep_settings.points,

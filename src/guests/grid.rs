@@ -21,6 +21,9 @@ pub struct Grid {
     pub eye_height: f64,
     /// Per cell (row-major, rows along z): whether a viewer may stand there.
     pub inside: Vec<bool>,
+    /// Where a viewer may stand on the floor plan (x and z, least and greatest): edge cells
+    /// count only their part inside it.
+    pub bounds: [[f64; 2]; 2],
 }
 
 /// A cell counts as inside at least this far in front of every wall (the head's margin, less
@@ -68,6 +71,7 @@ impl Grid {
             rows,
             eye_height,
             inside: Vec::with_capacity(columns * rows),
+            bounds: [[lo.x, lo.z], [hi.x, hi.z]],
         };
         for cell in 0..columns * rows {
             let g = grid.viewer(cell);
@@ -90,9 +94,28 @@ impl Grid {
         )
     }
 
-    /// Floor area of one cell, m².
-    pub fn cell_area(&self) -> f64 {
-        self.step * self.step
+    /// A grid without cells (a CAVE with no floor to stand on).
+    pub fn empty(step: f64, eye_height: f64) -> Self {
+        Self {
+            first: [0.0; 2],
+            step,
+            columns: 0,
+            rows: 0,
+            eye_height,
+            inside: Vec::new(),
+            bounds: [[0.0; 2]; 2],
+        }
+    }
+
+    /// Floor area of `cell` inside the bounds, m² (the cells are centred on the room, so the
+    /// outermost ones reach half a step past its edge: counting them whole would make the
+    /// areas depend on the step).
+    pub fn cell_area(&self, cell: usize) -> f64 {
+        let v = self.viewer(cell);
+        let h = 0.5 * self.step;
+        let [[x0, z0], [x1, z1]] = self.bounds;
+        let span = |c: f64, lo: f64, hi: f64| ((c + h).min(hi) - (c - h).max(lo)).max(0.0);
+        span(v.x, x0, x1) * span(v.z, z0, z1)
     }
 }
 
@@ -155,6 +178,9 @@ impl ViewerFigures {
 #[derive(Debug, Clone, PartialEq)]
 pub struct MethodMap {
     pub method: Method,
+    /// The method whose computation this map is (itself, or the other omnistereo mode with
+    /// the same eyes, see [`Method::eye_rule`]).
+    pub computed_as: Method,
     /// Per cell of the grid; `None` outside the CAVE or where no point is seen.
     pub cells: Vec<Option<ViewerFigures>>,
     /// Points the method draws on the walls for both eyes (of those given).
@@ -177,20 +203,30 @@ impl MethodMap {
     pub fn sweet_area(&self, grid: &Grid, limits: &Thresholds) -> f64 {
         self.cells
             .iter()
-            .flatten()
-            .filter(|f| f.within(limits))
-            .count() as f64
-            * grid.cell_area()
+            .enumerate()
+            .filter(|(_, f)| f.is_some_and(|f| f.within(limits)))
+            .map(|(cell, _)| grid.cell_area(cell))
+            .sum()
     }
 
     /// Floor area (m²) of the cells inside the CAVE.
     pub fn floor_area(grid: &Grid) -> f64 {
-        grid.inside.iter().filter(|i| **i).count() as f64 * grid.cell_area()
+        (0..grid.inside.len())
+            .filter(|c| grid.inside[*c])
+            .map(|c| grid.cell_area(c))
+            .sum()
     }
 }
 
 /// Most scene points one map judges.
 pub const MAX_POINTS: usize = 200_000;
+
+/// Most point-and-viewer judgements one `omnicave guests` run makes (cells × points × distinct
+/// methods × eye heights): about half a minute on 2 cores.
+pub const MAX_JUDGEMENTS: u64 = 1_000_000_000;
+
+/// Most worker threads a map uses.
+pub const MAX_THREADS: usize = 64;
 
 /// Every method's map over `grid` for `points`, on `threads` threads (0: as many as the
 /// machine has). Methods that share an eye rule (the two omnistereo modes) are computed once.
@@ -208,7 +244,8 @@ pub fn compute(
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
         threads
-    };
+    }
+    .clamp(1, MAX_THREADS);
     let mut maps: Vec<MethodMap> = Vec::with_capacity(methods.len());
     for &method in methods {
         if let Some(done) = maps
@@ -224,25 +261,12 @@ pub fn compute(
         let cells = map_cells(setup.ipd, grid, gaze, &drawn, threads);
         let centre = setup.assumed_head(method.assumed).position.as_dvec3();
         let centre = DVec3::new(centre.x, grid.eye_height, centre.z);
-        let (reach_m, reach_area_m2) = sweet_reach(
-            setup,
-            &drawn,
-            centre,
-            limits,
-            REACH_DIRECTIONS,
-            REACH_STEP_M,
-        );
-        let fusion = limits.fusion_only();
-        let (_, fusion_reach_area_m2) = sweet_reach(
-            setup,
-            &drawn,
-            centre,
-            &fusion,
-            REACH_DIRECTIONS,
-            REACH_STEP_M,
-        );
+        let (reach_m, reach_area_m2) = sweet_reach(setup, &drawn, centre, gaze, limits);
+        let (_, fusion_reach_area_m2) =
+            sweet_reach(setup, &drawn, centre, gaze, &limits.fusion_only());
         maps.push(MethodMap {
             method,
+            computed_as: method,
             cells,
             shown_points: drawn.len(),
             reach_m,
@@ -251,6 +275,37 @@ pub fn compute(
         });
     }
     maps
+}
+
+/// [`compute`] with each assumed head's own points: `points_for` gives the points judged for
+/// methods assuming the head at its argument (what that head sees). Maps in `methods`' order;
+/// also returns the most points any head was given.
+pub fn compute_each_assumed(
+    setup: &Setup,
+    methods: &[Method],
+    points_for: impl Fn(DVec3) -> Vec<DVec3>,
+    grid: &Grid,
+    gaze: Gaze,
+    limits: &Thresholds,
+    threads: usize,
+) -> (Vec<MethodMap>, usize) {
+    let mut maps: Vec<MethodMap> = Vec::with_capacity(methods.len());
+    let mut most = 0;
+    for assumed in [super::Assumed::Head, super::Assumed::Centre] {
+        let group: Vec<Method> = methods
+            .iter()
+            .copied()
+            .filter(|m| m.assumed == assumed)
+            .collect();
+        if group.is_empty() {
+            continue;
+        }
+        let points = points_for(setup.assumed_head(assumed).position.as_dvec3());
+        most = most.max(points.len());
+        maps.extend(compute(setup, &group, &points, grid, gaze, limits, threads));
+    }
+    maps.sort_by_key(|m| methods.iter().position(|r| *r == m.method));
+    (maps, most)
 }
 
 /// Where `method` draws each of `points` (those it draws for both eyes): the same for every
@@ -290,8 +345,10 @@ fn map_cells(
             })
             .collect();
         for handle in handles {
-            // A panicking worker is a bug; its cells stay empty rather than poisoning the map.
-            let _ = handle.join();
+            // A panicking worker is a bug: said in the log; its cells stay empty.
+            if handle.join().is_err() {
+                tracing::error!("a guest map worker panicked; some cells are left empty");
+            }
         }
     });
     out
@@ -338,24 +395,25 @@ pub fn viewer_figures(
     })
 }
 
-/// How far a viewer may step from `centre` in each of `directions` evenly spread horizontal
-/// directions (metres) and stay within `limits`, and the area of the star-shaped region those
-/// reaches bound. Each direction is walked in `coarse` steps to the first viewer outside the
-/// limits (or the walls), then bisected to 1/64 of a step: finer than any grid, for the sweep.
+/// How far a viewer may step from `centre` in each of [`REACH_DIRECTIONS`] evenly spread
+/// horizontal directions (metres) and stay within `limits`, and the area of the star-shaped
+/// region those reaches bound. Each direction is walked in [`REACH_STEP_M`] steps to the first
+/// viewer outside the limits (or the walls), then bisected to 1/64 of a step (0.8 mm): finer
+/// than any grid, for the sweep.
 /// Assumes the region is star-shaped around `centre` (the errors grow with the distance from
 /// the assumed head; a region with holes is under-reported).
 pub fn sweet_reach(
     setup: &Setup,
     drawn: &[(DVec3, [DVec3; 2])],
     centre: DVec3,
+    gaze: Gaze,
     limits: &Thresholds,
-    directions: usize,
-    coarse: f64,
 ) -> (Vec<f64>, f64) {
+    let (directions, coarse) = (REACH_DIRECTIONS, REACH_STEP_M);
     let mut scratch = Scratch::default();
     let mut good = |g: DVec3| {
         setup.inside(g, INSIDE_M)
-            && viewer_figures(setup.ipd, g, Gaze::AtPoint, drawn, &mut scratch)
+            && viewer_figures(setup.ipd, g, gaze, drawn, &mut scratch)
                 .is_some_and(|f| f.within(limits))
     };
     if !good(centre) {
@@ -389,9 +447,12 @@ pub fn sweet_reach(
     (reaches, area)
 }
 
-/// The nearest-rank percentile `q` (0..1) of `values` (reordered; not empty).
+/// The nearest-rank percentile `q` (0..1) of `values` (reordered); NaN when empty.
 pub fn percentile(values: &mut [f64], q: f64) -> f64 {
     let n = values.len();
+    if n == 0 {
+        return f64::NAN;
+    }
     let rank = ((q * n as f64).ceil() as usize).clamp(1, n) - 1;
     *values.select_nth_unstable_by(rank, f64::total_cmp).1
 }

@@ -1,4 +1,4 @@
-//! The maps drawn: a top view of the CAVE (front wall up) with each grid cell coloured by one
+//! The maps drawn: a top view of the CAVE (CAVE −z up: the bundled config's front wall) with each grid cell coloured by one
 //! metric of one method, the walls, the assumed head, the sweet area's outline and a legend;
 //! one colour scale per metric, shared by every method. SVG, and PNG through the bench's
 //! renderer.
@@ -184,10 +184,10 @@ pub fn svg(
     limits: &Thresholds,
 ) -> String {
     let cell_px = (440.0 / grid.columns.max(grid.rows) as f64).clamp(2.0, 40.0);
-    let (left, top) = (40.0, 70.0);
+    let (left, top) = (40.0, 88.0);
     let (pw, ph) = (grid.columns as f64 * cell_px, grid.rows as f64 * cell_px);
     let (w, h) = (left + pw + 150.0, top + ph + 60.0);
-    // Page position of a floor point (x right, −z up: the front wall at the top).
+    // Page position of a floor point (x right, −z up: CAVE space's front at the top).
     let x0 = grid.first[0] - 0.5 * grid.step;
     let z0 = grid.first[1] - 0.5 * grid.step;
     let page = |x: f64, z: f64| {
@@ -218,11 +218,12 @@ pub fn svg(
     );
     let _ = writeln!(
         out,
-        r##"<text x="{left}" y="58" fill="#444">sweet area {area:.2} m² of {:.2} m² (reach {:.3} m²; p95 vertical &lt; {} arcmin, direction &lt; {}°)</text>"##,
-        MethodMap::floor_area(grid),
-        map.reach_area_m2,
+        r##"<text x="{left}" y="58" fill="#444">fusion area (dashed: p95 vertical &lt; {} arcmin) {:.2} m²; sweet area (solid: and direction &lt; {}°)</text><text x="{left}" y="74" fill="#444">{area:.2} m², within reach of the white dot {:.4} m²; floor {:.2} m²</text>"##,
         limits.vertical_arcmin,
-        limits.direction_degrees
+        map.sweet_area(grid, &limits.fusion_only()),
+        limits.direction_degrees,
+        map.reach_area_m2,
+        MethodMap::floor_area(grid),
     );
     for (cell, figures) in map.cells.iter().enumerate() {
         let v = grid.viewer(cell);
@@ -237,7 +238,45 @@ pub fn svg(
             r#"<rect x="{px:.2}" y="{py:.2}" width="{cell_px:.2}" height="{cell_px:.2}" fill="{fill}"/>"#
         );
     }
-    // The sweet area's outline: every cell edge between a cell within the limits and one not.
+    // The fusion area's outline (dashed) and the sweet area's (solid): every cell edge
+    // between a cell within the limits and one not.
+    let fusion = limits.fusion_only();
+    for (lims, dash) in [(&fusion, r#" stroke-dasharray="5,3""#), (limits, "")] {
+        let outline = outline_path(grid, map, lims, &page, cell_px);
+        if !outline.is_empty() {
+            let _ = writeln!(
+                out,
+                r#"<path d="{outline}" stroke="white" stroke-width="2" fill="none"{dash}/>"#
+            );
+        }
+    }
+    for wall in &cave.walls {
+        let (a, b) = (wall.lower_left.as_dvec3(), wall.lower_right.as_dvec3());
+        let (ax, ay) = page(a.x, a.z);
+        let (bx, by) = page(b.x, b.z);
+        let _ = writeln!(
+            out,
+            r#"<line x1="{ax:.1}" y1="{ay:.1}" x2="{bx:.1}" y2="{by:.1}" stroke="black" stroke-width="4"/>"#
+        );
+    }
+    let (hx, hy) = page(assumed.x, assumed.z);
+    let _ = writeln!(
+        out,
+        r#"<circle cx="{hx:.1}" cy="{hy:.1}" r="5" fill="white" stroke="black" stroke-width="1.5"/>"#
+    );
+    write_legend(&mut out, scale, left + pw + 30.0, top, ph, limits);
+    out.push_str("</svg>\n");
+    out
+}
+
+/// An SVG path of every cell edge between a cell of `map` within `limits` and one not.
+fn outline_path(
+    grid: &Grid,
+    map: &MethodMap,
+    limits: &Thresholds,
+    page: &dyn Fn(f64, f64) -> (f64, f64),
+    cell_px: f64,
+) -> String {
     let within = |c: usize| map.cells[c].is_some_and(|f| f.within(limits));
     let mut outline = String::new();
     for cell in (0..map.cells.len()).filter(|c| within(*c)) {
@@ -261,29 +300,7 @@ pub fn svg(
             edge(ax, by, bx, by);
         }
     }
-    if !outline.is_empty() {
-        let _ = writeln!(
-            out,
-            r#"<path d="{outline}" stroke="white" stroke-width="2" fill="none"/>"#
-        );
-    }
-    for wall in &cave.walls {
-        let (a, b) = (wall.lower_left.as_dvec3(), wall.lower_right.as_dvec3());
-        let (ax, ay) = page(a.x, a.z);
-        let (bx, by) = page(b.x, b.z);
-        let _ = writeln!(
-            out,
-            r#"<line x1="{ax:.1}" y1="{ay:.1}" x2="{bx:.1}" y2="{by:.1}" stroke="black" stroke-width="4"/>"#
-        );
-    }
-    let (hx, hy) = page(assumed.x, assumed.z);
-    let _ = writeln!(
-        out,
-        r#"<circle cx="{hx:.1}" cy="{hy:.1}" r="5" fill="white" stroke="black" stroke-width="1.5"/>"#
-    );
-    write_legend(&mut out, scale, left + pw + 30.0, top, ph, limits);
-    out.push_str("</svg>\n");
-    out
+    outline
 }
 
 /// The colour bar with its ticks and the metric's threshold marked.

@@ -1,7 +1,7 @@
 //! The scene points a map judges: what the assumed head sees of the scene (one ray per
 //! direction of a Fibonacci sphere, its first hit), or shells of points at given distances.
 
-use glam::{DVec3, Mat4};
+use glam::{DMat4, DVec3, Mat4};
 
 use crate::pano::raycast::RayCaster;
 use crate::scene::Scene;
@@ -47,15 +47,30 @@ pub fn visible_surface(
     count: usize,
     far: f64,
 ) -> Vec<DVec3> {
-    visible_from(&RayCaster::new(scene, cave_from_world), eye, count, far)
+    visible_from(
+        &RayCaster::new(scene, cave_from_world),
+        eye,
+        count,
+        far,
+        DMat4::IDENTITY,
+    )
 }
 
-/// [`visible_surface`] with the scene's ray caster already built.
-pub fn visible_from(caster: &RayCaster, eye: DVec3, count: usize, far: f64) -> Vec<DVec3> {
+/// [`visible_surface`] with the scene's ray caster already built, in its own space: `eye` and
+/// the returned points are in the caster's space, the directions spread evenly in the space
+/// `caster_from_spread` maps from (the CAVE's, for a caster built in the scene's space).
+pub fn visible_from(
+    caster: &RayCaster,
+    eye: DVec3,
+    count: usize,
+    far: f64,
+    caster_from_spread: DMat4,
+) -> Vec<DVec3> {
     let origin = eye.as_vec3();
     fibonacci_directions(count)
         .into_iter()
         .filter_map(|d| {
+            let d = caster_from_spread.transform_vector3(d).try_normalize()?;
             let hit = caster.cast(origin, d.as_vec3(), 1e-4, far as f32)?;
             Some(eye + f64::from(hit.distance) * d)
         })

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use super::grid::{Grid, MethodMap, Thresholds, compute};
+use super::grid::{Grid, MAX_JUDGEMENTS, MethodMap, Thresholds, compute_each_assumed};
 use super::heatmap::{Metric, Scale, svg};
 use super::sweep::{self, Parameter, SweepRow, SweepSettings};
 use super::{Gaze, Method, Setup, points};
@@ -200,37 +200,38 @@ pub fn run(request: &GuestsRequest) -> Result<GuestsOutcome, GuestsError> {
     let mut cells = 0;
     let mut judged_points = 0;
     let mut map_seconds = 0.0;
+    let distinct = {
+        let mut rules: Vec<_> = request.methods.iter().map(Method::eye_rule).collect();
+        rules.sort_by_key(|(mode, assumed)| (mode.name(), assumed.name()));
+        rules.dedup();
+        rules.len() as u64
+    };
     for &height in &heights {
         let grid = Grid::over(cave, request.step, height).map_err(GuestsError::Invalid)?;
-        cells = grid.inside.iter().filter(|i| **i).count();
-        let mut maps: Vec<MethodMap> = Vec::new();
-        for assumed in [super::Assumed::Head, super::Assumed::Centre] {
-            let methods: Vec<Method> = request
-                .methods
-                .iter()
-                .copied()
-                .filter(|m| m.assumed == assumed)
-                .collect();
-            if methods.is_empty() {
-                continue;
-            }
-            let centre = setup.assumed_head(assumed).position.as_dvec3();
-            let points = points_for(centre);
-            judged_points = judged_points.max(points.len());
-            let timer = Instant::now();
-            maps.extend(compute(
-                &setup,
-                &methods,
-                &points,
-                &grid,
-                Gaze::AtPoint,
-                &request.limits,
-                request.threads,
-            ));
-            map_seconds += timer.elapsed().as_secs_f64();
+        let judgements =
+            grid.inside.len() as u64 * request.points as u64 * distinct * heights.len() as u64;
+        if judgements > MAX_JUDGEMENTS {
+            return Err(GuestsError::Invalid(format!(
+                "{} grid cells × {} points × {distinct} distinct methods × {} eye heights is {judgements} judgements, over the {MAX_JUDGEMENTS} allowed: a coarser --step or fewer --points",
+                grid.inside.len(),
+                request.points,
+                heights.len()
+            )));
         }
-        // In the order asked for.
-        maps.sort_by_key(|m| request.methods.iter().position(|r| *r == m.method));
+        cells = grid.inside.iter().filter(|i| **i).count();
+        // The points each assumed head sees are cast and judged inside the time reported.
+        let timer = Instant::now();
+        let (maps, most) = compute_each_assumed(
+            &setup,
+            &request.methods,
+            points_for,
+            &grid,
+            Gaze::AtPoint,
+            &request.limits,
+            request.threads,
+        );
+        map_seconds += timer.elapsed().as_secs_f64();
+        judged_points = judged_points.max(most);
         let suffix = if heights.len() > 1 {
             format!("-h{height:.2}")
         } else {
@@ -268,12 +269,7 @@ pub fn run(request: &GuestsRequest) -> Result<GuestsOutcome, GuestsError> {
                     continue;
                 }
                 let g = grid.viewer(cell);
-                csv_rows.push(GridRow::of(
-                    map.method,
-                    g,
-                    figures.as_ref(),
-                    &request.limits,
-                ));
+                csv_rows.push(GridRow::of(map, g, figures.as_ref(), &request.limits));
             }
         }
     }
@@ -317,6 +313,8 @@ pub fn run(request: &GuestsRequest) -> Result<GuestsOutcome, GuestsError> {
 #[derive(Debug, serde::Serialize)]
 struct GridRow {
     method: String,
+    /// The computation the row comes from: the other omnistereo mode's rows are the same.
+    computed_as: String,
     x_m: f64,
     z_m: f64,
     eye_height_m: f64,
@@ -332,14 +330,15 @@ struct GridRow {
 
 impl GridRow {
     fn of(
-        method: Method,
+        map: &MethodMap,
         g: DVec3,
         f: Option<&super::grid::ViewerFigures>,
         limits: &Thresholds,
     ) -> Self {
         let v = |get: fn(&super::grid::ViewerFigures) -> f64| f.map_or(f64::NAN, get);
         Self {
-            method: method.name(),
+            method: map.method.name(),
+            computed_as: map.computed_as.name(),
             x_m: g.x,
             z_m: g.z,
             eye_height_m: g.y,
@@ -400,6 +399,7 @@ struct SweepLine {
     sweet_area_m2: f64,
     fusion_area_m2: f64,
     floor_area_m2: f64,
+    shown_points: usize,
 }
 
 fn write_csv<T: serde::Serialize>(path: &Path, rows: &[T]) -> Result<(), GuestsError> {
@@ -447,6 +447,7 @@ pub fn write_sweep(dir: &Path, rows: &[SweepRow]) -> Result<Vec<PathBuf>, Guests
             sweet_area_m2: r.sweet_area_m2,
             fusion_area_m2: r.fusion_area_m2,
             floor_area_m2: r.floor_area_m2,
+            shown_points: r.shown_points,
         })
         .collect();
     write_csv(&path, &lines)?;
@@ -503,7 +504,7 @@ fn summary_markdown(outcome: &GuestsOutcome, limits: &Thresholds, config: &Path)
     );
     let _ = writeln!(
         s,
-        "The grid's area counts whole cells; the reach walks {} directions from the assumed head to the first viewer outside the limits (to a few millimetres), so it resolves sweet areas smaller than a cell.\n",
+        "The grid's area counts the cells (their part inside the room); the reach walks {} directions from the assumed head to the first viewer outside the limits (to under a millimetre), so it resolves areas smaller than a cell. Depth ratios are infinite where a guest's rays diverge; a position that sees nothing has no figures.\n",
         super::grid::REACH_DIRECTIONS
     );
     let _ = writeln!(

@@ -133,6 +133,49 @@ mod tests {
     }
 
     #[test]
+    fn each_eye_pixel_shows_the_wall_pixel_its_ray_meets() {
+        // Wall images whose red is the pixel column and green the row (a linear ramp, which
+        // bilinear sampling reproduces exactly), blue the wall: every eye pixel must read the
+        // wall pixel that `Wall::pixel_of_ray` (the renderer's tests' own path) finds.
+        let mut cave = thesis_cave();
+        for wall in &mut cave.walls {
+            wall.resolution = [256, 256];
+        }
+        let images: Vec<RgbaImage> = (0..3)
+            .map(|w| RgbaImage::from_fn(256, 256, |x, y| Rgba([x as u8, y as u8, w * 100, 255])))
+            .collect();
+        let refs: Vec<&RgbaImage> = images.iter().collect();
+        let eye = DVec3::new(0.3, 1.5, 0.4);
+        let cam =
+            EyeCamera::new(eye, DVec3::new(-0.2, 0.0, -1.0), [140.0, 90.0], [280, 180]).unwrap();
+        let img = reproject(&cave, &refs, &cam);
+        let mut checked = 0;
+        for y in (5..180).step_by(7) {
+            for x in (5..280).step_by(7) {
+                let ray = cam.ray(DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5));
+                let target = (eye + ray).as_vec3();
+                let Some((w, px)) = cave.walls.iter().enumerate().find_map(|(i, wall)| {
+                    let px = wall.pixel_of_ray(eye.as_vec3(), target)?;
+                    // Away from the wall's border, where sampling clamps.
+                    (px.x > 1.0 && px.y > 1.0 && px.x < 255.0 && px.y < 255.0).then_some((i, px))
+                }) else {
+                    continue;
+                };
+                let p = img.get_pixel(x, y).0;
+                // 1 level: the ramp's value rounded, and f32 against f64 paths.
+                assert!(
+                    (f32::from(p[0]) - (px.x - 0.5)).abs() <= 1.0
+                        && (f32::from(p[1]) - (px.y - 0.5)).abs() <= 1.0
+                        && usize::from(p[2]) == w * 100,
+                    "eye pixel ({x}, {y}): {p:?}, wall {w} pixel {px}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 500, "{checked}");
+    }
+
+    #[test]
     fn each_wall_shows_its_own_image() {
         let cave = thesis_cave();
         let colours = [[200u8, 0, 0, 255], [0, 200, 0, 255], [0, 0, 200, 255]];

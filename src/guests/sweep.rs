@@ -4,11 +4,9 @@
 
 use glam::Vec3;
 
-use super::grid::{
-    Grid, MethodMap, REACH_DIRECTIONS, REACH_STEP_M, Thresholds, drawn, sweet_reach,
-};
+use super::grid::{Grid, MethodMap, Thresholds, drawn, sweet_reach};
 use super::points::shells;
-use super::{Method, Setup};
+use super::{Gaze, Method, Setup};
 use crate::cave::omni::PoleMerge;
 use crate::cave::{Cave, Head};
 use crate::output::chart::{Axes, ChartPoint};
@@ -16,7 +14,8 @@ use crate::output::chart::{Axes, ChartPoint};
 /// What the sweep varies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Parameter {
-    /// The CAVE scaled about its floor's centre to this width (metres, 2–4).
+    /// The CAVE scaled on the floor about its centre to this width (metres, 2–4), its walls'
+    /// height kept.
     CaveSize,
     /// The tracked head this far from the front wall (metres), centred sideways.
     HeadToFrontWall,
@@ -35,7 +34,7 @@ impl Parameter {
     /// The chart's x-axis label.
     pub fn axis_label(self) -> &'static str {
         match self {
-            Parameter::CaveSize => "CAVE width (m), scaled about the floor's centre",
+            Parameter::CaveSize => "CAVE width and depth (m), the walls' height kept",
             Parameter::HeadToFrontWall => "tracked head's distance to the front wall (m)",
             Parameter::WallPixels => "pixels across each wall",
         }
@@ -78,13 +77,18 @@ pub struct SweepRow {
     pub sweet_area_m2: f64,
     pub fusion_area_m2: f64,
     pub floor_area_m2: f64,
+    /// Of the shells' points, those the method draws on the walls for both eyes.
+    pub shown_points: usize,
 }
 
-/// The room `cave` scaled about its floor's centre so that its wider side is `width` metres.
+/// The room `cave` scaled on the floor about its centre so that its wider side is `width`
+/// metres; the walls keep their height (a taller room would change which points are drawn at
+/// all, not how a step distorts them).
 pub fn scaled_cave(cave: &Cave, width: f32) -> Cave {
     let (lo, hi) = Cave::bounding_box(&cave.walls);
-    let pivot = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+    let pivot = Vec3::new(0.5 * (lo.x + hi.x), 0.0, 0.5 * (lo.z + hi.z));
     let k = width / (hi.x - lo.x).max(hi.z - lo.z).max(1e-3);
+    let scale = Vec3::new(k, 1.0, k);
     let mut out = cave.clone();
     for wall in &mut out.walls {
         for p in [
@@ -92,10 +96,10 @@ pub fn scaled_cave(cave: &Cave, width: f32) -> Cave {
             &mut wall.lower_right,
             &mut wall.upper_left,
         ] {
-            *p = pivot + k * (*p - pivot);
+            *p = pivot + scale * (*p - pivot);
         }
     }
-    out.projection_centre = pivot + k * (cave.projection_centre - pivot);
+    out.projection_centre = pivot + scale * (cave.projection_centre - pivot);
     out
 }
 
@@ -126,17 +130,8 @@ pub fn run(
             let centre = setup.assumed_head(method.assumed).position.as_dvec3();
             let points = shells(centre, &settings.radii, settings.points);
             let drawn = drawn(&setup, method, &points);
-            let area = |limits: &Thresholds| {
-                sweet_reach(
-                    &setup,
-                    &drawn,
-                    centre,
-                    limits,
-                    REACH_DIRECTIONS,
-                    REACH_STEP_M,
-                )
-                .1
-            };
+            let area =
+                |limits: &Thresholds| sweet_reach(&setup, &drawn, centre, Gaze::AtPoint, limits).1;
             rows.push(SweepRow {
                 parameter,
                 value,
@@ -144,6 +139,7 @@ pub fn run(
                 sweet_area_m2: area(&settings.limits),
                 fusion_area_m2: area(&settings.limits.fusion_only()),
                 floor_area_m2: floor,
+                shown_points: drawn.len(),
             });
         }
         Ok::<(), String>(())

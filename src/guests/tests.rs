@@ -204,7 +204,7 @@ fn omnistereo_is_exact_for_a_viewer_turning_at_the_centre_where_fixed_stereo_is_
 }
 
 #[test]
-fn quantised_wall_points_cost_at_most_half_a_pixel() {
+fn quantised_wall_points_cost_at_most_one_pixel_of_vertical_disparity() {
     let mut s = setup(Vec3::new(0.0, 1.7, 0.0), 0.0);
     s.quantise = true;
     let m = method(RenderMode::OmniOnAxis, Assumed::Head);
@@ -235,6 +235,13 @@ fn the_grid_covers_the_floor_inside_the_walls() {
     // (the open back is bounded by the walls' box).
     assert_eq!((grid.columns, grid.rows), (33, 33));
     assert_eq!(grid.inside.iter().filter(|i| **i).count(), 33 * 33);
+    // The area counts only the cells' parts inside the bounds: 3.2 m × 3.2 m at any step.
+    for step in [0.1, 0.2, 0.3, 0.07] {
+        let grid = Grid::over(&cave, step, 1.7).unwrap();
+        let area = super::grid::MethodMap::floor_area(&grid);
+        // 1e-5 m²: the walls are f32 (1.6 m is 1.6000000238).
+        assert!((area - 3.2 * 3.2).abs() < 1e-5, "step {step}: {area} m²");
+    }
     assert!(Grid::over(&cave, 0.001, 1.7).is_err());
     assert!(Grid::over(&cave, f64::NAN, 1.7).is_err());
 }

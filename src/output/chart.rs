@@ -297,14 +297,19 @@ impl Plot {
                 linear_ticks(lo, hi)
             }
         };
+        // Linear ticks: as many decimals as the step needs (0.0005 steps read 0.0005, 0.001).
+        let step = linear_step(self.y1 - self.y0).min(linear_step(self.x1 - self.x0));
+        let decimals = (-step.log10().floor()).max(0.0) as usize + 1;
         let label = |t: f64| {
             if self.log {
                 tick_label(t)
             } else {
-                format!("{t:.3}")
-                    .trim_end_matches('0')
-                    .trim_end_matches('.')
-                    .to_string()
+                let text = format!("{t:.decimals$}");
+                if text.contains('.') {
+                    text.trim_end_matches('0').trim_end_matches('.').to_string()
+                } else {
+                    text
+                }
             }
         };
         for t in ticks(self.x0, self.x1) {
