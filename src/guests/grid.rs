@@ -206,7 +206,9 @@ impl MethodMap {
             .enumerate()
             .filter(|(_, f)| f.is_some_and(|f| f.within(limits)))
             .map(|(cell, _)| grid.cell_area(cell))
-            .sum()
+            .sum::<f64>()
+            // An empty sum is −0.
+            + 0.0
     }
 
     /// Floor area (m²) of the cells inside the CAVE.
@@ -214,7 +216,8 @@ impl MethodMap {
         (0..grid.inside.len())
             .filter(|c| grid.inside[*c])
             .map(|c| grid.cell_area(c))
-            .sum()
+            .sum::<f64>()
+            + 0.0
     }
 }
 
