@@ -500,7 +500,7 @@ struct GuestsArgs {
     /// resolution (sweep.csv and charts).
     #[arg(long)]
     sweep: bool,
-    /// Worker threads (0: every core).
+    /// Worker threads (0: every core; at most 64).
     #[arg(long, default_value_t = 0)]
     threads: usize,
     /// Output folder.

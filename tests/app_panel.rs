@@ -646,7 +646,7 @@ fn the_panel_shows_the_guest_map_for_the_current_mode_from_its_worker() {
             mode: state.settings.render.mode,
             ipd: f64::from(state.settings.cave.eye_separation),
             pole_merge: state.settings.omni().pole_merge,
-            cave_from_world: state.world_from_cave().inverse(),
+            world_from_cave: state.world_from_cave(),
         },
     );
     let started = std::time::Instant::now();

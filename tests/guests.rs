@@ -316,7 +316,7 @@ fn guests_refuses_bad_requests_with_the_value_named() {
     let out = tmp_dir("guests-bad");
     let out_s = out.to_str().unwrap();
     let cases: [(&[&str], &str); 8] = [
-        // 410 881 cells × 200 000 points: over the judgement budget, refused before any work.
+        // 410 881 cells × 200 000 points: over the judgement budget, refused before any map.
         (
             &["--shells", "1", "--step", "0.005", "--points", "200000"],
             "judgements",

@@ -19,7 +19,8 @@ pub struct GuestMapPose {
     pub mode: RenderMode,
     pub ipd: f64,
     pub pole_merge: Option<PoleMerge>,
-    pub cave_from_world: Mat4,
+    /// Where the CAVE stands in the scene (navigation and `[scene.world_from_cave]`).
+    pub world_from_cave: Mat4,
 }
 
 /// What a map is computed for.
@@ -36,14 +37,23 @@ impl GuestMapPose {
         self.mode != older.mode
             || self.ipd != older.ipd
             || self.pole_merge != older.pole_merge
-            // Navigation moves the scene: a new map once it has moved about a centimetre.
-            || !self
-                .cave_from_world
-                .abs_diff_eq(older.cave_from_world, 0.01)
+            || placement_moved(self.world_from_cave, older.world_from_cave)
             || self.head.position.distance(older.head.position) > HEAD_STEP_M
             || (self.mode == RenderMode::TrackedStereo
                 && self.head.orientation.angle_between(older.head.orientation) > 0.02)
     }
+}
+
+/// Whether navigation moved the CAVE in the scene enough for a new map: more than
+/// [`HEAD_STEP_M`] (in CAVE metres, whatever the scene's scale), a turn of more than 0.02 rad,
+/// or a change of scale of more than 0.1 %.
+fn placement_moved(a: Mat4, b: Mat4) -> bool {
+    let (sa, qa, ta) = a.to_scale_rotation_translation();
+    let (sb, qb, tb) = b.to_scale_rotation_translation();
+    let scale = sa.x.abs().max(1e-6);
+    (sa - sb).abs().max_element() > 1e-3 * scale
+        || qa.angle_between(qb) > 0.02
+        || ta.distance(tb) / scale > HEAD_STEP_M
 }
 
 /// How far the head moves before the map is recomputed, metres (a tenth of a grid cell).
@@ -168,8 +178,8 @@ fn compute_map(caster: &crate::pano::raycast::RayCaster, request: GuestMapReques
     let started = std::time::Instant::now();
     let pose = request.pose;
     let head = pose.head.position.as_dvec3();
-    let world_from_cave = pose.cave_from_world.inverse().as_dmat4();
-    let cave_from_world = pose.cave_from_world.as_dmat4();
+    let world_from_cave = pose.world_from_cave.as_dmat4();
+    let cave_from_world = world_from_cave.inverse();
     let far = f64::from(request.cave.far);
     let points: Vec<DVec3> = points::visible_from(
         caster,
@@ -226,7 +236,7 @@ mod tests {
             mode,
             ipd: 0.064,
             pole_merge: None,
-            cave_from_world: Mat4::IDENTITY,
+            world_from_cave: Mat4::IDENTITY,
         }
     }
 
@@ -277,5 +287,27 @@ mod tests {
         );
         worker.request(&cave, pose(head, RenderMode::Stereo));
         assert_eq!(worker.requests_sent(), 2, "another mode was not asked");
+        // A scene in centimetres (scale 100): a turn of 0.1 rad in place is a new map, 5 mm of
+        // navigation is not, 2 cm is.
+        let scaled = |yaw: f32, x: f32| GuestMapPose {
+            world_from_cave: Mat4::from_scale_rotation_translation(
+                glam::Vec3::splat(100.0),
+                glam::Quat::from_rotation_y(yaw),
+                glam::Vec3::new(100.0 * x, 0.0, 0.0),
+            ),
+            ..pose(head, RenderMode::Stereo)
+        };
+        worker.request(&cave, scaled(0.0, 0.0));
+        assert_eq!(worker.requests_sent(), 3);
+        worker.request(&cave, scaled(0.1, 0.0));
+        assert_eq!(worker.requests_sent(), 4, "a turn in place was not asked");
+        worker.request(&cave, scaled(0.1, 0.005));
+        assert_eq!(worker.requests_sent(), 4, "5 mm of navigation was asked");
+        worker.request(&cave, scaled(0.1, 0.02));
+        assert_eq!(
+            worker.requests_sent(),
+            5,
+            "2 cm of navigation was not asked"
+        );
     }
 }

@@ -502,7 +502,7 @@ impl App {
                 mode: settings.render.mode,
                 ipd: f64::from(settings.cave.eye_separation),
                 pole_merge: settings.omni().pole_merge,
-                cave_from_world: self.state.world_from_cave().inverse(),
+                world_from_cave: self.state.world_from_cave(),
             },
         );
         if let Some(map) = worker.newest() {

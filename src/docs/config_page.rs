@@ -316,6 +316,16 @@ fn fixed_limits() -> Vec<FixedLimit> {
             source: "guests::grid::MAX_CELLS",
         },
         FixedLimit {
+            what: "`omnicave guests`: judgements in one run (viewer positions, grid and reach, × points × distinct methods × eye heights)",
+            value: guests::grid::MAX_JUDGEMENTS.to_string(),
+            source: "guests::grid::MAX_JUDGEMENTS",
+        },
+        FixedLimit {
+            what: "`omnicave guests`: worker threads (`--threads` above it is clamped)",
+            value: guests::grid::MAX_THREADS.to_string(),
+            source: "guests::grid::MAX_THREADS",
+        },
+        FixedLimit {
             what: "`omnicave guests`: eye heights mapped in one run",
             value: guests::report::MAX_EYE_HEIGHTS.to_string(),
             source: "guests::report::MAX_EYE_HEIGHTS",

@@ -6,7 +6,10 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use super::grid::{Grid, MAX_JUDGEMENTS, MethodMap, Thresholds, compute_each_assumed};
+use super::grid::{
+    Grid, MAX_JUDGEMENTS, MethodMap, REACH_DIRECTIONS, REACH_STEP_M, Thresholds,
+    compute_each_assumed,
+};
 use super::heatmap::{Metric, Scale, svg};
 use super::sweep::{self, Parameter, SweepRow, SweepSettings};
 use super::{Gaze, Method, Setup, points};
@@ -208,12 +211,15 @@ pub fn run(request: &GuestsRequest) -> Result<GuestsOutcome, GuestsError> {
     };
     for &height in &heights {
         let grid = Grid::over(cave, request.step, height).map_err(GuestsError::Invalid)?;
-        let judgements =
-            grid.inside.len() as u64 * request.points as u64 * distinct * heights.len() as u64;
+        // Each distinct method also walks its reach twice (sweet and fusion): at most
+        // REACH_DIRECTIONS × (the floor's diagonal in steps + 6 bisections) viewers each.
+        let [[x0, z0], [x1, z1]] = grid.bounds;
+        let walk = ((x1 - x0).hypot(z1 - z0) / REACH_STEP_M).ceil() as u64 + 6;
+        let viewers = grid.inside.len() as u64 + 2 * REACH_DIRECTIONS as u64 * walk;
+        let judgements = viewers * request.points as u64 * distinct * heights.len() as u64;
         if judgements > MAX_JUDGEMENTS {
             return Err(GuestsError::Invalid(format!(
-                "{} grid cells × {} points × {distinct} distinct methods × {} eye heights is {judgements} judgements, over the {MAX_JUDGEMENTS} allowed: a coarser --step or fewer --points",
-                grid.inside.len(),
+                "{viewers} viewer positions (grid and reach) × {} points × {distinct} distinct methods × {} eye heights is {judgements} judgements, over the {MAX_JUDGEMENTS} allowed: a coarser --step or fewer --points",
                 request.points,
                 heights.len()
             )));
@@ -279,7 +285,6 @@ pub fn run(request: &GuestsRequest) -> Result<GuestsOutcome, GuestsError> {
     let sweep = if request.sweep {
         let settings = SweepSettings {
             limits: request.limits,
-            threads: request.threads,
             ..SweepSettings::default()
         };
         let rows = sweep::run(cave, head, ipd, pole, &request.methods, &settings)

@@ -51,8 +51,6 @@ pub struct SweepSettings {
     /// Grid cell size, metres.
     pub step: f64,
     pub limits: Thresholds,
-    /// Worker threads (0: all cores).
-    pub threads: usize,
 }
 
 impl Default for SweepSettings {
@@ -62,7 +60,6 @@ impl Default for SweepSettings {
             radii: vec![1.0, 2.0, 4.0, 8.0],
             step: 0.1,
             limits: Thresholds::default(),
-            threads: 0,
         }
     }
 }
