@@ -3,6 +3,7 @@
 //! Node transforms are baked into the vertices at load time, so every vertex is in scene
 //! (world) space; the renderer only applies the per-frame CAVE-from-world transform.
 
+pub mod animation;
 pub mod budget;
 pub mod build;
 pub mod glb_writer;
