@@ -38,6 +38,10 @@ pub enum PointSource {
     Shells(Vec<f64>),
 }
 
+/// Fewer scene points than this make percentiles a guess: `guests` warns (a model at its
+/// authored size, a few centimetres, seen from the head).
+pub const MIN_POINTS_WORTH_A_MAP: usize = 100;
+
 /// Most viewer eye heights one run maps.
 pub const MAX_EYE_HEIGHTS: usize = 8;
 
@@ -238,6 +242,13 @@ pub fn run(request: &GuestsRequest) -> Result<GuestsOutcome, GuestsError> {
         );
         map_seconds += timer.elapsed().as_secs_f64();
         judged_points = judged_points.max(most);
+        if most < MIN_POINTS_WORTH_A_MAP && matches!(request.source, PointSource::Scene(_)) {
+            tracing::warn!(
+                "only {most} of {} rays from the head meet the scene: its percentiles say little; \
+                 place the model in the CAVE ([scene] fit, size_m, offset_m) or judge --shells",
+                request.points
+            );
+        }
         let suffix = if heights.len() > 1 {
             format!("-h{height:.2}")
         } else {

@@ -306,36 +306,28 @@ mod tests {
         assert_eq!(sample(&s, 3.0), [4.0]);
     }
 
+    /// A LINEAR rotation track from `a` at 0 s to `b` at 1 s.
+    fn rotation_track(a: Quat, b: Quat) -> Sampler {
+        let output = [a, b].iter().flat_map(|q| q.to_array()).collect();
+        Sampler::new(
+            vec![0.0, 1.0],
+            output,
+            Interpolation::Linear,
+            Values::Rotation,
+        )
+        .unwrap()
+    }
+
     #[test]
     fn rotations_take_the_shorter_arc_whatever_the_keyframes_sign() {
         let quarter = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
         // The second keyframe stored negated: the same rotation, the opposite sign.
-        let output: Vec<f32> = [Quat::IDENTITY, -quarter]
-            .iter()
-            .flat_map(|q| q.to_array())
-            .collect();
-        let s = Sampler::new(
-            vec![0.0, 1.0],
-            output,
-            Interpolation::Linear,
-            Values::Rotation,
-        )
-        .unwrap();
+        let s = rotation_track(Quat::IDENTITY, -quarter);
         let half = quat(&sample(&s, 0.5));
         let expected = Quat::from_rotation_y(std::f32::consts::FRAC_PI_4);
         assert!(half.angle_between(expected) < 1e-5, "{half:?}");
         // Identity to its own negation: no motion at all, and no NaN.
-        let output: Vec<f32> = [Quat::IDENTITY, -Quat::IDENTITY]
-            .iter()
-            .flat_map(|q| q.to_array())
-            .collect();
-        let s = Sampler::new(
-            vec![0.0, 1.0],
-            output,
-            Interpolation::Linear,
-            Values::Rotation,
-        )
-        .unwrap();
+        let s = rotation_track(Quat::IDENTITY, -Quat::IDENTITY);
         let q = quat(&sample(&s, 0.3));
         assert!(
             q.is_finite() && q.angle_between(Quat::IDENTITY) < 1e-5,
