@@ -66,6 +66,10 @@ pub struct Overrides {
     pub pano_fov_degrees: Option<[f32; 2]>,
     pub pano_yaw_degrees: Option<f32>,
     pub pano_size: Option<[u32; 2]>,
+    /// Pose the scene's animation at this time, seconds (`render --time`).
+    pub animation_time_s: Option<f32>,
+    /// The animation to pose by (`render --animation`).
+    pub animation: Option<String>,
 }
 
 impl Overrides {
@@ -157,6 +161,15 @@ impl Overrides {
         }
         if let Some(size) = self.pano_size {
             pano.size = size;
+        }
+        let animation = &mut settings.animation;
+        if let Some(time) = self.animation_time_s {
+            animation.enabled = true;
+            animation.time_s = time;
+        }
+        if let Some(name) = &self.animation {
+            animation.enabled = true;
+            animation.clip = name.clone();
         }
     }
 }

@@ -432,6 +432,14 @@ struct RenderArgs {
     /// Panorama image size, WxH.
     #[arg(long, value_parser = parse_size)]
     pano_size: Option<[u32; 2]>,
+    /// Render the scene's animation at this time, seconds (wrapped into the animation as the
+    /// config's [animation] repeat says): the same time gives the same images.
+    #[arg(long, value_parser = parse_time)]
+    time: Option<f32>,
+    /// The animation to pose the scene by, by name (default: the config's, else the file's
+    /// first).
+    #[arg(long)]
+    animation: Option<String>,
     /// Show what a guest standing at X,Y,Z (metres, the eyes' midpoint) sees of the walls
     /// rendered for the head, beside what tracked stereo for them would show (seen-*.png,
     /// correct-*.png, compare.png, viewer.md) instead of the wall images.
@@ -619,6 +627,14 @@ fn parse_yaw(s: &str) -> Result<f32, String> {
     let v = parse_finite(s, "degrees")?;
     if v.abs() > 360.0 {
         return Err(format!("yaw {v} is outside -360..360 degrees"));
+    }
+    Ok(v)
+}
+
+fn parse_time(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s, "seconds")?;
+    if !(0.0..=1e6).contains(&v) {
+        return Err(format!("time {v} s is outside 0..1000000 s"));
     }
     Ok(v)
 }
@@ -1012,6 +1028,8 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         pano_fov_degrees: args.fov,
         pano_yaw_degrees: args.pano_yaw,
         pano_size: args.pano_size,
+        animation_time_s: args.time,
+        animation: args.animation,
     };
     let written = match args.viewer {
         Some(position) => {

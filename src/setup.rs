@@ -17,7 +17,7 @@ use crate::sky::{CubeMap, load_sky_within};
 /// are now (the application moves both) and the CAVE placed in the scene by `world_from_cave`
 /// (navigation moves it).
 pub fn frame_params_from<'a>(
-    settings: &ConfigFile,
+    settings: &'a ConfigFile,
     cave: &'a Cave,
     head: Head,
     world_from_cave: Mat4,
@@ -36,6 +36,7 @@ pub fn frame_params_from<'a>(
         tess: settings.tess(),
         sky: settings.sky(),
         wand_ray: None,
+        animation: settings.playback(),
     }
 }
 
@@ -124,7 +125,46 @@ pub fn load_scene(settings: &ConfigFile, path: &Path) -> Result<Scene, SceneErro
         scene.textures.len(),
         scene.lights.len()
     );
+    log_animation(&scene, path);
+    // An animation the config names must be one the file has.
+    if settings.animation.enabled {
+        scene
+            .rig
+            .clip_named(&settings.animation.clip)
+            .map_err(|why| SceneError::Invalid {
+                path: path.to_owned(),
+                what: format!("[animation] clip: {why}"),
+            })?;
+    }
     Ok(scene)
+}
+
+/// Logs what moves in `scene`: its animations (with their lengths), skins and morph targets.
+fn log_animation(scene: &Scene, path: &Path) {
+    let rig = &scene.rig;
+    if rig.is_empty() {
+        return;
+    }
+    let clips: Vec<String> = rig
+        .clips
+        .iter()
+        .map(|c| format!("{} ({:.2} s)", c.name, c.duration()))
+        .collect();
+    let targets: usize = rig.deformers.iter().map(|d| d.targets.len()).sum();
+    let vertices: usize = rig.deformers.iter().map(|d| d.rest.len()).sum();
+    tracing::info!(
+        "scene {}: {} posed vertices in {} primitives, {} skins, {} morph targets; animations: {}",
+        path.display(),
+        vertices,
+        rig.deformers.len(),
+        rig.skins.len(),
+        targets,
+        if clips.is_empty() {
+            "none".to_owned()
+        } else {
+            clips.join(", ")
+        }
+    );
 }
 
 /// Places the CAVE at the scene's camera that `settings.scene.camera` names (if any): the

@@ -9,6 +9,7 @@ use std::mem::{offset_of, size_of};
 use std::path::Path;
 
 use omnicave::render::panorama::ResolveUniforms;
+use omnicave::render::pose_pass::{PoseDeformer, PoseRestVertex, PoseUniforms};
 use omnicave::render::present::PresentUniforms;
 use omnicave::render::scene_gpu::GpuVertex;
 use omnicave::render::shaders::{self, COMMON, FEATURES, SHARED, compose};
@@ -203,6 +204,39 @@ fn cases() -> Vec<(shaders::Feature, &'static str, RustLayout)> {
             ),
         ),
         (
+            shaders::POSE,
+            "PoseUniforms",
+            layout!(PoseUniforms,
+                "vertex_count" => vertex_count,
+                "groups_x" => groups_x,
+                "pad0" => pad0,
+                "pad1" => pad1,
+            ),
+        ),
+        (
+            shaders::POSE,
+            "PoseDeformer",
+            layout!(PoseDeformer,
+                "first_vertex" => first_vertex,
+                "rest_offset" => rest_offset,
+                "first_matrix" => first_matrix,
+                "influences_per_vertex" => influences_per_vertex,
+                "influence_offset" => influence_offset,
+                "target_count" => target_count,
+                "delta_offset" => delta_offset,
+                "first_weight" => first_weight,
+            ),
+        ),
+        (
+            shaders::POSE,
+            "PoseRestVertex",
+            layout!(PoseRestVertex,
+                "position" => position,
+                "normal" => normal,
+                "tangent" => tangent,
+            ),
+        ),
+        (
             shaders::TESSELLATE,
             "TessEntry",
             layout!(GpuTessEntry,
@@ -360,6 +394,17 @@ fn the_vertex_stride_and_light_count_match() {
     assert_eq!(floats(offset_of!(GpuVertex, uv1)), 8);
     assert_eq!(floats(offset_of!(GpuVertex, color)), 10);
     assert_eq!(floats(offset_of!(GpuVertex, tangent)), 14);
+    // The pose pass writes the posed normal and tangent at these offsets.
+    let pose = compose(shaders::POSE);
+    let pose_constant = |name| wgsl_u32_constant(&pose, name).map(|v| v as usize);
+    assert_eq!(
+        pose_constant("NORMAL_FLOAT"),
+        Some(floats(offset_of!(GpuVertex, normal)))
+    );
+    assert_eq!(
+        pose_constant("TANGENT_FLOAT"),
+        Some(floats(offset_of!(GpuVertex, tangent)))
+    );
 }
 
 #[test]

@@ -320,6 +320,7 @@ fn the_gltf_loader_never_panics_or_hangs_on_mutated_files() {
         max_triangles: 1 << 20,
         max_texture_side: 1024,
         max_texture_bytes: 64 << 20,
+        ..SceneBudget::default()
     };
     load_gltf_bytes(&seed, Path::new("seed.glb"), &budget).expect("seed loads");
     let (refused, caught) = within(Duration::from_secs(600), move || {

@@ -121,7 +121,7 @@ fn the_readback_ring_returns_each_frames_time_and_tessellation_counts_without_wa
                 cave.walls.len() * 2,
                 "frame {expected_frame}"
             );
-            let sum: f64 = b.shadows_ms + b.views.iter().flatten().sum::<f64>();
+            let sum: f64 = b.pose_ms + b.shadows_ms + b.views.iter().flatten().sum::<f64>();
             assert!((sum - b.total_ms).abs() < 1e-6, "{sum} vs {}", b.total_ms);
             assert_eq!(Some(b.total_ms), latest.gpu_ms);
             let tess_ms = b.stage_ms(ViewStage::TessCull)

@@ -29,6 +29,7 @@ pub fn frame_state(
         navigation_yaw: state.navigation.yaw,
         cave_size: state.cave_size,
         swap_eyes: state.swap_eyes,
+        animation_clock: state.animation_clock,
         screenshot,
     }
 }
@@ -50,6 +51,7 @@ pub fn apply_frame_state(state: &mut AppState, s: &FrameState) {
         yaw: s.navigation_yaw,
     };
     state.swap_eyes = s.swap_eyes;
+    state.animation_clock = s.animation_clock;
 }
 
 /// Takes the master's settings (a whole config file as TOML), validated as a config file

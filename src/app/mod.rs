@@ -349,6 +349,14 @@ impl App {
         self.info.adapter = format!("{} ({:?})", info.name, info.backend);
         self.info.gpu_timing = gpu_timing;
         self.info.has_sky = renderer.has_sky();
+        self.info.animations = self
+            .scene
+            .rig
+            .clips
+            .iter()
+            .map(|c| (c.name.clone(), c.duration()))
+            .collect();
+        self.info.posed = !self.scene.rig.is_empty();
         self.info.tessellation_supported = gpu.tessellation_supported();
         self.info.cave_mode = config.app.mode == AppMode::Cave;
         tracing::info!(
@@ -672,6 +680,7 @@ impl App {
         if self.held.any() {
             self.state.navigate(self.held.input(), dt);
         }
+        self.state.advance_animation(dt);
         self.tracking.info(now, &mut self.info.tracking);
         // The plot: the time since the last frame began, and the age of the pose this one uses.
         if let Some(d) = since_last {
@@ -719,10 +728,11 @@ impl App {
                 .collect();
             tracing::info!(
                 target: "omnicave::stats",
-                "gpu stages (ms, all views): shadows {:.2} | {} | other {:.2}",
+                "gpu stages (ms, all views): pose {:.2} | shadows {:.2} | {} | other {:.2}",
+                b.pose_ms,
                 b.shadows_ms,
                 stages.join(" | "),
-                b.total_ms - b.shadows_ms - b.views.iter().flatten().sum::<f64>()
+                b.total_ms - b.pose_ms - b.shadows_ms - b.views.iter().flatten().sum::<f64>()
             );
         }
         self.log_cluster();

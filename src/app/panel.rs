@@ -52,6 +52,10 @@ pub struct PanelInfo {
     pub cluster: Option<ClusterInfo>,
     /// The newest floor map of where guests may stand (while the panel shows it).
     pub guest_map: Option<std::sync::Arc<super::guest_map::GuestMap>>,
+    /// The scene's animations: name and length, seconds.
+    pub animations: Vec<(String, f32)>,
+    /// Whether anything in the scene is posed (skins, morph targets, animated nodes).
+    pub posed: bool,
 }
 
 /// The master's view of the cluster, for the panel.
@@ -184,6 +188,8 @@ pub fn panel_ui(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
         ui.separator();
         guests_section(ui, state, info);
         ui.separator();
+        animation_section(ui, state, info);
+        ui.separator();
         tracking_section(ui, state, &info.tracking);
         ui.separator();
         output_section(ui, state, info);
@@ -289,6 +295,9 @@ fn gpu_stages(ui: &mut Ui, state: &AppState, info: &PanelInfo) {
                     ui.label(format!("{name}{eye}"));
                 }
                 ui.end_row();
+                ui.label("pose");
+                ui.label(format!("{:.2}", b.pose_ms));
+                ui.end_row();
                 ui.label("shadows");
                 ui.label(format!("{:.2}", b.shadows_ms));
                 ui.end_row();
@@ -353,6 +362,7 @@ const POLE_MERGE_START: &str = "omnistereo.pole_merge_start_degrees";
 const PANO_H_FOV: &str = "panorama.h_fov_degrees";
 const PANO_V_FOV: &str = "panorama.v_fov_degrees";
 const SHADOW_OFFSET: &str = "shadows.normal_offset_texels";
+const ANIMATION_SPEED: &str = "animation.speed";
 
 /// The model's range of the setting at `path` (the one declared beside it in the config's
 /// settings model), for a slider (a test checks every path used here has one).
@@ -722,6 +732,60 @@ fn output_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     ui.checkbox(&mut state.swap_eyes, "Swap eyes");
 }
 
+/// The animation clock: which animation, play or pause, speed, repeat, and a seek slider.
+fn animation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
+    egui::CollapsingHeader::new("Animation").show(ui, |ui| {
+        if info.animations.is_empty() {
+            ui.label(if info.posed {
+                "The scene has skins or morph targets but no animation: drawn in its rest pose."
+            } else {
+                "The scene has no animation."
+            });
+            return;
+        }
+        let a = &mut state.settings.animation;
+        ui.checkbox(&mut a.enabled, "Pose the scene by its animation");
+        let current = info
+            .animations
+            .iter()
+            .position(|(name, _)| *name == a.clip)
+            .unwrap_or(0);
+        let mut chosen = current;
+        ComboBox::from_label("Animation")
+            .selected_text(info.animations[current].0.as_str())
+            .show_ui(ui, |ui| {
+                for (i, (name, length)) in info.animations.iter().enumerate() {
+                    ui.selectable_value(&mut chosen, i, format!("{name} ({length:.2} s)"));
+                }
+            });
+        if chosen != current || (a.clip.is_empty() && chosen != 0) {
+            a.clip = info.animations[chosen].0.clone();
+            state.animation_clock = 0.0;
+        }
+        ui.horizontal(|ui| {
+            let label = if a.playing { "Pause" } else { "Play" };
+            if ui.button(label).clicked() {
+                a.playing = !a.playing;
+            }
+            ui.checkbox(&mut a.repeat, "Repeat");
+        });
+        ui.add(Slider::new(&mut a.speed, model_range(ANIMATION_SPEED)).text("speed"));
+        let length = info.animations[chosen].1.max(0.0);
+        let shown = if a.repeat && length > 0.0 {
+            state.animation_clock.rem_euclid(f64::from(length))
+        } else {
+            state.animation_clock.clamp(0.0, f64::from(length))
+        };
+        let mut seek = shown as f32;
+        if ui
+            .add(Slider::new(&mut seek, 0.0..=length).text("time (s)"))
+            .changed()
+        {
+            state.animation_clock = f64::from(seek);
+        }
+    });
+}
+
 /// The panorama view: what it shows and how it is drawn.
 fn panorama_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
     let pano = &mut state.settings.panorama;
@@ -810,7 +874,13 @@ mod tests {
 
     #[test]
     fn every_slider_range_comes_from_the_model() {
-        for path in [POLE_MERGE_START, PANO_H_FOV, PANO_V_FOV, SHADOW_OFFSET] {
+        for path in [
+            POLE_MERGE_START,
+            PANO_H_FOV,
+            PANO_V_FOV,
+            SHADOW_OFFSET,
+            ANIMATION_SPEED,
+        ] {
             assert!(crate::config::bounds(path).is_some(), "{path} has no range");
         }
     }

@@ -159,6 +159,9 @@ pub struct AppState {
     pub show_help: bool,
     /// The panel's guest map.
     pub guest_map: GuestMapView,
+    /// The animation clock, seconds from the animation's start (wrapped or held per frame
+    /// by the pose, as `[animation] repeat` says); in a cluster, the master's.
+    pub animation_clock: f64,
     pub show_panel: bool,
     pub quit_requested: bool,
     pub save_requested: bool,
@@ -216,6 +219,7 @@ impl AppState {
             swap_eyes: false,
             show_help: false,
             guest_map: GuestMapView::default(),
+            animation_clock: f64::from(config.settings.animation.time_s),
             show_panel: true,
             quit_requested: false,
             save_requested: false,
@@ -471,7 +475,19 @@ impl AppState {
         if self.settings.tracking.enabled && self.settings.tracking.show_wand_ray {
             frame.wand_ray = self.wand_ray();
         }
+        frame.animation.seconds = self.animation_clock;
         frame
+    }
+
+    /// Runs the animation clock for `dt` real seconds at `[animation] speed`, if it plays.
+    pub fn advance_animation(&mut self, dt: f32) {
+        let a = &self.settings.animation;
+        if a.enabled && a.playing && dt.is_finite() && dt > 0.0 {
+            self.animation_clock += f64::from(dt) * f64::from(a.speed);
+            if !self.animation_clock.is_finite() {
+                self.animation_clock = 0.0;
+            }
+        }
     }
 
     /// Settings that change pipelines or targets.

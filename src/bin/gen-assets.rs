@@ -30,10 +30,13 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     let Args { out, check } = <Args as clap::Parser>::parse();
     type Generator = fn() -> anyhow::Result<Vec<u8>>;
-    let generators: [(&str, Generator); 4] = [
+    let generators: [(&str, Generator); 5] = [
         ("living-room.glb", living_room),
         ("city.glb", city),
         ("atrium.glb", atrium),
+        ("animated.glb", || {
+            Ok(omnicave::scene::animated_sample::animated_sample_glb())
+        }),
         ("sky.png", || png(&sky())),
     ];
     // A bar with an ETA on a terminal (the city and the sky take seconds each).

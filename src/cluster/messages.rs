@@ -18,7 +18,7 @@ pub const MAX_MESSAGE_BYTES: usize = 1 << 20;
 pub const MAX_TEXT_BYTES: usize = 4096;
 
 /// One frame's state, from the master to every node: all that, with the settings of
-/// `settings_generation`, decides what every wall shows. Fixed size (116 bytes on the wire).
+/// `settings_generation`, decides what every wall shows. Fixed size (124 bytes on the wire).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrameState {
     /// The master's frame number: every node renders and presents this frame, and
@@ -39,6 +39,8 @@ pub struct FrameState {
     /// The walls' bounding-box size as set from the panel (metres).
     pub cave_size: Vec3,
     pub swap_eyes: bool,
+    /// The animation clock, seconds: every wall shows the scene's animation at this instant.
+    pub animation_clock: f64,
     /// Non-zero: every process writes its walls' eye images to the screenshot folder of
     /// this id this frame.
     pub screenshot: u64,
@@ -186,6 +188,7 @@ impl Message {
                 put_f32(out, s.navigation_yaw);
                 put_vec3(out, s.cave_size);
                 out.push(u8::from(s.swap_eyes));
+                put_u64(out, s.animation_clock.to_bits());
                 put_u64(out, s.screenshot);
             }
             Message::Rendered { frame, figures } => {
@@ -270,6 +273,7 @@ impl Message {
                     navigation_yaw: r.f32()?,
                     cave_size: r.vec3()?,
                     swap_eyes: r.flag()?,
+                    animation_clock: r.f64()?,
                     screenshot: r.u64()?,
                 })
             }
@@ -389,6 +393,18 @@ impl<'a> Reader<'a> {
             )))
         }
     }
+    /// A finite double (the animation clock).
+    fn f64(&mut self) -> Result<f64, ClusterError> {
+        let v = f64::from_bits(self.u64()?);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(ClusterError::Malformed(format!(
+                "non-finite number {v} at byte {}",
+                self.at - 8
+            )))
+        }
+    }
     fn vec3(&mut self) -> Result<Vec3, ClusterError> {
         Ok(Vec3::new(self.f32()?, self.f32()?, self.f32()?))
     }
@@ -453,6 +469,7 @@ mod tests {
                 navigation_yaw: 1.25,
                 cave_size: Vec3::new(3.3, 2.9, 3.3),
                 swap_eyes: true,
+                animation_clock: 12.375,
                 screenshot: 99,
             }),
             Message::Frame(FrameState::default()),
@@ -490,7 +507,7 @@ mod tests {
         let mut buf = Vec::new();
         Message::Frame(FrameState::default()).encode(&mut buf);
         // The budget: "the state is a few hundred bytes".
-        assert_eq!(buf.len(), 116);
+        assert_eq!(buf.len(), 124);
     }
 
     #[test]

@@ -65,6 +65,17 @@ impl ConfigFile {
         }
     }
 
+    /// The animation clock's playback as `[animation]` sets it (its time: `time_s`).
+    pub fn playback(&self) -> crate::scene::rig::Playback<'_> {
+        let a = &self.animation;
+        crate::scene::rig::Playback {
+            enabled: a.enabled,
+            clip: &a.clip,
+            seconds: f64::from(a.time_s),
+            repeat: a.repeat,
+        }
+    }
+
     /// The panorama view (`[panorama]`, angles in radians).
     pub fn pano(&self) -> PanoSettings {
         let p = &self.panorama;
@@ -118,6 +129,10 @@ impl ConfigFile {
             max_triangles: u64::from(b.max_triangles),
             max_texture_side: b.max_texture_side,
             max_texture_bytes: u64::from(b.max_texture_memory_mb) << 20,
+            max_joints: b.max_joints,
+            max_morph_targets: b.max_morph_targets,
+            max_animation_channels: b.max_animation_channels,
+            max_keyframes: b.max_keyframes,
         }
     }
 

@@ -49,6 +49,7 @@ pub struct ConfigFile {
     pub tracking: TrackingSection,
     pub gamepad: GamepadSection,
     pub panorama: PanoramaSection,
+    pub animation: AnimationSection,
     pub budgets: BudgetsSection,
     /// Cluster mode: the walls driven by several processes or PCs in lockstep (`omnicave run
     /// --cluster` under `mpirun`, in a build with the `cluster` feature).
@@ -552,6 +553,18 @@ pub struct BudgetsSection {
     /// All of a scene's textures with their mip levels, MiB.
     #[schemars(range(min = 1, max = 1048576))]
     pub max_texture_memory_mb: u32,
+    /// Joints of one skin (each a matrix the pose pass reads per frame).
+    #[schemars(range(min = 1, max = 65536))]
+    pub max_joints: u32,
+    /// Morph targets of one primitive (36 bytes per vertex and target on the GPU).
+    #[schemars(range(min = 0, max = 4096))]
+    pub max_morph_targets: u32,
+    /// Animation channels of a scene file, every animation together.
+    #[schemars(range(min = 0, max = 16777216))]
+    pub max_animation_channels: u32,
+    /// Keyframes of a scene file, every channel together.
+    #[schemars(range(min = 0, max = 268435456))]
+    pub max_keyframes: u32,
     /// Walls in one config (one window and render target each).
     #[schemars(range(min = 1, max = 1024))]
     pub max_walls: u32,
@@ -571,6 +584,10 @@ impl Default for BudgetsSection {
             max_triangles: narrow(scene.max_triangles),
             max_texture_side: scene.max_texture_side,
             max_texture_memory_mb: narrow(scene.max_texture_bytes >> 20),
+            max_joints: scene.max_joints,
+            max_morph_targets: scene.max_morph_targets,
+            max_animation_channels: scene.max_animation_channels,
+            max_keyframes: scene.max_keyframes,
             max_walls: DEFAULT_MAX_WALLS,
             // Six 2560×1600 walls with MSAA 4 take 1.7 GiB; three 8192² walls with MSAA 4
             // would take 13.5 GiB, more than most lab GPUs hold.
@@ -915,6 +932,42 @@ impl WallSection {
         match &self.output {
             Some(WallOutput::PerEye(o)) => o,
             _ => &[],
+        }
+    }
+}
+
+/// The scene's animation clock: which of the file's animations plays, and how. Skins and
+/// morph targets are posed on the GPU before tessellation and the warp, so every wall and
+/// eye shows the same instant, exactly; in a cluster the master's clock travels with each
+/// frame.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct AnimationSection {
+    /// Pose the scene by its animation (off: every node at its rest transform).
+    pub enabled: bool,
+    /// The animation to play, by name ("": the file's first).
+    pub clip: String,
+    /// The clock runs (off: it holds `time_s`).
+    pub playing: bool,
+    /// Clock seconds per real second (negative plays backwards).
+    #[schemars(range(min = -10.0, max = 10.0))]
+    pub speed: f32,
+    /// Start over at the end (off: hold the last pose).
+    pub repeat: bool,
+    /// The clock's time at start, seconds into the animation: `render` draws this instant.
+    #[schemars(range(min = 0.0, max = 1000000.0))]
+    pub time_s: f32,
+}
+
+impl Default for AnimationSection {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            clip: String::new(),
+            playing: true,
+            speed: 1.0,
+            repeat: true,
+            time_s: 0.0,
         }
     }
 }

@@ -3,8 +3,8 @@
 //! read, and the per-stage breakdown computed from them.
 //!
 //! The layout is fixed by the number of views, so a read-back needs no record of what was
-//! written: timestamp 0 starts the frame, 1 ends the shadow maps (and the frame's uploads),
-//! then each view writes [`STAGES_PER_VIEW`] in [`ViewStage`] order. A stage a view skips (no
+//! written: timestamp 0 starts the frame, 1 ends the pose pass (skins and morph targets),
+//! 2 the shadow maps (and the frame's uploads), then each view writes [`STAGES_PER_VIEW`] in [`ViewStage`] order. A stage a view skips (no
 //! tessellation, no sky) is written right after the one before it and takes no time.
 
 /// What a stage of one view is.
@@ -61,22 +61,29 @@ impl ViewStage {
 
 /// Timestamps a walls frame of `views` views writes.
 pub fn timestamp_count(views: usize) -> u32 {
-    (2 + STAGES_PER_VIEW * views) as u32
+    (FIRST_VIEW_STAMP + STAGES_PER_VIEW * views) as u32
 }
+
+/// Timestamps before the first view's.
+const FIRST_VIEW_STAMP: usize = 3;
 
 /// Index of the timestamp that ends `stage` of view `view`.
 pub fn stage_end(view: usize, stage: ViewStage) -> u32 {
-    (2 + STAGES_PER_VIEW * view + stage as usize) as u32
+    (FIRST_VIEW_STAMP + STAGES_PER_VIEW * view + stage as usize) as u32
 }
 
+/// Index of the timestamp that ends the pose pass.
+pub const POSE_END: u32 = 1;
 /// Index of the timestamp that ends the shadow maps.
-pub const SHADOWS_END: u32 = 1;
+pub const SHADOWS_END: u32 = 2;
 
 /// Where one frame's GPU time went, ms.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameBreakdown {
     /// From the first timestamp to the last.
     pub total_ms: f64,
+    /// The pose pass: skins and morph targets (0 for a static scene or an unchanged pose).
+    pub pose_ms: f64,
     /// Shadow maps (and uploads before the first view).
     pub shadows_ms: f64,
     /// Each view's stages, in [`ViewStage::ALL`] order.
@@ -105,6 +112,7 @@ impl FrameBreakdown {
         self.views.clear();
         self.total_ms = 0.0;
         self.shadows_ms = 0.0;
+        self.pose_ms = 0.0;
         self.inside_passes = inside_passes;
         let count = timestamp_count(views) as usize;
         let tick = |i: usize| {
@@ -129,10 +137,12 @@ impl FrameBreakdown {
                 return false;
             }
             let d = ms(previous, t);
-            if i == SHADOWS_END as usize {
+            if i == POSE_END as usize {
+                self.pose_ms = d;
+            } else if i == SHADOWS_END as usize {
                 self.shadows_ms = d;
             } else {
-                let k = i - 2;
+                let k = i - FIRST_VIEW_STAMP;
                 let (view, stage) = (k / STAGES_PER_VIEW, k % STAGES_PER_VIEW);
                 if stage == 0 {
                     self.views.push([0.0; STAGES_PER_VIEW]);
@@ -241,25 +251,26 @@ mod tests {
 
     #[test]
     fn breakdown_attributes_each_interval_to_its_stage() {
-        // One view: start 0, shadows end 1 ms, then cull 2, split 4, sort 5, scene 9, sky 10,
-        // resolve 12 (1 ns per tick).
-        let ticks: Vec<u64> = [0, 1, 2, 4, 5, 9, 10, 12]
+        // One view: start 0, pose end 0.5 ms, shadows end 1 ms, then cull 2, split 4, sort 5,
+        // scene 9, sky 10, resolve 12 (1 ns per tick).
+        let ticks: Vec<u64> = [0.0, 0.5, 1.0, 2.0, 4.0, 5.0, 9.0, 10.0, 12.0]
             .iter()
-            .map(|ms| ms * 1_000_000)
+            .map(|ms| (ms * 1e6) as u64)
             .collect();
         let mut b = FrameBreakdown::default();
         assert!(b.read(&bytes(&ticks), 1, 1.0, true));
         assert_eq!(b.total_ms, 12.0);
-        assert_eq!(b.shadows_ms, 1.0);
+        assert_eq!(b.pose_ms, 0.5);
+        assert_eq!(b.shadows_ms, 0.5);
         assert_eq!(b.views, vec![[1.0, 2.0, 1.0, 4.0, 1.0, 2.0]]);
         assert_eq!(b.stage_ms(ViewStage::Scene), 4.0);
         // Out of order or too short: refused, nothing half-filled.
         let mut bad = ticks.clone();
-        bad[4] = 0;
+        bad[5] = 0;
         assert!(!b.read(&bytes(&bad), 1, 1.0, true));
         assert!(b.views.is_empty());
-        assert!(!b.read(&bytes(&ticks[..5]), 1, 1.0, true));
-        assert_eq!(timestamp_count(6), 38);
-        assert_eq!(stage_end(1, ViewStage::TessCull), 8);
+        assert!(!b.read(&bytes(&ticks[..6]), 1, 1.0, true));
+        assert_eq!(timestamp_count(6), 39);
+        assert_eq!(stage_end(1, ViewStage::TessCull), 9);
     }
 }

@@ -10,6 +10,7 @@ pub mod overlay;
 pub mod panorama;
 mod panorama_frame;
 pub mod pbr;
+pub mod pose_pass;
 pub mod present;
 pub mod readback;
 pub mod resolve;
@@ -88,6 +89,8 @@ pub struct FrameParams<'a> {
     pub sky: SkySettings,
     /// The tracked wand's ray, drawn into every view (CAVE space).
     pub wand_ray: Option<crate::cave::wand::WandRay>,
+    /// The animation and the clock's time the scene is posed at.
+    pub animation: crate::scene::rig::Playback<'a>,
 }
 
 /// Milliseconds between two resolved timestamps (`None` if the counter wrapped or a driver
@@ -126,6 +129,9 @@ pub struct Renderer {
     settings: RenderSettings,
     scene_pass: ScenePass,
     scene: Option<SceneGpu>,
+    /// The pose pass's pipeline (built once) and the scene's animation, if anything moves.
+    pose_pipeline: pose_pass::PosePipeline,
+    scene_pose: Option<pose_pass::ScenePose>,
     /// The largest buffer a scene is uploaded in (`None`: the device's limit).
     scene_buffer_limit: Option<u64>,
     sky_pass: SkyPass,
@@ -252,6 +258,8 @@ impl Renderer {
             wand_vertices,
             scene_pass,
             scene: None,
+            pose_pipeline: pose_pass::PosePipeline::new(&gpu.device),
+            scene_pose: None,
             scene_buffer_limit: None,
             sky_pass,
             resolve_pass: resolve::ResolvePass::new(&gpu.device, settings.msaa),
@@ -310,6 +318,13 @@ impl Renderer {
             scene,
             self.scene_buffer_limit,
         )?;
+        self.scene_pose = pose_pass::ScenePose::new(
+            &self.device,
+            &self.queue,
+            &self.pose_pipeline,
+            scene,
+            &uploaded,
+        );
         self.scene = Some(uploaded);
         self.scene_pass.shadows.invalidate();
         self.walls.drop_tessellation();
@@ -384,6 +399,7 @@ impl Renderer {
             + self.resolve_pass.pipelines_built()
             + self.present.pipelines_built()
             + self.pano.pipelines_built
+            + pose_pass::PosePipeline::PIPELINES
             + if self.tessellator.is_some() {
                 Tessellator::PIPELINES
             } else {
@@ -581,6 +597,54 @@ impl Renderer {
         }
     }
 
+    /// Records the pose pass when the frame's animation time moved the scene's pose (the
+    /// shadow maps are then drawn again), and the timestamp ending it.
+    fn pose_scene(&mut self, encoder: &mut wgpu::CommandEncoder, frame: &FrameParams<'_>) {
+        if let (Some(pose), Some(scene)) = (&mut self.scene_pose, &mut self.scene)
+            && pose.update(
+                &self.queue,
+                encoder,
+                &self.pose_pipeline,
+                &frame.animation,
+                scene,
+            )
+        {
+            self.scene_pass.shadows.invalidate();
+        }
+        if let Some(timer) = &self.timer {
+            encoder.write_timestamp(&timer.queries, frame_timer::POSE_END);
+        }
+    }
+
+    /// The scene's vertices as the GPU holds them now (posed by the last frame), or `None`
+    /// for a split scene (blocking read; for tests and the CLI).
+    pub fn read_scene_vertices(&self) -> Result<Option<Vec<GpuVertex>>, RenderError> {
+        let Some(chunk) = self.scene.as_ref().and_then(|s| s.whole().ok()) else {
+            return Ok(None);
+        };
+        let bytes = targets::read_buffer(
+            &self.device,
+            &self.queue,
+            &chunk.vertex_buffer,
+            chunk.vertex_buffer.size(),
+            "Renderer::read_scene_vertices",
+        )?;
+        let size = std::mem::size_of::<GpuVertex>();
+        Ok(Some(
+            bytes
+                .chunks_exact(size)
+                .map(bytemuck::pod_read_unaligned)
+                .collect(),
+        ))
+    }
+
+    /// The pose the scene's vertices hold (`None`: a static scene, or not posed yet).
+    pub fn scene_pose(&self) -> Option<crate::scene::rig::PoseAt> {
+        self.scene_pose
+            .as_ref()
+            .and_then(pose_pass::ScenePose::current)
+    }
+
     /// Renders every view of the frame and submits the work (no CPU read-back).
     pub fn render(&mut self, frame: &FrameParams<'_>) -> Result<FrameStats, RenderError> {
         let result = self.render_walls(frame);
@@ -592,6 +656,9 @@ impl Renderer {
     fn forget_unsubmitted<T>(&mut self, result: Result<T, RenderError>) -> Result<T, RenderError> {
         if result.is_err() {
             self.scene_pass.shadows.invalidate();
+            if let Some(pose) = &mut self.scene_pose {
+                pose.forget();
+            }
         }
         result
     }

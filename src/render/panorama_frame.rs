@@ -26,6 +26,17 @@ impl Renderer {
         if let Some(timer) = &self.timer {
             encoder.write_timestamp(&timer.queries, 0);
         }
+        if let (Some(pose), Some(scene)) = (&mut self.scene_pose, &mut self.scene)
+            && pose.update(
+                &self.queue,
+                &mut encoder,
+                &self.pose_pipeline,
+                &frame.animation,
+                scene,
+            )
+        {
+            self.scene_pass.shadows.invalidate();
+        }
         let face_size = pano
             .cube_size
             .clamp(4, self.device.limits().max_texture_dimension_2d);

@@ -539,7 +539,9 @@ fn upload_chunk(
             queue,
             &format!("{label}::vertex_buffer"),
             bytemuck::cast_slice(&gpu),
-            wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            // Storage: the tessellator reads it, the pose pass writes deformed vertices;
+            // copy source: tests read the posed vertices back.
+            wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         ),
         index_buffer: buffer_with(
             device,
@@ -554,7 +556,7 @@ fn upload_chunk(
 /// A buffer holding `contents`, created unmapped and filled through the queue: should the
 /// device be out of memory, the failure lands in the caller's error scope (wgpu's
 /// `create_buffer_init` maps at creation and panics when the buffer could not be made).
-fn buffer_with(
+pub(super) fn buffer_with(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     label: &str,

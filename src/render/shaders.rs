@@ -91,9 +91,17 @@ pub const OVERLAY: Feature = Feature {
     shared: &[FULLSCREEN],
 };
 
+/// The pose pass: skins and morph targets in compute (paired with
+/// `src/render/pose_pass.rs`).
+pub const POSE: Feature = Feature {
+    stem: "pose",
+    source: include_str!("../../shaders/pose.wgsl"),
+    shared: &[COMMON],
+};
+
 /// Every feature shader, for validation.
 pub const FEATURES: &[Feature] = &[
-    SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA, RESOLVE, OVERLAY,
+    SCENE, SHADOW, TESSELLATE, SKY, PRESENT, PANORAMA, RESOLVE, OVERLAY, POSE,
 ];
 
 /// Full source of a feature shader: its shared sources followed by the feature's own code.

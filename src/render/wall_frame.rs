@@ -47,6 +47,7 @@ impl Renderer {
         self.sync_walls(frame.cave);
         let views = self.frame_views(frame);
         let mut encoder = self.begin_frame(views.len());
+        self.pose_scene(&mut encoder, frame);
         let frame_uniforms = self.prepare_frame(
             &mut encoder,
             frame,

@@ -17,6 +17,14 @@ pub struct SceneBudget {
     pub max_texture_side: u32,
     /// All textures together, with their mip levels (RGBA8, 4/3 of the base level).
     pub max_texture_bytes: u64,
+    /// Joints of one skin.
+    pub max_joints: u32,
+    /// Morph targets of one primitive.
+    pub max_morph_targets: u32,
+    /// Animation channels of the file, every animation together.
+    pub max_animation_channels: u32,
+    /// Keyframes of the file, every channel together.
+    pub max_keyframes: u32,
 }
 
 impl Default for SceneBudget {
@@ -31,6 +39,10 @@ impl Default for SceneBudget {
             max_triangles: 32 << 20,
             max_texture_side: 8192,
             max_texture_bytes: 1536 << 20,
+            max_joints: super::rig::DEFAULT_MAX_JOINTS,
+            max_morph_targets: super::rig::DEFAULT_MAX_MORPH_TARGETS,
+            max_animation_channels: super::rig::DEFAULT_MAX_CHANNELS,
+            max_keyframes: super::rig::DEFAULT_MAX_KEYFRAMES,
         }
     }
 }

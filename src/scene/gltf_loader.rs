@@ -11,6 +11,8 @@ use gltf::mesh::Mode;
 
 use super::budget::{SceneBudget, SceneTotals, fitted_size, texture_bytes};
 use super::gltf_data::{BinaryData, load_buffers};
+use super::gltf_rig::{RigBuilder, RigContext};
+use super::rig::RestVertex;
 use super::tangents::generate_tangents;
 use super::{
     AlphaMode, Camera, ColorSpace, Light, LightKind, Material, Scene, TEXTURE_SLOT_NAMES,
@@ -220,8 +222,17 @@ fn load_unguarded(bytes: &[u8], path: &Path, budget: &SceneBudget) -> Result<Sce
     })
     .map_err(&invalid)?;
     let data = BinaryData::new(&document, buffers);
-    warn_ignored_features(&document, path);
+    let rig = RigBuilder::new(
+        &document,
+        &RigContext {
+            data: &data,
+            budget,
+            path,
+        },
+    )
+    .map_err(&invalid)?;
     let mut loader = Loader {
+        rig,
         path,
         base,
         data: &data,
@@ -252,25 +263,10 @@ fn load_unguarded(bytes: &[u8], path: &Path, budget: &SceneBudget) -> Result<Sce
     if loader.scene.indices.is_empty() {
         return Err(loader.invalid("the scene contains no triangles".into()));
     }
-    Ok(loader.scene)
-}
-
-/// One warning per feature of the file that is not drawn.
-fn warn_ignored_features(document: &gltf::Document, path: &Path) {
-    let warn = |what: &str| tracing::warn!("{}: {what}", path.display());
-    if document.animations().next().is_some() {
-        warn("animations are ignored: drawn in the rest pose");
-    }
-    if document.skins().next().is_some() {
-        warn("skins are ignored: skinned meshes are drawn in their bind pose");
-    }
-    if document
-        .meshes()
-        .flat_map(|m| m.primitives())
-        .any(|p| p.morph_targets().next().is_some())
-    {
-        warn("morph targets are ignored: meshes are drawn without them");
-    }
+    let rig = std::mem::take(&mut loader.rig);
+    let mut scene = loader.scene;
+    scene.rig = rig.finish(&mut scene.vertices);
+    Ok(scene)
 }
 
 /// Names a missing external buffer or image file (the gltf crate reports only "not found").
@@ -340,6 +336,8 @@ struct TextureUse<'a> {
 }
 
 struct Loader<'a> {
+    /// Animations, skins and morph targets, and the primitives they pose.
+    rig: RigBuilder,
     path: &'a Path,
     base: &'a Path,
     document: &'a gltf::Document,
@@ -748,7 +746,7 @@ impl Loader<'_> {
                     mesh.index(),
                     mesh.name().unwrap_or("unnamed")
                 );
-                self.add_primitive(&primitive, world, &label)?;
+                self.add_primitive(node, &primitive, world, &label)?;
             }
         }
         if let Some(light) = node.light() {
@@ -948,6 +946,7 @@ impl Loader<'_> {
 
     fn add_primitive(
         &mut self,
+        node: &gltf::Node<'_>,
         primitive: &gltf::Primitive<'_>,
         world: Mat4,
         label: &str,
@@ -962,11 +961,19 @@ impl Loader<'_> {
             ));
             return Ok(());
         }
-        let (positions, normals, tangents, uv0, uv1, colors, raw_indices) =
-            match primitive.extension_value("KHR_draco_mesh_compression") {
-                Some(ext) => self.draco_attributes(primitive, ext, label)?,
-                None => self.accessor_attributes(primitive, label)?,
-            };
+        let draco = primitive.extension_value("KHR_draco_mesh_compression");
+        let (positions, normals, tangents, uv0, uv1, colors, raw_indices) = match draco {
+            Some(ext) => self.draco_attributes(primitive, ext, label)?,
+            None => self.accessor_attributes(primitive, label)?,
+        };
+        let deformed = self.rig.deforms(node, primitive);
+        if deformed && draco.is_some() {
+            self.warn(&format!(
+                "{label} is Draco-compressed: its skin and morph targets are not read, it is \
+                 drawn static in its rest pose"
+            ));
+        }
+        let deformed = deformed && draco.is_none();
         let n = positions.len();
         self.check_decoded_counts(primitive, label, n, &raw_indices)?;
         let mut indices = triangle_list(mode, &raw_indices);
@@ -997,7 +1004,39 @@ impl Loader<'_> {
             (None, None) => vec![[0.0; 4]; n],
         };
         let material = self.material_without(material, dropped);
-        let vertices = transformed_vertices(world, &attributes, &tangents, &mut indices);
+        if !deformed {
+            let vertices = transformed_vertices(world, &attributes, &tangents, &mut indices);
+            self.scene.add_mesh(&vertices, &indices, material);
+            return Ok(());
+        }
+        // Posed per frame: kept in mesh space (the rig poses it at rest once all is read).
+        let vertices = transformed_vertices(Mat4::IDENTITY, &attributes, &tangents, &mut indices);
+        if self.rig.mirrors(node) {
+            for tri in indices.chunks_exact_mut(3) {
+                tri.swap(1, 2);
+            }
+        }
+        let rest = vertices
+            .iter()
+            .map(|v| RestVertex {
+                position: v.position,
+                normal: v.normal,
+                tangent: v.tangent,
+            })
+            .collect();
+        let first_vertex = self.scene.vertices.len() as u32;
+        let path = self.path;
+        let cx = RigContext {
+            data: self.data,
+            budget: &self.budget,
+            path,
+        };
+        self.rig
+            .add(&cx, node, primitive, rest, first_vertex, label)
+            .map_err(|what| SceneError::Invalid {
+                path: path.to_owned(),
+                what,
+            })?;
         self.scene.add_mesh(&vertices, &indices, material);
         Ok(())
     }

@@ -1,8 +1,11 @@
 //! Scenes as plain CPU data: baked triangle meshes, materials and textures (no GPU).
 //!
 //! Node transforms are baked into the vertices at load time, so every vertex is in scene
-//! (world) space; the renderer only applies the per-frame CAVE-from-world transform.
+//! (world) space; the renderer only applies the per-frame CAVE-from-world transform. What
+//! animations, skins and morph targets move is kept in mesh space too ([`rig`]) and posed
+//! per frame over its range of the vertices.
 
+pub mod animated_sample;
 pub mod animation;
 pub mod budget;
 pub mod build;
@@ -10,8 +13,10 @@ pub mod glb_writer;
 mod gltf_data;
 mod gltf_draco;
 mod gltf_loader;
+mod gltf_rig;
 mod lighting;
 pub mod pick;
+pub mod rig;
 pub mod shadows;
 mod tangents;
 pub mod wand_mesh;
@@ -345,6 +350,9 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Cameras from the file, in node order.
     pub cameras: Vec<Camera>,
+    /// What moves: animations, skins, morph targets and the primitives they pose (empty for
+    /// a static scene; its deformed vertices hold the rest pose).
+    pub rig: rig::Rig,
 }
 
 impl Scene {
@@ -429,6 +437,7 @@ impl Scene {
                 *range *= linear.determinant().abs().cbrt();
             }
         }
+        self.rig.placement = transform * self.rig.placement;
         for camera in &mut self.cameras {
             camera.position = transform.transform_point3(camera.position);
             camera.forward = (linear * camera.forward)

@@ -13,6 +13,7 @@
 pub mod clusters;
 pub mod criteria;
 pub mod error;
+pub mod posed_clusters;
 
 pub use criteria::{Criterion, TessSettings, parse_criterion};
 

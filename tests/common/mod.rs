@@ -157,6 +157,7 @@ pub fn test_frame<'a>(
         tess,
         sky: omnicave::sky::SkySettings::default(),
         wand_ray: None,
+        animation: omnicave::scene::rig::Playback::REST,
     }
 }
 
