@@ -1,6 +1,7 @@
 //! Cluster mode, for real: `mpirun -np 3` of the omnicave binary under Xvfb, one
-//! wall window per process. Every recorded frame of the three processes is compared per
-//! pixel with the single-process renderer given the same state; the processes present the
+//! wall window per process. Every recorded frame of the three processes (an animated scene
+//! playing) is compared per pixel with the single-process renderer given the same state and
+//! animation instant; the processes present the
 //! same frames on the same eye; a stalled or killed node is reported and handled as
 //! configured; a node that loaded something else is refused by name.
 //!
@@ -399,6 +400,20 @@ fn three_ranks_show_per_pixel_what_one_process_shows_frame_after_frame() {
         "cluster.toml",
         "[cluster]\ntimeout_ms = 20000\n\n[tracking.filter]\nenabled = false",
     );
+    // The animated sample, playing: every wall must show the master's instant.
+    let text = std::fs::read_to_string(&config_path).unwrap();
+    assert!(
+        text.contains("living-room.glb"),
+        "the desktop config's scene"
+    );
+    // The CAVE turned 55° in the scene: the sample's surface and one more of its animated
+    // pieces are seen through a node's side wall, not only the master's front wall.
+    let text = text.replace("living-room.glb", "animated.glb").replace(
+        "translation = [0.0, 0.0, 0.0]\nyaw_degrees = 0.0",
+        "translation = [0.0, 0.0, 0.0]\nyaw_degrees = 55.0",
+    );
+    assert!(text.contains("yaw_degrees = 55.0"), "the CAVE's placement");
+    std::fs::write(&config_path, text).unwrap();
     let record = out.join("record");
     let _x_lock = X_SERVER.lock().unwrap_or_else(|e| e.into_inner());
     let x = Xvfb::start(SCREEN);
@@ -501,6 +516,7 @@ fn three_ranks_show_per_pixel_what_one_process_shows_frame_after_frame() {
     frames.sort();
     assert!(frames.len() >= 6, "{} frames recorded", frames.len());
     let (mut heads, mut modes, mut compared) = (BTreeSet::new(), BTreeSet::new(), 0);
+    let mut instants = BTreeSet::new();
     for dir in &frames {
         // A frame the master recorded as the cluster stopped may lack a node's walls.
         if !dir.join("frame.bin").exists() || !dir.join("right-right.png").exists() {
@@ -543,6 +559,7 @@ fn three_ranks_show_per_pixel_what_one_process_shows_frame_after_frame() {
             }
         }
         heads.insert(format!("{:?}", fs.head_position));
+        instants.insert(fs.animation_clock.to_bits());
         modes.insert(format!(
             "{} {}",
             state.settings.render.mode.name(),
@@ -558,6 +575,11 @@ fn three_ranks_show_per_pixel_what_one_process_shows_frame_after_frame() {
     assert!(
         modes.len() >= 3,
         "the settings did not change between recorded frames: {modes:?}"
+    );
+    assert!(
+        instants.len() >= 4,
+        "the animation clock did not move between recorded frames: {} instants",
+        instants.len()
     );
 }
 
