@@ -39,8 +39,8 @@ pub struct Row {
     /// Share of eye-image pixels (%) that differ visibly from the reference render
     /// (`None`: the sky alone).
     pub image_diff_pct: Option<f64>,
-    /// Median over the frames of each stage's GPU time, ms, summed over the views: shadow
-    /// maps, then [`ViewStage::ALL`] (`None` without timestamps).
+    /// Median over the frames of each stage's GPU time, ms, summed over the views: the pose
+    /// pass, the shadow maps, then [`ViewStage::ALL`] (`None` without timestamps).
     pub stages_ms: Option<[f64; STAGE_COLUMNS]>,
     /// Compute dispatches per frame.
     pub dispatches: usize,
@@ -48,17 +48,25 @@ pub struct Row {
     pub refined_input: usize,
 }
 
-/// Stage columns: the shadow maps, then each view stage.
-pub const STAGE_COLUMNS: usize = 1 + STAGES_PER_VIEW;
+/// Stage columns: the pose pass, the shadow maps, then each view stage.
+pub const STAGE_COLUMNS: usize = 2 + STAGES_PER_VIEW;
 
 /// Names of the stage columns.
 pub fn stage_names() -> [&'static str; STAGE_COLUMNS] {
     let mut out = ["shadows"; STAGE_COLUMNS];
-    for (o, s) in out[1..].iter_mut().zip(ViewStage::ALL) {
+    out[0] = "pose";
+    for (o, s) in out[2..].iter_mut().zip(ViewStage::ALL) {
         *o = s.name();
     }
     out
 }
+
+/// Seconds the animation clock advances per rendered frame of an animated scene (every
+/// frame a new instant, so that every frame pays the pose pass and redraws the shadows, as
+/// in a running application at 60 Hz).
+const ANIMATION_STEP_S: f64 = 1.0 / 60.0;
+/// The instant the accuracy and the picture of an animated scene are taken at, seconds.
+const ANIMATION_CHECK_S: f64 = 1.0;
 
 impl Row {
     pub fn median(&self) -> f64 {
@@ -119,6 +127,10 @@ struct CaseRun<'a> {
     case: &'a Case,
     methods: &'a [Method],
     timer: Timer,
+    /// The animation clock (seconds) the next frame is rendered at.
+    instant: std::cell::Cell<f64>,
+    /// The scene posed at [`ANIMATION_CHECK_S`], for the accuracy (`None`: nothing moves).
+    posed: Option<Scene>,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -133,6 +145,19 @@ pub(super) fn measure(
     frames: usize,
 ) -> Result<Vec<Row>, BenchError> {
     let (mut renderer, timer) = bench_renderer(gpu, config, scene, sky)?;
+    let posed = scene.filter(|s| !s.rig.is_empty()).map(|s| {
+        let mut posed = s.clone();
+        let mut pose = crate::scene::rig::Pose::default();
+        let at = s
+            .rig
+            .pose_at(&crate::scene::rig::Playback {
+                seconds: ANIMATION_CHECK_S,
+                ..config.settings.playback()
+            })
+            .unwrap_or(crate::scene::rig::PoseAt::REST);
+        s.rig.deform_all(&mut pose, at, &mut posed.vertices);
+        posed
+    });
     let run = CaseRun {
         config,
         scene_name,
@@ -140,9 +165,12 @@ pub(super) fn measure(
         case,
         methods,
         timer,
+        instant: std::cell::Cell::new(0.0),
+        posed,
     };
     let mut times = run.warm_up(&mut renderer, frames)?;
     run.time_rounds(&mut renderer, frames, &mut times)?;
+    run.instant.set(ANIMATION_CHECK_S);
     let accuracies = run.accuracies();
     let diffs = run.image_diffs(&mut renderer)?;
     Ok(methods
@@ -189,6 +217,7 @@ impl CaseRun<'_> {
         p.world_from_cave = self.case.world_from_cave;
         p.mode = m.mode;
         p.tess = m.tess;
+        p.animation.seconds = self.instant.get();
         p.sky.mode = m.sky.unwrap_or(SkyMode::Off);
         p.shading = m.shading;
         match m.shadows {
@@ -241,6 +270,7 @@ impl CaseRun<'_> {
     ) -> Result<(), BenchError> {
         for _ in 0..frames {
             for (t, m) in times.iter_mut().zip(self.methods) {
+                self.instant.set(self.instant.get() + ANIMATION_STEP_S);
                 let start = Instant::now();
                 renderer.render(&self.params(m))?;
                 renderer.wait_idle()?;
@@ -248,7 +278,8 @@ impl CaseRun<'_> {
                 if let Some(b) = renderer.read_gpu_breakdown()? {
                     t.gpu.push(b.total_ms);
                     let mut stages = [b.shadows_ms; STAGE_COLUMNS];
-                    for (slot, stage) in stages[1..].iter_mut().zip(ViewStage::ALL) {
+                    stages[0] = b.pose_ms;
+                    for (slot, stage) in stages[2..].iter_mut().zip(ViewStage::ALL) {
                         *slot = b.stage_ms(stage);
                     }
                     t.stages.push(stages);
@@ -263,7 +294,8 @@ impl CaseRun<'_> {
     fn accuracies(&self) -> Vec<Option<Accuracy>> {
         let methods = self.methods;
         let mut accuracies: Vec<Option<Accuracy>> = vec![None; methods.len()];
-        if let Some(scene) = self.scene {
+        // An animated scene's accuracy is that of its pose at the checked instant.
+        if let Some(scene) = self.posed.as_ref().or(self.scene) {
             for (i, m) in methods.iter().enumerate() {
                 let base = methods[..i]
                     .iter()

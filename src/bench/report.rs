@@ -92,6 +92,7 @@ const RESULT_HEADER: &[&str] = &[
     "seam_max_px",
     "seam_p99_px",
     "seam_crossings",
+    "pose_ms",
     "shadows_ms",
     "tess_cull_ms",
     "tess_split_ms",
@@ -358,6 +359,7 @@ impl ReportInputs<'_> {
         write_accuracy_sections(&mut md, summary, &reference);
         // Both eyes of every wall.
         write_scaling_section(&mut md, summary, 2 * self.config.cave.walls.len());
+        write_animation_section(&mut md, summary);
         md
     }
 
@@ -497,7 +499,85 @@ impl ReportInputs<'_> {
             );
             files.extend(write_chart(out, "speed-vs-accuracy", &svg)?);
         }
+        if let Some((animated, still)) = animated_pairs(summary).into_iter().next() {
+            let mut points = chart_points(animated);
+            points.extend(chart_points(still).into_iter().map(|p| chart::ChartPoint {
+                family: format!("{} (static)", p.family),
+                ..p
+            }));
+            let svg = chart::svg(
+                &points,
+                &chart::Axes::speed_against_accuracy(),
+                &format!(
+                    "Speed against accuracy: {}, posed every frame and static",
+                    animated.scene
+                ),
+                &format!(
+                    "walls {} · MSAA ×{msaa} · a new instant every frame · median frame time \
+                     and worst p99 error over {} viewpoint/head case(s)",
+                    self.walls, animated.cases
+                ),
+            );
+            files.extend(write_chart(out, "speed-vs-accuracy-animated", &svg)?);
+        }
         Ok(())
+    }
+}
+
+/// Each animated scene with its static twin (see `run::STATIC_TWIN`).
+fn animated_pairs(summary: &[SceneSummary]) -> Vec<(&SceneSummary, &SceneSummary)> {
+    summary
+        .iter()
+        .filter_map(|s| {
+            let twin = format!("{}{}", s.scene, super::run::STATIC_TWIN);
+            summary
+                .iter()
+                .find(|o| o.scene == twin)
+                .map(|still| (s, still))
+        })
+        .collect()
+}
+
+/// What posing costs: per animated scene and method, the frame time with a new instant every
+/// frame against the same scene static, and the pose pass's own GPU time.
+fn write_animation_section(md: &mut String, summary: &[SceneSummary]) {
+    let pairs = animated_pairs(summary);
+    if pairs.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Animated scenes: what posing costs\n\nEach animated scene is measured twice: \
+         posed at a new instant every frame (the pose pass, then the shadow maps redrawn) and \
+         static (the same geometry in its rest pose, nothing posed). Median frame time over \
+         the cases; `pose` is the pose pass's GPU time (timestamps), `–` without timestamps.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| scene | triangles | method | animated ms | static ms | × static | pose ms | p99 error px |\n|---|---:|---|---:|---:|---:|---:|---:|"
+    );
+    for (animated, still) in pairs {
+        for m in &animated.methods {
+            let Some(s) = still
+                .methods
+                .iter()
+                .find(|o| o.method.name == m.method.name)
+            else {
+                continue;
+            };
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.2} | {:.2} | {:.3} | {} | {:.2} |",
+                animated.scene,
+                animated.triangles,
+                m.method.name,
+                m.time_ms,
+                s.time_ms,
+                m.time_ms / s.time_ms,
+                m.stages_ms.map_or("–".into(), |st| format!("{:.3}", st[0])),
+                m.error_p99,
+            );
+        }
     }
 }
 

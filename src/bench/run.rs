@@ -70,8 +70,17 @@ struct BenchRun<'a> {
     frames: usize,
 }
 
-/// The scenes of a run by name (`None`: the sky alone).
-type Scenes = Vec<(String, Option<Scene>)>;
+/// One scene of a run.
+struct BenchScene {
+    name: String,
+    /// `None`: the sky alone.
+    scene: Option<Scene>,
+    /// An animated scene or its static twin: measured from the start viewpoint only (what
+    /// moves stands ahead) and left out of the panorama methods.
+    animated_pair: bool,
+}
+
+type Scenes = Vec<BenchScene>;
 
 /// Runs the benchmark and writes `results.csv`, `report.md` and the chart into the output
 /// folder. `progress(done, total, what)` is told before each case.
@@ -152,11 +161,87 @@ fn load_scenes(options: &BenchOptions, config: &Config) -> Result<Scenes, BenchE
             || path.display().to_string(),
             |s| s.to_string_lossy().into(),
         );
-        scenes.push((name, Some(load_scene(&config.settings, path)?)));
+        let scene = load_scene(&config.settings, path)?;
+        if scene.rig.is_empty() {
+            scenes.push(BenchScene {
+                name,
+                scene: Some(scene),
+                animated_pair: false,
+            });
+        } else {
+            push_with_static_twin(&mut scenes, &name, scene);
+        }
+    }
+    if options.scenes.is_empty() {
+        animated_scenes(options, config, &mut scenes)?;
     }
     // The sky alone, over the whole of every wall: its worst case.
-    scenes.push(("sky only".into(), None));
+    scenes.push(BenchScene {
+        name: "sky only".into(),
+        scene: None,
+        animated_pair: false,
+    });
     Ok(scenes)
+}
+
+/// Suffix of an animated scene's static twin (the same geometry in its rest pose, nothing
+/// posed per frame): the pose pass's cost is the difference.
+pub(super) const STATIC_TWIN: &str = " (static)";
+
+/// An animated scene, then the same static.
+fn push_with_static_twin(scenes: &mut Scenes, name: &str, scene: Scene) {
+    let mut still = scene.clone();
+    still.rig = crate::scene::rig::Rig::default();
+    scenes.push(BenchScene {
+        name: name.to_owned(),
+        scene: Some(scene),
+        animated_pair: true,
+    });
+    scenes.push(BenchScene {
+        name: format!("{name}{STATIC_TWIN}"),
+        scene: Some(still),
+        animated_pair: true,
+    });
+}
+
+/// The animated scenes, each with its static twin: the bundled animated sample (skin, morph
+/// targets, an animated node) and, where `../shared/corpus` lies beside the repository, the
+/// Fox walking (a 24-joint skin), placed on the floor 1.2 m long, 2 m ahead.
+fn animated_scenes(
+    options: &BenchOptions,
+    config: &Config,
+    out: &mut Scenes,
+) -> Result<(), BenchError> {
+    let mut add = |name: &str, scene: Scene| push_with_static_twin(out, name, scene);
+    let sample = bundled_path(&options.config, "assets/animated.glb");
+    if sample.is_file() {
+        let mut settings = config.settings.clone();
+        settings.scene = Default::default();
+        settings.animation = Default::default();
+        add("animated", load_scene(&settings, &sample)?);
+    }
+    let fox = bundled_path(&options.config, "../shared/corpus/Fox/Fox.glb");
+    if fox.is_file() {
+        let mut settings = config.settings.clone();
+        settings.scene = crate::config::SceneSection {
+            fit: crate::scene::SceneFit::Floor,
+            size_m: 1.2,
+            offset_m: [0.0, 0.0, -2.0],
+            ..Default::default()
+        };
+        settings.animation = Default::default();
+        let mut scene = load_scene(&settings, &fox)?;
+        // The Fox walking: its Walk animation alone (the clock plays the first).
+        scene.rig.clips.retain(|c| c.name == "Walk");
+        add("fox walking", scene);
+    } else {
+        tracing::info!(
+            "bench: {} not found: the Fox is not measured (the shared corpus lies beside the \
+             repository)",
+            fox.display()
+        );
+    }
+    Ok(())
 }
 
 /// The sky's file: the run's, else the config's, else the bundled one.
@@ -184,8 +269,18 @@ impl BenchRun<'_> {
         scenes
             .iter()
             .filter(|_| !options.panorama_only)
-            .map(|(_, s)| cases(self.config, options.quick, s.is_some()).len())
+            .map(|s| self.cases(s).len())
             .sum()
+    }
+
+    /// The cases `scene` is measured in.
+    fn cases(&self, scene: &BenchScene) -> Vec<super::cases::Case> {
+        let mut all = cases(self.config, self.options.quick, scene.scene.is_some());
+        if scene.animated_pair {
+            let start = all.first().map(|c| c.viewpoint.clone());
+            all.retain(|c| Some(&c.viewpoint) == start.as_ref());
+        }
+        all
     }
 
     /// Measures every case of every scene on the walls, rewriting the reports after each.
@@ -199,12 +294,12 @@ impl BenchRun<'_> {
         let (options, config, frames) = (self.options, self.config, self.frames);
         let mut rows = Vec::new();
         let mut done = 0;
-        let wall_scenes: &[(String, Option<Scene>)] =
-            if options.panorama_only { &[] } else { scenes };
-        for (scene_name, scene) in wall_scenes {
+        let wall_scenes: &[BenchScene] = if options.panorama_only { &[] } else { scenes };
+        for bench_scene in wall_scenes {
+            let (scene_name, scene) = (&bench_scene.name, &bench_scene.scene);
             let triangles = scene.as_ref().map_or(0, Scene::triangle_count);
             let methods = methods_within_budget(methods, triangles);
-            for case in cases(config, options.quick, scene.is_some()) {
+            for case in self.cases(bench_scene) {
                 let what = format!(
                     "{scene_name}, {}, head {}: {} methods × {frames} frames",
                     case.viewpoint,
@@ -238,7 +333,8 @@ impl BenchRun<'_> {
     ) -> Result<(Vec<panorama::PanoRow>, Vec<PathBuf>), BenchError> {
         let with_geometry: Vec<(String, Scene)> = scenes
             .iter()
-            .filter_map(|(name, s)| s.clone().map(|s| (name.clone(), s)))
+            .filter(|s| !s.animated_pair)
+            .filter_map(|s| s.scene.clone().map(|scene| (s.name.clone(), scene)))
             .collect();
         if !self.options.methods.is_empty() {
             return Ok((Vec::new(), Vec::new()));
