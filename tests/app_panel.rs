@@ -681,3 +681,35 @@ fn the_panel_shows_the_guest_map_for_the_current_mode_from_its_worker() {
         "{values:?}"
     );
 }
+
+#[test]
+fn the_panel_plays_pauses_and_chooses_the_scenes_animation() {
+    let mut state = AppState::new(config());
+    let mut driver = PanelDriver::new();
+    driver.info.animations = vec![("Show".into(), 4.0), ("Wave".into(), 2.0)];
+    driver.info.posed = true;
+    driver.click(&mut state, "Animation");
+    assert!(state.settings.animation.playing);
+    // The clock runs at the configured speed while playing, not while paused.
+    state.settings.animation.speed = 2.0;
+    state.advance_animation(0.25);
+    assert!((state.animation_clock - 0.5).abs() < 1e-9);
+    driver.click(&mut state, "Pause");
+    assert!(!state.settings.animation.playing, "Pause stops the clock");
+    state.advance_animation(0.25);
+    assert!((state.animation_clock - 0.5).abs() < 1e-9);
+    driver.click(&mut state, "Play");
+    assert!(state.settings.animation.playing);
+    driver.click(&mut state, "Repeat");
+    assert!(!state.settings.animation.repeat);
+    // Another animation starts from its beginning.
+    driver.choose(&mut state, "Animation", "Wave (2.00 s)");
+    assert_eq!(state.settings.animation.clip, "Wave");
+    assert_eq!(state.animation_clock, 0.0);
+    // What the renderer is given: the chosen animation at the clock's time.
+    state.animation_clock = 1.25;
+    let frame = state.frame_params();
+    assert_eq!(frame.animation.clip, "Wave");
+    assert_eq!(frame.animation.seconds, 1.25);
+    assert!(!frame.animation.repeat);
+}
