@@ -1,5 +1,6 @@
-//! Generates the bundled scenes (`assets/living-room.glb`, `assets/city.glb`) and sky
-//! (`assets/sky.png`) deterministically.
+//! Generates the bundled scenes (`assets/living-room.glb`, `assets/city.glb`,
+//! `assets/atrium.glb`, the animated sample `assets/animated.glb`) and sky (`assets/sky.png`)
+//! deterministically.
 //!
 //! `gen-assets [--out DIR]` writes them; `gen-assets --check [--out DIR]` fails if the files
 //! there differ from what this generator makes (so committed assets always match the code).
@@ -15,11 +16,12 @@ use omnicave::scene::glb_writer::{GlbWriter, MaterialDesc, MaterialMaps, MeshOpt
 use omnicave::sky::bundled;
 use omnicave::sky::cubemap::{equirect_direction, equirect_taps, linear_to_srgb, srgb_to_linear};
 
-/// Generates the bundled scenes (living room, city) and sky, deterministically.
+/// Generates the bundled scenes (living room, city, atrium, the animated sample) and sky,
+/// deterministically.
 #[derive(Debug, clap::Parser)]
 #[command(name = "gen-assets", version)]
 struct Args {
-    /// Folder to write living-room.glb, city.glb and sky.png into.
+    /// Folder to write living-room.glb, city.glb, atrium.glb, animated.glb and sky.png into.
     #[arg(long, default_value = "assets")]
     out: PathBuf,
     /// Write nothing: fail if the files in --out differ from what the generator makes.
