@@ -9,7 +9,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::*;
 use glam::{Mat4, Quat, Vec3};
@@ -24,20 +24,6 @@ use omnicave::scene::rig::{
 };
 use omnicave::scene::{Material, Scene, SceneBudget, SceneFit, Vertex, load_gltf, load_gltf_bytes};
 use omnicave::tess::{Criterion, TessSettings};
-
-fn corpus() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    let msg = format!("SKIPPED: {} not found (the shared corpus)", dir.display());
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "{msg}, and CI must not skip"
-    );
-    println!("{msg}");
-    None
-}
 
 /// A corpus model as a user places it: on the floor, `size` metres across, 2 m ahead.
 fn placed(path: &Path, size: f32) -> Scene {
@@ -548,25 +534,9 @@ fn edited(edit: impl FnOnce(&mut serde_json::Value, &mut Vec<u8>)) -> Vec<u8> {
     let mut doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
     let mut bin = glb[20 + json_len + 8..].to_vec();
     edit(&mut doc, &mut bin);
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
+    bin.resize(bin.len().next_multiple_of(4), 0);
     doc["buffers"][0]["byteLength"] = bin.len().into();
-    let mut text = doc.to_string().into_bytes();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&((28 + text.len() + bin.len()) as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
+    omnicave::scene::glb_writer::glb_bytes(&doc, &bin)
 }
 
 /// Appends float data as a new accessor of `ty`; returns its index.

@@ -7,7 +7,7 @@
 mod common;
 
 use std::collections::HashSet;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::*;
 use glam::Vec3;
@@ -16,20 +16,6 @@ use omnicave::cave::{Head, RenderMode};
 use omnicave::render::Renderer;
 use omnicave::scene::{AlphaMode, Scene, SceneFit, load_gltf};
 use omnicave::tess::{Criterion, TessSettings};
-
-fn corpus() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    let msg = format!("SKIPPED: {} not found (the shared corpus)", dir.display());
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "{msg}, and CI must not skip"
-    );
-    println!("{msg}");
-    None
-}
 
 fn model(corpus: &Path, name: &str) -> Scene {
     let dir = corpus.join(name);

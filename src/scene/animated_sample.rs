@@ -382,9 +382,7 @@ pub fn animated_sample_glb() -> Vec<u8> {
             "doubleSided": true,
         })
     };
-    while !bin.bytes.len().is_multiple_of(4) {
-        bin.bytes.push(0);
-    }
+    bin.bytes.resize(bin.bytes.len().next_multiple_of(4), 0);
     let document = json!({
         "asset": {"version": "2.0", "generator": "omnicave gen-assets (animated sample)"},
         "scene": 0,
@@ -402,22 +400,7 @@ pub fn animated_sample_glb() -> Vec<u8> {
         "bufferViews": bin.views,
         "accessors": bin.accessors,
     });
-    let mut text = document.to_string().into_bytes();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    let total = 12 + 8 + text.len() + 8 + bin.bytes.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    out.extend_from_slice(&(bin.bytes.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin.bytes);
-    out
+    super::glb_writer::glb_bytes(&document, &bin.bytes)
 }
 
 #[cfg(test)]

@@ -742,25 +742,31 @@ impl GlbWriter {
 
     /// Serialises the whole file as GLB bytes with `roots` as the scene's root nodes.
     pub fn to_glb(&self, roots: &[usize]) -> Vec<u8> {
-        let mut json_bytes = self.json(roots).to_string().into_bytes();
-        while !json_bytes.len().is_multiple_of(4) {
-            json_bytes.push(b' ');
-        }
-        let mut bin = self.bin.clone();
-        bin.resize(padded_to_4(bin.len()), 0);
-        let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
-        let mut out = Vec::with_capacity(total);
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&(total as u32).to_le_bytes());
-        out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"JSON");
-        out.extend_from_slice(&json_bytes);
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
-        out
+        glb_bytes(&self.json(roots), &self.bin)
     }
+}
+
+/// A binary glTF file of `document` and the binary chunk `bin` (each padded to 4 bytes, the
+/// JSON with spaces, the binary with zeros).
+pub fn glb_bytes(document: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut json_bytes = document.to_string().into_bytes();
+    while !json_bytes.len().is_multiple_of(4) {
+        json_bytes.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    bin.resize(padded_to_4(bin.len()), 0);
+    let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json_bytes);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
 }
 
 /// A mesh's vertex attributes as buffer bytes (quantized or float), with the bounds of the

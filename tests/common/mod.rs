@@ -377,3 +377,20 @@ pub fn pano_settings(projection: Projection, route: PanoRoute, fov_deg: [f32; 2]
         cube_size: 512,
     }
 }
+
+/// `../shared/corpus` (third-party glTF models), or `None` with a line saying the tests that
+/// need it skip; under CI (which has it) a missing corpus fails instead.
+#[allow(dead_code, clippy::print_stdout)]
+pub fn corpus() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    let msg = format!("SKIPPED: {} not found (the shared corpus)", dir.display());
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "{msg}, and CI must not skip"
+    );
+    println!("{msg}");
+    None
+}
