@@ -30,10 +30,12 @@ struct PoseDeformer {
     first_weight: u32,
 }
 
-// Keep in sync with `PoseRestVertex` in src/render/pose_pass.rs. Mesh space; position.w is
-// the deformer's index (bits).
+// Keep in sync with `PoseRestVertex` in src/render/pose_pass.rs (tests/gpu_layout.rs
+// checks). Mesh space.
 struct PoseRestVertex {
-    position: vec4<f32>,
+    position: vec3<f32>,
+    // Which deformer it belongs to.
+    deformer: u32,
     normal: vec4<f32>,
     tangent: vec4<f32>,
 }
@@ -76,11 +78,11 @@ fn cs_pose(
         return;
     }
     let r = rest[index];
-    let d = deformers[bitcast<u32>(r.position.w)];
+    let d = deformers[r.deformer];
     let i = index - d.rest_offset;
 
     // Morph targets first.
-    var p = r.position.xyz;
+    var p = r.position;
     var n = r.normal.xyz;
     var t = r.tangent.xyz;
     for (var k = 0u; k < d.target_count; k++) {

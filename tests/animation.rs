@@ -134,6 +134,13 @@ fn gpu_against_cpu(scene: &Scene, clip: &str, times: &[f64]) -> f32 {
                     g.normal,
                     c.normal
                 );
+                let t = (glam::Vec4::from(g.tangent) - glam::Vec4::from(c.tangent)).length();
+                assert!(
+                    t < 1e-4,
+                    "vertex {i} at {t} s: tangent {:?} vs {:?}",
+                    g.tangent,
+                    c.tangent
+                );
                 assert_eq!(g.uv, c.uv, "vertex {i}: the pose left its other attributes");
             }
         }
@@ -633,6 +640,23 @@ fn malformed_animation_data_is_refused_naming_what_is_wrong() {
             ],
         ),
         (
+            "a channel on a node the file lacks",
+            edited(|doc, _| {
+                doc["animations"][0]["channels"][2]["target"]["node"] = 99.into();
+            }),
+            &["animation 0 channel 2 targets node 99, but the file has 5"],
+        ),
+        (
+            "a channel on an unknown path",
+            edited(|doc, _| {
+                doc["animations"][0]["channels"][2]["target"]["path"] = "pointer".into();
+            }),
+            &[
+                "animation 0 channel 2",
+                "translation, rotation, scale or weights",
+            ],
+        ),
+        (
             "weights of a mesh without morph targets",
             edited(|doc, _| {
                 doc["animations"][0]["channels"][0]["target"]["node"] = 4.into();
@@ -679,6 +703,13 @@ fn malformed_animation_data_is_refused_naming_what_is_wrong() {
                 ..budget
             },
             ["budgets.max_keyframes = 8", "channel 2"],
+        ),
+        (
+            SceneBudget {
+                max_pose_bytes: 1 << 10,
+                ..budget
+            },
+            ["budgets.max_pose_memory_mb = 0", "mesh 0 (surface)"],
         ),
     ] {
         let e = load_error(&animated_sample_glb(), &budget);

@@ -232,6 +232,7 @@ fn cases() -> Vec<(shaders::Feature, &'static str, RustLayout)> {
             "PoseRestVertex",
             layout!(PoseRestVertex,
                 "position" => position,
+                "deformer" => deformer,
                 "normal" => normal,
                 "tangent" => tangent,
             ),

@@ -133,6 +133,7 @@ impl ConfigFile {
             max_morph_targets: b.max_morph_targets,
             max_animation_channels: b.max_animation_channels,
             max_keyframes: b.max_keyframes,
+            max_pose_bytes: u64::from(b.max_pose_memory_mb) << 20,
         }
     }
 

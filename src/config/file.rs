@@ -565,6 +565,10 @@ pub struct BudgetsSection {
     /// Keyframes of a scene file, every channel together.
     #[schemars(range(min = 0, max = 268435456))]
     pub max_keyframes: u32,
+    /// What a scene's animated primitives hold for posing (mesh-space vertices, morph target
+    /// deltas, skin weights; CPU and GPU copies), MiB.
+    #[schemars(range(min = 1, max = 1048576))]
+    pub max_pose_memory_mb: u32,
     /// Walls in one config (one window and render target each).
     #[schemars(range(min = 1, max = 1024))]
     pub max_walls: u32,
@@ -588,6 +592,7 @@ impl Default for BudgetsSection {
             max_morph_targets: scene.max_morph_targets,
             max_animation_channels: scene.max_animation_channels,
             max_keyframes: scene.max_keyframes,
+            max_pose_memory_mb: narrow(scene.max_pose_bytes >> 20),
             max_walls: DEFAULT_MAX_WALLS,
             // Six 2560×1600 walls with MSAA 4 take 1.7 GiB; three 8192² walls with MSAA 4
             // would take 13.5 GiB, more than most lab GPUs hold.

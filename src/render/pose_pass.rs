@@ -40,8 +40,9 @@ pub struct PoseDeformer {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct PoseRestVertex {
-    /// w: the deformer's index, as bits.
-    pub position: [f32; 4],
+    pub position: [f32; 3],
+    /// Which deformer it belongs to.
+    pub deformer: u32,
     pub normal: [f32; 4],
     pub tangent: [f32; 4],
 }
@@ -160,9 +161,9 @@ impl PoseBuffers {
             offsets.push((matrices, weights));
             matrices += deformer.matrix_count(rig) as u32;
             weights += targets;
-            let tag = f32::from_bits(d as u32);
             rest.extend(deformer.rest.iter().map(|v| PoseRestVertex {
-                position: [v.position[0], v.position[1], v.position[2], tag],
+                position: v.position,
+                deformer: d as u32,
                 normal: [v.normal[0], v.normal[1], v.normal[2], 0.0],
                 tangent: v.tangent,
             }));
@@ -307,14 +308,15 @@ impl PoseBuffers {
 
 /// The largest of the pass's buffers `rig` needs, bytes.
 fn largest_binding(rig: &Rig) -> u64 {
-    let (mut rest, mut influences, mut deltas) = (0u64, 0u64, 0u64);
+    let (mut rest, mut influences, mut deltas, mut matrices) = (0u64, 0u64, 0u64, 0u64);
     for d in &rig.deformers {
         let n = d.rest.len() as u64;
         rest += n * std::mem::size_of::<PoseRestVertex>() as u64;
         influences += d.influences.len() as u64 * 8;
         deltas += n * d.targets.len() as u64 * 36;
+        matrices += d.matrix_count(rig) as u64 * 64;
     }
-    rest.max(influences).max(deltas)
+    rest.max(influences).max(deltas).max(matrices)
 }
 
 /// A scene's animation on the renderer: its rig, the pose's values, the GPU inputs and the
@@ -327,7 +329,7 @@ pub struct ScenePose {
     clusters: crate::tess::posed_clusters::PosedClusters,
     /// The pose the vertex buffer holds (`None`: to be posed at the next frame).
     last: Option<PoseAt>,
-    /// The last animation name refused (warned about once).
+    /// The last animation name the scene does not have (warned about once).
     refused: Option<String>,
 }
 
@@ -344,12 +346,16 @@ impl ScenePose {
         if scene.rig.is_empty() {
             return None;
         }
-        let largest = largest_binding(&scene.rig);
         let limit = device.limits().max_storage_buffer_binding_size;
+        let largest = gpu
+            .whole()
+            .map_or(0, |w| w.vertex_buffer.size())
+            .max(largest_binding(&scene.rig));
         if largest > limit {
             tracing::warn!(
-                "the scene's morph targets and skins need a {largest}-byte buffer, more than \
-                 this device binds ({limit}): they are drawn in their rest pose"
+                "posing the scene binds a {largest}-byte buffer (its vertices, morph targets, \
+                 skin weights or joint matrices), more than this device binds ({limit}): \
+                 drawn in its rest pose"
             );
             return None;
         }
@@ -383,14 +389,18 @@ impl ScenePose {
         playback: &Playback<'_>,
         gpu: &mut SceneGpu,
     ) -> bool {
-        let at = match self.rig.pose_at(playback) {
-            Ok(at) => at,
-            Err(why) => {
-                if self.refused.as_deref() != Some(why.as_str()) {
+        // A name refused once is not looked up again (its message is built once).
+        let refused = playback.enabled && self.refused.as_deref() == Some(playback.clip);
+        let at = if refused {
+            PoseAt::REST
+        } else {
+            match self.rig.pose_at(playback) {
+                Ok(at) => at,
+                Err(why) => {
                     tracing::warn!("{why}: drawn in the rest pose");
-                    self.refused = Some(why);
+                    self.refused = Some(playback.clip.to_owned());
+                    PoseAt::REST
                 }
-                PoseAt::REST
             }
         };
         if self.last == Some(at) {

@@ -213,7 +213,12 @@ impl Sampler {
                     out[i] = h00 * p0[i] + h10 * dt * m0[i] + h01 * p1[i] + h11 * dt * m1[i];
                 }
                 if self.values == Values::Rotation {
-                    let q = quat(out).normalize();
+                    // A spline between q and −q with flat tangents passes through zero: the
+                    // nearer keyframe's rotation then.
+                    let q = Vec4::from(quat(out))
+                        .try_normalize()
+                        .map(Quat::from_vec4)
+                        .unwrap_or_else(|| quat(if s < 0.5 { p0 } else { p1 }).normalize());
                     out.copy_from_slice(&q.to_array());
                 }
             }
@@ -388,6 +393,26 @@ mod tests {
                 .to_string()
                 .contains("no targets")
         );
+    }
+
+    #[test]
+    fn a_cubic_spline_through_the_zero_quaternion_stays_a_rotation() {
+        // q to −q (the same rotation) with flat tangents: half-way the blend is zero.
+        let q = Quat::from_rotation_y(0.4);
+        let output: Vec<f32> = [q, -q]
+            .iter()
+            .flat_map(|k| [[0.0; 4], k.to_array(), [0.0; 4]].concat())
+            .collect();
+        let s = Sampler::new(
+            vec![0.0, 1.0],
+            output,
+            Interpolation::CubicSpline,
+            Values::Rotation,
+        )
+        .unwrap();
+        let out = sample(&s, 0.5);
+        let r = Quat::from_array([out[0], out[1], out[2], out[3]]);
+        assert!(r.is_finite() && r.angle_between(q) < 1e-5, "{r:?}");
     }
 
     #[test]

@@ -25,6 +25,9 @@ pub struct SceneBudget {
     pub max_animation_channels: u32,
     /// Keyframes of the file, every channel together.
     pub max_keyframes: u32,
+    /// What the posed primitives hold for posing (mesh-space vertices, morph deltas, skin
+    /// weights), CPU and GPU copies together.
+    pub max_pose_bytes: u64,
 }
 
 impl Default for SceneBudget {
@@ -43,6 +46,7 @@ impl Default for SceneBudget {
             max_morph_targets: super::rig::DEFAULT_MAX_MORPH_TARGETS,
             max_animation_channels: super::rig::DEFAULT_MAX_CHANNELS,
             max_keyframes: super::rig::DEFAULT_MAX_KEYFRAMES,
+            max_pose_bytes: 1 << 30,
         }
     }
 }

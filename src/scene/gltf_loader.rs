@@ -180,6 +180,28 @@ fn parse_document(
             }
         }
     }
+    // The crate's validation checks neither a channel's target node nor its path, and its
+    // accessors unwrap both: checked here, naming the channel.
+    let nodes = root.nodes.len();
+    for (a, animation) in root.animations.iter().enumerate() {
+        for (c, channel) in animation.channels.iter().enumerate() {
+            let node = channel.target.node.value();
+            if node >= nodes {
+                return Err(invalid(format!(
+                    "animation {a} channel {c} targets node {node}, but the file has {nodes}"
+                )));
+            }
+            if !matches!(
+                channel.target.path,
+                gltf::json::validation::Checked::Valid(_)
+            ) {
+                return Err(invalid(format!(
+                    "animation {a} channel {c} targets a path other than translation, \
+                     rotation, scale or weights"
+                )));
+            }
+        }
+    }
     // The crate's own validation, but for one rule stricter than the specification: an
     // accessor without a buffer view is legal (zeros, or the data of a Draco primitive).
     let mut errors = Vec::new();

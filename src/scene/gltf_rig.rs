@@ -37,7 +37,17 @@ pub(super) struct RigBuilder {
     moved: Vec<bool>,
     /// The rest pose (nodes at their file transforms), for the bind-time matrices.
     rest: Pose,
+    /// Bytes the deformers added so far hold (see `budgets.max_pose_memory_mb`).
+    pose_bytes: u64,
 }
+
+/// Bytes a posed vertex holds for posing: its mesh-space position, normal and tangent, on
+/// the CPU and the GPU.
+const REST_BYTES: u64 = 2 * 48;
+/// Bytes of one morph target's deltas per vertex (position, normal, tangent), CPU and GPU.
+const DELTA_BYTES: u64 = 2 * 36;
+/// Bytes of one JOINTS_n/WEIGHTS_n set per vertex (four joints and weights), CPU and GPU.
+const SET_BYTES: u64 = 2 * 32;
 
 /// What the builder refuses: the message, naming the object (the loader adds the file).
 pub(super) type RigResult<T> = Result<T, String>;
@@ -331,6 +341,30 @@ impl RigBuilder {
         label: &str,
     ) -> RigResult<()> {
         let n = rest.len();
+        // What posing it holds (mesh-space vertices, deltas, influences), counted before
+        // anything is read: targets and weight sets cost nothing in file size.
+        let targets = primitive.morph_targets().count() as u64;
+        let sets = if node.skin().is_some() {
+            (0..)
+                .take_while(|&set| {
+                    primitive.get(&gltf::Semantic::Joints(set)).is_some()
+                        && primitive.get(&gltf::Semantic::Weights(set)).is_some()
+                })
+                .count() as u64
+        } else {
+            0
+        };
+        self.pose_bytes = self.pose_bytes.saturating_add(
+            (n as u64).saturating_mul(REST_BYTES + targets * DELTA_BYTES + sets * SET_BYTES),
+        );
+        if self.pose_bytes > cx.budget.max_pose_bytes {
+            return Err(format!(
+                "{label}: what the animated primitives hold (vertices, morph deltas, skin \
+                 weights) reaches {} MiB here, over budgets.max_pose_memory_mb = {}",
+                self.pose_bytes >> 20,
+                cx.budget.max_pose_bytes >> 20
+            ));
+        }
         let targets = self.morph_targets(cx, primitive, n, label)?;
         let (skin, influences_per_vertex, influences) = match node.skin() {
             Some(skin) => {
@@ -503,7 +537,8 @@ fn read_influences(
             }
         }
         let slots = &mut influences[start..];
-        let sum: f32 = slots.iter().map(|s| s.1).sum();
+        // In f64: finite f32 weights near the type's largest sum to more than it holds.
+        let sum: f64 = slots.iter().map(|s| f64::from(s.1)).sum();
         if sum <= 0.0 {
             repaired += 1;
             let first = sets[0].0[v][0];
@@ -515,14 +550,12 @@ fn read_influences(
                 },
                 1.0,
             );
-        } else if (sum - 1.0).abs() > 2e-3 {
-            repaired += 1;
-            for s in slots.iter_mut() {
-                s.1 /= sum;
-            }
         } else {
+            if (sum - 1.0).abs() > 2e-3 {
+                repaired += 1;
+            }
             for s in slots.iter_mut() {
-                s.1 /= sum;
+                s.1 = (f64::from(s.1) / sum) as f32;
             }
         }
     }

@@ -407,6 +407,12 @@ impl Scene {
     pub fn transform(&mut self, transform: Mat4) {
         let linear = Mat3::from_mat4(transform);
         let normal_matrix = linear.inverse().transpose();
+        // A mirror flips the bitangent's handedness, as loading a mirrored node does.
+        let handedness = if linear.determinant() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
         for v in &mut self.vertices {
             v.position = transform
                 .transform_point3(Vec3::from(v.position))
@@ -418,7 +424,7 @@ impl Scene {
             let t = Vec3::from_slice(&v.tangent[..3]);
             if t != Vec3::ZERO {
                 let moved = (linear * t).try_normalize().unwrap_or(Vec3::X);
-                v.tangent = [moved.x, moved.y, moved.z, v.tangent[3]];
+                v.tangent = [moved.x, moved.y, moved.z, v.tangent[3] * handedness];
             }
         }
         if linear.determinant() < 0.0 {

@@ -298,7 +298,10 @@ impl Rig {
                     Target::Translation => local.translation = Vec3::new(v[0], v[1], v[2]),
                     Target::Scale => local.scale = Vec3::new(v[0], v[1], v[2]),
                     Target::Rotation => {
-                        local.rotation = Quat::from_xyzw(v[0], v[1], v[2], v[3]).normalize();
+                        // Samplers give unit rotations; a degenerate one keeps the rest's.
+                        if let Some(q) = glam::Vec4::new(v[0], v[1], v[2], v[3]).try_normalize() {
+                            local.rotation = Quat::from_vec4(q);
+                        }
                     }
                     Target::Weights => {
                         if let (Some(weights), Values::Weights(k)) = (
