@@ -264,7 +264,7 @@ fn quick_bench_writes_complete_and_sane_results() {
         "**Exact (p99 ≤ 0.5 px and max ≤ 1 px in every case)** (living-room): the cheapest \
          omnistereo + tessellation method is",
         "Where the time goes (living-room",
-        "| method | total | shadows | tess cull | tess split | tess sort | scene | sky | resolve |",
+        "| method | total | pose | shadows | tess cull | tess split | tess sort | scene | sky | resolve |",
         "× off-axis stereo",
         "| omni-offaxis + tess error | error:",
         "●",
