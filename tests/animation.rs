@@ -886,3 +886,41 @@ fn a_static_scene_has_no_pose_and_an_animated_one_poses_once_per_instant() {
         }
     });
 }
+
+/// Past the device's largest buffer (a scene split over several, forced here by a small
+/// limit), an animated scene still renders, in its rest pose, as the split static scene
+/// would: nothing is posed into buffers the pass cannot bind whole.
+#[test]
+fn a_split_animated_scene_renders_in_its_rest_pose() {
+    let cave = cave_at(64, 48);
+    let scene = sample();
+    let mut frame = test_frame(
+        &cave,
+        Head::at(Vec3::new(0.0, 1.7, 0.0)),
+        RenderMode::Stereo,
+        Default::default(),
+        TessSettings::default(),
+    );
+    frame.animation = playing("Show", 1.5);
+    let mut renderer = omnicave::render::Renderer::new(gpu(), &cave, NO_MSAA).unwrap();
+    renderer.limit_scene_buffers(Some(32 << 10));
+    renderer.set_scene(&scene).expect("split upload");
+    assert!(
+        renderer.scene_chunks() >= 2,
+        "{} chunks",
+        renderer.scene_chunks()
+    );
+    renderer.render(&frame).expect("render");
+    assert_eq!(renderer.scene_pose(), None, "a split scene is not posed");
+    let split = renderer.read_images().unwrap();
+    // The same scene whole, with the animation off: the rest pose, pixel for pixel.
+    frame.animation.enabled = false;
+    let whole = with_renderer(&cave, NO_MSAA, None, |renderer| {
+        renderer.set_scene(&scene).unwrap();
+        renderer.render(&frame).unwrap();
+        renderer.read_images().unwrap()
+    });
+    for (a, b) in split.iter().zip(&whole) {
+        assert_eq!(a.left.as_raw(), b.left.as_raw(), "wall {}", a.wall);
+    }
+}
