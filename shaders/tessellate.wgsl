@@ -46,6 +46,13 @@ struct TessUniforms {
     needy_count: u32,
     // Source triangles cs_init may keep: splits leave an output slot for each of them.
     root_bound: u32,
+    // 1: one refinement serves this view and its wall's other eye (`partner_view`): an edge
+    // splits where either eye's criterion asks, a triangle is culled only where both cull it.
+    partner: u32,
+    // The partner's distance from the wall plane and near plane.
+    partner_eye_wall_distance: f32,
+    partner_near: f32,
+    partner_pad: u32,
 }
 
 const WORKGROUP: u32 = 64u;
@@ -94,6 +101,20 @@ var<private> split_room: u32;
 @group(0) @binding(8) var<storage, read_write> sorted: array<TessEntry>;
 // Clusters to refine, all views one after the other: (first source triangle, count ≤ 64).
 @group(0) @binding(9) var<storage, read> needy: array<vec2<u32>>;
+// The other eye of a shared refinement (the view itself when there is none).
+@group(0) @binding(10) var<uniform> partner_view: ViewUniforms;
+
+// Which eye `project`, the criteria and the culling measure for: the view's (false) or its
+// partner's (true).
+var<private> second_eye: bool;
+
+fn eye_near() -> f32 {
+    return select(tess.near, tess.partner_near, second_eye);
+}
+
+fn eye_wall_distance() -> f32 {
+    return select(tess.eye_wall_distance, tess.partner_eye_wall_distance, second_eye);
+}
 
 @group(1) @binding(0) var<storage, read_write> live_in: array<TessEntry>;
 @group(1) @binding(1) var<storage, read_write> live_out: array<TessEntry>;
@@ -131,13 +152,23 @@ struct Projected {
 // Mirrors tess::project: CAVE space, omnistereo eye and warp, projection, pixels.
 fn project(world: vec3<f32>) -> Projected {
     let p = (frame.cave_from_world * vec4<f32>(world, 1.0)).xyz;
+    var clip_from_cave = view.clip_from_cave;
+    var omni_head = view.omni_head;
+    var centre = view.eye_position.xyz;
+    var wall_plane = view.wall_plane;
+    if second_eye {
+        clip_from_cave = partner_view.clip_from_cave;
+        omni_head = partner_view.omni_head;
+        centre = partner_view.eye_position.xyz;
+        wall_plane = partner_view.wall_plane;
+    }
     var warped = p;
     if frame.omni.x > 0.5 {
-        let e = omni_eye(p, view.omni_head, frame.omni);
-        warped = omni_warp(p, e, view.eye_position.xyz, view.wall_plane, frame.omni.x);
+        let e = omni_eye(p, omni_head, frame.omni);
+        warped = omni_warp(p, e, centre, wall_plane, frame.omni.x);
     }
     var out: Projected;
-    out.clip = view.clip_from_cave * vec4<f32>(warped, 1.0);
+    out.clip = clip_from_cave * vec4<f32>(warped, 1.0);
     out.pixel = clip_to_pixel(out.clip);
     return out;
 }
@@ -206,8 +237,23 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
     return length(jm - 0.5 * (ja + jb)) > value;
 }
 
-// Mirrors tess::criteria::split_edge.
+// Mirrors tess::criteria::split_edge: where the view's criterion asks, or its partner's.
 fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
+    second_eye = false;
+    if split_edge_for_eye(p, depth, a, b) {
+        return true;
+    }
+    if tess.partner == 0u {
+        return false;
+    }
+    second_eye = true;
+    let split = split_edge_for_eye(p, depth, a, b);
+    second_eye = false;
+    return split;
+}
+
+// The criterion for one eye (`second_eye` says which).
+fn split_edge_for_eye(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
     let code = tess.criterion;
     let value = tess.criterion_value;
     if code == 1u {
@@ -220,7 +266,7 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
     let pb = point_position(p, b);
     let ja = project(pa);
     let jb = project(pb);
-    let near = tess.near;
+    let near = eye_near();
     let va = ja.clip.w > near;
     let vb = jb.clip.w > near;
     if !va && !vb {
@@ -260,7 +306,7 @@ fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) ->
         if centre.clip.w <= near {
             return true;
         }
-        return 2.0 * radius * tess.eye_wall_distance / centre.clip.w * tess.pixels_per_unit > value;
+        return 2.0 * radius * eye_wall_distance() / centre.clip.w * tess.pixels_per_unit > value;
     }
     if mid.clip.w <= near {
         return true;
@@ -293,7 +339,7 @@ fn drawn_off_by_more_than(pa: vec3<f32>, pb: vec3<f32>, ca: vec4<f32>, cb: vec4<
         let sigma = samples[k];
         let s = sigma * c0.w / ((1.0 - sigma) * c1.w + sigma * c0.w);
         let seen = project(p0 + s * (p1 - p0));
-        if seen.clip.w <= tess.near {
+        if seen.clip.w <= eye_near() {
             return true;
         }
         if length(seen.pixel - clip_to_pixel(c0 + s * (c1 - c0))) > value {
@@ -403,6 +449,26 @@ fn fallback_depth(roots: u32, capacity: u32, most: u32) -> u32 {
 // src/render/tessellator.rs).
 const MAX_GROUPS_X: u32 = 65535u;
 
+// Whether a source triangle's corners and edge midpoints lie outside the view, with the
+// margin, for every eye the refinement serves (mirrors TessRun::cull).
+fn outside_view(p: array<vec3<f32>, 3>, v0: vec2<u32>, v1: vec2<u32>, v2: vec2<u32>) -> bool {
+    var outside = true;
+    for (var eye = 0u; eye <= min(tess.partner, 1u) && outside; eye++) {
+        second_eye = eye == 1u;
+        let pts = array<vec4<f32>, 6>(
+            project(p[0]).clip,
+            project(p[1]).clip,
+            project(p[2]).clip,
+            project(point_position(p, midpoint(v0, v1))).clip,
+            project(point_position(p, midpoint(v1, v2))).clip,
+            project(point_position(p, midpoint(v2, v0))).clip,
+        );
+        outside = outside_all(pts, eye_near(), CULL_MARGIN);
+    }
+    second_eye = false;
+    return outside;
+}
+
 @compute @workgroup_size(64)
 fn cs_init(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -445,19 +511,9 @@ fn cs_init(
     let v0 = vec2<u32>(0u, 0u);
     let v1 = vec2<u32>(BARY_ONE, 0u);
     let v2 = vec2<u32>(0u, BARY_ONE);
-    if tess.frustum_cull != 0u {
-        let pts = array<vec4<f32>, 6>(
-            project(p[0]).clip,
-            project(p[1]).clip,
-            project(p[2]).clip,
-            project(point_position(p, midpoint(v0, v1))).clip,
-            project(point_position(p, midpoint(v1, v2))).clip,
-            project(point_position(p, midpoint(v2, v0))).clip,
-        );
-        if outside_all(pts, tess.near, CULL_MARGIN) {
-            atomicAdd(&counters[C_FRUSTUM], 1u);
-            return;
-        }
+    if tess.frustum_cull != 0u && outside_view(p, v0, v1, v2) {
+        atomicAdd(&counters[C_FRUSTUM], 1u);
+        return;
     }
     let e = make_entry(t, 0u, v0, v1, v2);
     if tess.criterion == 0u || tess.rounds == 0u {

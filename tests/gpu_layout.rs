@@ -274,6 +274,10 @@ fn cases() -> Vec<(shaders::Feature, &'static str, RustLayout)> {
                 "needy_offset" => needy_offset,
                 "needy_count" => needy_count,
                 "root_bound" => root_bound,
+                "partner" => partner,
+                "partner_eye_wall_distance" => partner_eye_wall_distance,
+                "partner_near" => partner_near,
+                "partner_pad" => partner_pad,
             ),
         ),
         (

@@ -17,7 +17,7 @@ use omnicave::scene::{Scene, load_gltf};
 use omnicave::tess::error::{ErrorStats, drawn_point, edge_errors};
 use omnicave::tess::{
     Bary, Criterion, TessOutput, TessSettings, TessTriangle, double_sided_flags, point_position,
-    tess_view, tessellate,
+    shared_partner, tess_view, tessellate,
 };
 
 const CAPACITY: usize = 1 << 20;
@@ -63,17 +63,24 @@ fn cpu_views_in(
     capacity: usize,
 ) -> Vec<(ViewSetup, TessOutput)> {
     let flags = double_sided_flags(scene);
-    view_setups(cave, &Head::at(head), mode, 0.064)
-        .into_iter()
-        .map(|v| {
+    let views = view_setups(cave, &Head::at(head), mode, 0.064);
+    views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
             let tv = tess_view(
-                &v,
+                v,
                 &cave.walls[v.wall],
                 Mat4::IDENTITY,
                 Some(OmniSettings::default()),
             );
+            // Both eyes of a wall share one refinement, as the renderer draws them.
+            let tv = match shared_partner(&views, i, tess) {
+                Some(other) => tv.paired_with(other),
+                None => tv,
+            };
             let out = tessellate(scene, &flags, &tv, tess, capacity);
-            (v, out)
+            (*v, out)
         })
         .collect()
 }
@@ -625,5 +632,114 @@ fn every_output_edge_is_shared_by_exactly_two_triangles() {
                 }
             }
         }
+    }
+}
+
+/// One refinement serves both eyes of a wall (`shared_eyes`, on by default): every eye draws
+/// exactly the CPU twin's shared refinement, which splits wherever either eye's criterion
+/// asks (so it refines at least as far as each eye alone); the frame records half the
+/// dispatches; and the picture is the per-eye refinement's but for a few edge pixels (both
+/// are within the criterion of the exact warp: a pixel whose centre an edge crosses may flip).
+#[test]
+fn both_eyes_of_a_wall_share_one_refinement() {
+    let mut cave = cave_at(480, 270);
+    cave.walls.truncate(2); // left and front walls
+    // Off-centre and 0.35 m from the front wall, where the two eyes' warps differ most.
+    let head = Vec3::new(0.5, 1.4, -1.15);
+    let room = box_room();
+    let city = city();
+    for (mode, criterion, scene) in [
+        (RenderMode::OmniOffAxis, Criterion::Error(0.5), &city),
+        (RenderMode::OmniOffAxis, Criterion::Sphere(30.0), &room),
+        (RenderMode::OmniOnAxis, Criterion::Edge(20.0), &city),
+        // Plain stereo through the tessellator: the eyes are two points, the back-face test
+        // uses the ball through both.
+        (RenderMode::Stereo, Criterion::Error(0.5), &room),
+    ] {
+        let label = format!("{mode:?} {criterion}");
+        let shared = settings(Some(criterion));
+        let alone = TessSettings {
+            shared_eyes: false,
+            ..shared
+        };
+        let (pictures, dispatches) = [shared, alone]
+            .map(|tess| {
+                with_renderer(&cave, NO_MSAA, None, |renderer| {
+                    renderer.set_scene(scene).unwrap();
+                    let frame =
+                        test_frame(&cave, Head::at(head), mode, OmniSettings::default(), tess);
+                    let stats = renderer.render(&frame).unwrap();
+                    let entries = renderer.read_tess_entries().unwrap();
+                    let tess_stats = renderer.read_tess_stats().unwrap();
+                    (
+                        renderer.read_images().unwrap(),
+                        stats.dispatches,
+                        entries,
+                        tess_stats,
+                    )
+                })
+            })
+            .into_iter()
+            .fold(
+                (Vec::new(), Vec::new()),
+                |(mut p, mut d), (images, n, entries, stats)| {
+                    p.push((images, entries, stats));
+                    d.push(n);
+                    (p, d)
+                },
+            );
+        assert!(dispatches[0] > 0, "{label}: nothing refined");
+        assert_eq!(2 * dispatches[0], dispatches[1], "{label}: dispatches");
+        // The last view (the front wall's right eye) draws its wall's shared refinement:
+        // exactly the twin's, for either eye.
+        let (images, entries, stats) = &pictures[0];
+        let twin = cpu_views(&cave, head, mode, scene, &shared);
+        let (_, last) = twin.last().unwrap();
+        let mut expected = last.triangles.clone();
+        expected.sort();
+        assert!(
+            sorted_triangles(entries) == expected,
+            "{label}: GPU and twin differ"
+        );
+        let (_, leader) = &twin[twin.len() - 2];
+        let mut leader_triangles = leader.triangles.clone();
+        leader_triangles.sort();
+        assert!(
+            leader_triangles == expected,
+            "{label}: the eyes' refinements differ"
+        );
+        // Each wall's two eyes report the same refinement.
+        for pair in stats.chunks_exact(2) {
+            assert_eq!(pair[0].emitted, pair[1].emitted, "{label}: {stats:?}");
+        }
+        // At least as fine as each eye alone, never more than both together.
+        let each = cpu_views(&cave, head, mode, scene, &alone);
+        for (wall, pair) in each.chunks_exact(2).enumerate() {
+            let [l, r] = [&pair[0].1, &pair[1].1].map(|o| o.stats.emitted);
+            let both = twin[2 * wall].1.stats.emitted;
+            assert!(
+                both >= l.max(r) && both <= l + r,
+                "{label}: {l}, {r} alone, {both} shared"
+            );
+        }
+        // The pictures: at most 0.5 % of pixels differ by more than 24/255 in a channel (edge
+        // pixels whose coverage flips between two meshes that both lie within the criterion).
+        let (alone_images, _, _) = &pictures[1];
+        let mut differing = 0usize;
+        let mut total = 0usize;
+        for (a, b) in images.iter().zip(alone_images) {
+            for (x, y) in [(&a.left, &b.left), (&a.right, &b.right)] {
+                total += x.pixels().len();
+                differing += x
+                    .pixels()
+                    .zip(y.pixels())
+                    .filter(|(p, q)| (0..3).any(|c| p[c].abs_diff(q[c]) > 24))
+                    .count();
+            }
+        }
+        assert!(
+            differing * 200 <= total,
+            "{label}: {differing} of {total} pixels differ"
+        );
     }
 }

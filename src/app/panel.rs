@@ -471,6 +471,7 @@ fn tessellation_section(ui: &mut Ui, state: &mut AppState, info: &PanelInfo) {
             ui.checkbox(&mut t.backface_cull, "Back-face cull");
             ui.checkbox(&mut t.frustum_cull, "Frustum cull");
             ui.checkbox(&mut t.skip_fine, "Draw what needs no refining directly");
+            ui.checkbox(&mut t.shared_eyes, "One refinement for both eyes of a wall");
         });
         // The kind and parameter above apply while tessellation is on.
         state.set_tess_on(on);

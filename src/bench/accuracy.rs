@@ -10,7 +10,8 @@ use crate::config::Config;
 use crate::scene::Scene;
 use crate::tess::error::{ErrorStats, border_crossings, edge_error_samples, source_positions};
 use crate::tess::{
-    TessOutput, TessView, double_sided_flags, point_position, project, tess_view, tessellate,
+    TessOutput, TessView, double_sided_flags, point_position, project, shared_partner, tess_view,
+    tessellate,
 };
 
 /// Output budget of the CPU twin per view (the GPU's default is 1 M; the CPU twin needs no
@@ -66,9 +67,14 @@ pub fn accuracy(
     let mut result = Accuracy::default();
     let views = view_setups(cave, &head, method.mode, ipd);
     let mut outputs = Vec::with_capacity(views.len());
-    for view in &views {
+    for (index, view) in views.iter().enumerate() {
         let wall = &cave.walls[view.wall];
         let drawn = tess_view(view, wall, world_from_cave, Some(omni));
+        // Both eyes of a wall share one refinement, as the renderer draws them.
+        let drawn = match shared_partner(&views, index, &settings) {
+            Some(other) => drawn.paired_with(other),
+            None => drawn,
+        };
         let out = tessellate(scene, &flags, &drawn, &settings, CAPACITY);
         result.input += u64::from(out.stats.input);
         result.culled += u64::from(out.stats.culled_backface + out.stats.culled_frustum);

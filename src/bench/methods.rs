@@ -307,11 +307,13 @@ mod tests {
             backface_cull: false,
             frustum_cull: false,
             skip_fine: false,
+            shared_eyes: false,
         };
         let all = methods(true, base);
         for m in &all {
             assert_eq!(m.tess.max_depth, 14, "{}", m.name);
             assert!(!m.tess.backface_cull && !m.tess.frustum_cull && !m.tess.skip_fine);
+            assert!(!m.tess.shared_eyes);
         }
         // The config's criterion is not a method's: the reference stays untessellated.
         assert_eq!(all[0].tess.criterion, None);

@@ -397,11 +397,12 @@ impl ReportInputs<'_> {
             md,
             "Every tessellated method uses the config's `[tessellation]` with its own criterion: \
              maximum depth {}, back-face culling {}, frustum culling {}, fine clusters drawn \
-             directly {}.\n",
+             directly {}, one refinement for both eyes of a wall {}.\n",
             tess.max_depth,
             on(tess.backface_cull),
             on(tess.frustum_cull),
-            on(tess.skip_fine)
+            on(tess.skip_fine),
+            on(tess.shared_eyes)
         );
     }
 
@@ -817,8 +818,9 @@ fn write_scaling_section(md: &mut String, summary: &[SceneSummary], views: usize
         md,
         "\n## Scaling with scene size\n\nTime: median frame over the cases, ms (× stereo: the \
          geometric mean over the cases of the paired ratio). `refined`: source triangles that \
-         entered the tessellator per frame, summed over the {views} views (largest over the \
-         cases), against the scene's triangles × views. Chart: `time-vs-triangles.svg`.\n\n\
+         entered the tessellator per frame, summed over its refinements (one per wall where \
+         both eyes share it, `shared_eyes`; largest over the cases), against the scene's \
+         triangles × {views} views. Chart: `time-vs-triangles.svg`.\n\n\
          | scene | triangles | stereo ms | plain warp ms (×) | cheapest exact | ms (×) | tess \
          stages ms | refined | of |\n|---|---:|---:|---:|---|---:|---:|---:|---:|"
     );
@@ -1031,7 +1033,8 @@ fn write_stage_table(md: &mut String, s: &SceneSummary) {
          the views, median over the cases; `resolve` is the end of each view's render pass, \
          MSAA resolve and stores; `tess cull` is the culling dispatch, which also splits the \
          first {} levels, `tess split` the split dispatches beyond them; `refined` counts the \
-         source triangles that entered the tessellator, all views):\n\n| method | total | {} | dispatches | refined | drawn triangles |\n|---|---:|{}---:|---:|---:|",
+         source triangles that entered the tessellator, all refinements: one per wall where \
+         both eyes share it, `shared_eyes`):\n\n| method | total | {} | dispatches | refined | drawn triangles |\n|---|---:|{}---:|---:|---:|",
         s.scene,
         crate::render::tessellator::SPLIT_LEVELS,
         names.join(" | "),

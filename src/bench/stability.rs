@@ -18,7 +18,8 @@ use crate::scene::build::cuboid;
 use crate::scene::{Material, Scene};
 use crate::tess::error::{drawn_edge_points, edge_point_position, exact_pixel};
 use crate::tess::{
-    Criterion, TessSettings, clip_to_pixel, double_sided_flags, tess_view, tessellate,
+    Criterion, TessSettings, clip_to_pixel, double_sided_flags, shared_partner, tess_view,
+    tessellate,
 };
 
 /// Failure counts of one warp configuration over the sweep.
@@ -469,9 +470,15 @@ fn drawn_errors(
     let head = Head::at(head);
     let ideal_views = view_setups(cave, &head, RenderMode::OmniOffAxis, ipd);
     let mut errors = HashMap::new();
-    for view in view_setups(cave, &head, method.mode, ipd) {
+    let views = view_setups(cave, &head, method.mode, ipd);
+    for (index, view) in views.iter().enumerate() {
         let wall = &cave.walls[view.wall];
-        let tv = tess_view(&view, wall, Mat4::IDENTITY, Some(method.omni));
+        let tv = tess_view(view, wall, Mat4::IDENTITY, Some(method.omni));
+        // Both eyes of a wall share one refinement, as the renderer draws them.
+        let tv = match shared_partner(&views, index, &method.tess) {
+            Some(other) => tv.paired_with(other),
+            None => tv,
+        };
         let out = tessellate(scene, flags, &tv, &method.tess, POP_CAPACITY);
         let Some(ideal) = ideal_views
             .iter()

@@ -51,6 +51,7 @@ impl ConfigFile {
             backface_cull: t.backface_cull,
             frustum_cull: t.frustum_cull,
             skip_fine: t.skip_fine,
+            shared_eyes: t.shared_eyes,
         }
     }
 

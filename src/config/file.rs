@@ -153,6 +153,10 @@ pub struct TessellationSection {
     /// the ordinary path, and tessellate only the rest (the same picture, at the cost of what
     /// needs refining). Off: every triangle goes through the tessellator.
     pub skip_fine: bool,
+    /// Refine once for both eyes of a wall (edges split where either eye's warp needs it;
+    /// each eye warps the shared result). Off: each eye is refined on its own, twice the
+    /// tessellator's work for the same error.
+    pub shared_eyes: bool,
 }
 
 impl Default for TessellationSection {
@@ -164,6 +168,7 @@ impl Default for TessellationSection {
             backface_cull: tess.backface_cull,
             frustum_cull: tess.frustum_cull,
             skip_fine: tess.skip_fine,
+            shared_eyes: tess.shared_eyes,
         }
     }
 }

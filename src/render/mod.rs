@@ -116,8 +116,9 @@ pub struct FrameStats {
     /// Triangles drawn directly, untessellated, in a tessellated frame (all views): those of
     /// clusters proven to need no refinement.
     pub fine_triangles: usize,
-    /// Source triangles that entered the tessellator (all views): those of the clusters
-    /// that may need refining, or every triangle per view without `skip_fine`.
+    /// Source triangles that entered the tessellator (all refinements: one per view, or per
+    /// wall where both eyes share it): those of the clusters that may need refining, or
+    /// every triangle per refinement without `skip_fine`.
     pub refined_input: usize,
 }
 
@@ -168,6 +169,10 @@ pub struct Renderer {
     cluster_splits: Vec<ClusterSplit>,
     /// Per view: where its refined clusters lie in the tessellator's list (reused).
     needy_ranges: Vec<(u32, u32, u32)>,
+    /// Per view: whether it shares its wall's other eye's refinement (reused).
+    eye_shares: Vec<crate::tess::EyeShare>,
+    /// Per view: its cluster test this frame (reused).
+    cluster_tests: Vec<Option<crate::tess::clusters::ClusterTest>>,
     /// Frames rendered so far (the read-back ring tags results with it).
     frame_number: u64,
     /// Timestamps and tessellation counts of each frame, read back without waiting.
@@ -280,6 +285,8 @@ impl Renderer {
             last_dispatches: 0,
             cluster_splits: Vec::new(),
             needy_ranges: Vec::new(),
+            eye_shares: Vec::new(),
+            cluster_tests: Vec::new(),
             frame_number: 0,
             readback: readback::ReadbackRing::new(
                 &gpu.device,

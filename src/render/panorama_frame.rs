@@ -165,7 +165,7 @@ impl Renderer {
                 }
                 continue;
             };
-            buffers.encode(tessellator, encoder, index, rounds, None, None);
+            buffers.encode(tessellator, encoder, index, None, rounds, None, None);
             if let Some(mut pass) = self.pano.begin_eye_pass(encoder, index, clear) {
                 self.scene_pass.draw_panorama(
                     &mut pass,

@@ -68,6 +68,13 @@ pub struct TessUniforms {
     /// output slot for each of them, so an exhausted budget refines less but drops nothing.
     /// Set by `TessBuffers::write_uniforms` outside cluster mode, by the renderer in it.
     pub root_bound: u32,
+    /// 1: one refinement serves this view and its wall's other eye (bound beside it, see
+    /// `TessBuffers::encode`); set by [`TessUniforms::with_partner`].
+    pub partner: u32,
+    /// The partner's distance from the wall plane, and its near plane.
+    pub partner_eye_wall_distance: f32,
+    pub partner_near: f32,
+    pub partner_pad: u32,
 }
 
 impl TessUniforms {
@@ -76,10 +83,7 @@ impl TessUniforms {
     pub fn new(view: &ViewSetup, wall: &Wall, settings: &TessSettings, omni: bool) -> Self {
         let (code, value) = settings.criterion.map_or((0, 0.0), |c| c.gpu_code());
         let [w, h] = wall.resolution.map(|v| v as f32);
-        let (centre, radius) = match view.omni {
-            Some(o) if omni => (o.head, 0.5 * o.ipd),
-            _ => (view.eye_position, 0.0),
-        };
+        let (centre, radius) = crate::tess::eye_ball(view, None, omni);
         Self {
             criterion: code,
             criterion_value: value,
@@ -95,6 +99,26 @@ impl TessUniforms {
             eye_ball_radius: radius,
             eye_ball_centre: centre.to_array(),
             ..Zeroable::zeroed()
+        }
+    }
+
+    /// The same refinement serving `partner` too, the other eye of the same `wall`: the
+    /// back-face ball holds both eyes (as `tess::eye_ball`).
+    pub fn with_partner(
+        self,
+        view: &ViewSetup,
+        partner: &ViewSetup,
+        wall: &Wall,
+        omni: bool,
+    ) -> Self {
+        let (centre, radius) = crate::tess::eye_ball(view, Some(partner), omni);
+        Self {
+            partner: 1,
+            partner_eye_wall_distance: wall.signed_distance(partner.eye_position),
+            partner_near: partner.near,
+            eye_ball_radius: radius,
+            eye_ball_centre: centre.to_array(),
+            ..self
         }
     }
 
@@ -297,6 +321,7 @@ impl Tessellator {
                 storage_entry(7, false, c),
                 storage_entry(8, false, c),
                 storage_entry(9, true, c),
+                uniform_entry(10, true),
             ],
         });
         let lists_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -462,6 +487,7 @@ impl Tessellator {
                 whole(&s.output, 7),
                 whole(&s.sorted, 8),
                 whole(&s.needy, 9),
+                sized(inputs.view_buffer, 10, inputs.view_binding_size),
             ],
         })
     }
@@ -655,13 +681,16 @@ impl TessBuffers {
     /// Records the tessellation of view `view_index` (its uniform slot and view slot), with
     /// timestamps ending its culling, split rounds and sort when `marks` is given. `needy`:
     /// the number of clusters this view refines (its uniforms say where they are), or `None`
-    /// for every source triangle. A view with no cluster to refine records nothing but its
-    /// (empty) statistics, and returns false: there is no output to draw.
+    /// for every source triangle. `partner`: the view slot of the wall's other eye when one
+    /// refinement serves both (its uniforms say so). A view with no cluster to refine records
+    /// nothing but its (empty) statistics, and returns false: there is no output to draw.
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
         tess: &Tessellator,
         encoder: &mut wgpu::CommandEncoder,
         view_index: usize,
+        partner: Option<usize>,
         rounds: u32,
         needy: Option<u32>,
         marks: Option<TessMarks<'_>>,
@@ -687,7 +716,8 @@ impl TessBuffers {
                 timestamp_writes: None,
             });
             let offset = (view_index as u64 * UNIFORM_STRIDE) as u32;
-            pass.set_bind_group(0, &self.shared_group, &[offset, offset]);
+            let partner_offset = partner.map_or(offset, |p| (p as u64 * UNIFORM_STRIDE) as u32);
+            pass.set_bind_group(0, &self.shared_group, &[offset, offset, partner_offset]);
             // cs_init appends to list A (the "out" side of the B→A group).
             pass.set_bind_group(1, &self.lists_ba, &[]);
             pass.set_pipeline(&tess.init);
@@ -747,6 +777,31 @@ impl TessBuffers {
             );
         }
         true
+    }
+
+    /// Records view `view_index`, which draws the refinement its wall's other eye just made
+    /// (`leader_drew`: whether that one has output): no dispatch, its tessellation stages end
+    /// where they begin, and its statistics are the leader's.
+    pub fn encode_follower(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        view_index: usize,
+        leader_drew: bool,
+        marks: Option<TessMarks<'_>>,
+    ) {
+        if let Some(m) = marks {
+            for index in [m.cull, m.split, m.sort] {
+                encoder.write_timestamp(m.queries, index);
+            }
+        }
+        if view_index < self.stats_capacity {
+            let at = view_index as u64 * STATS_BYTES;
+            if leader_drew {
+                encoder.copy_buffer_to_buffer(&self.counters, 0, &self.stats, at, STATS_BYTES);
+            } else {
+                encoder.clear_buffer(&self.stats, at, Some(STATS_BYTES));
+            }
+        }
     }
 
     /// Uploads every view's clusters to refine, one after the other (one write per frame;

@@ -12,6 +12,7 @@ use super::{
 use crate::cave::omni::OmniSettings;
 use crate::cave::{ViewSetup, eye_positions, view_setups};
 use crate::sky::SkyMode;
+use crate::tess::EyeShare;
 use crate::tess::clusters::{ClusterTest, Verdict};
 
 /// What the culling stage decided for the whole frame.
@@ -69,8 +70,9 @@ impl Renderer {
         self.drew_encoded = style.encoded;
         self.walls
             .set_tessellated_views(if plan.tessellate { views.len() } else { 0 });
+        let mut drew = false;
         for (index, view) in views.iter().enumerate() {
-            self.encode_view(&mut encoder, frame, plan, style, index, view);
+            drew = self.encode_view(&mut encoder, frame, plan, style, index, view, drew);
         }
         let stats = self.frame_stats(&views, plan, style.rounds);
         self.queue_readbacks(&mut encoder, views.len(), plan.tessellate);
@@ -154,11 +156,18 @@ impl Renderer {
     /// Culling: each view's clusters, the provably invisible dropped, the rest drawn whole
     /// or, when tessellating, refined if they may need it (see `tess::clusters`). A split
     /// scene has no clusters (and is not tessellated): drawn whole, every draw in every view.
+    /// Both eyes of a wall share one refinement (`tess.shared_eyes`): a cluster either eye
+    /// refines is refined for both.
     fn cull(&mut self, frame: &FrameParams<'_>, views: &[ViewSetup]) -> FramePlan {
         let tessellate =
             frame.tess.criterion.is_some() && self.scene.is_some() && self.tessellator.is_some();
         let direct = self.scene.as_ref().is_some_and(|s| !s.clusters.is_empty())
             && (!tessellate || frame.tess.skip_fine);
+        crate::tess::eye_shares(
+            views,
+            tessellate && frame.tess.shared_eyes,
+            &mut self.eye_shares,
+        );
         if let (true, Some(scene)) = (direct, &self.scene) {
             let omni = frame.mode.is_omni().then_some(frame.omni);
             let unproven = if tessellate {
@@ -166,16 +175,37 @@ impl Renderer {
             } else {
                 Verdict::Fine
             };
-            self.cluster_splits
-                .resize_with(views.len(), Default::default);
-            for (v, split) in views.iter().zip(&mut self.cluster_splits) {
+            self.cluster_tests.clear();
+            self.cluster_tests.extend(views.iter().map(|v| {
                 let wall = &frame.cave.walls[v.wall];
                 let tv = crate::tess::tess_view(v, wall, frame.world_from_cave, omni);
-                let test = ClusterTest::for_settings(&tv, &frame.tess, tessellate);
-                split.classify(&scene.clusters, test.as_ref(), unproven);
+                ClusterTest::for_settings(&tv, &frame.tess, tessellate)
+            }));
+            self.cluster_splits
+                .resize_with(views.len(), Default::default);
+            let tests = &self.cluster_tests;
+            for (i, split) in self.cluster_splits.iter_mut().enumerate().take(views.len()) {
+                let own = tests.get(i).copied().flatten();
+                let other = match self.eye_shares.get(i) {
+                    Some(EyeShare::Leads { partner }) => Some(*partner),
+                    Some(EyeShare::Follows { leader }) => Some(*leader),
+                    _ => None,
+                };
+                match other {
+                    Some(o) => {
+                        let other = tests.get(o).copied().flatten();
+                        split.classify(&scene.clusters, &[own.as_ref(), other.as_ref()], unproven);
+                    }
+                    None => split.classify(&scene.clusters, &[own.as_ref()], unproven),
+                }
             }
         }
         FramePlan { tessellate, direct }
+    }
+
+    /// Whether view `index` draws the refinement of the view before it.
+    fn follows(&self, index: usize) -> bool {
+        matches!(self.eye_shares.get(index), Some(EyeShare::Follows { .. }))
     }
 
     /// Refinement's inputs: the tessellator's buffers, each view's clusters to refine and
@@ -194,29 +224,43 @@ impl Renderer {
         let buffers =
             self.walls
                 .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
+        // A view that draws its partner's refinement uploads no clusters of its own (the
+        // same list as its leader's).
+        let shares = &self.eye_shares;
+        let follows = |i: usize| matches!(shares.get(i), Some(EyeShare::Follows { .. }));
         buffers.write_needy(
             &self.queue,
             self.cluster_splits[..if plan.direct { views.len() } else { 0 }]
                 .iter()
-                .map(|s| s.needy.as_slice()),
+                .enumerate()
+                .map(|(i, s)| {
+                    if follows(i) {
+                        &[][..]
+                    } else {
+                        s.needy.as_slice()
+                    }
+                }),
             &mut self.needy_ranges,
         );
         let ranges = &self.needy_ranges;
+        let omni = frame.mode.is_omni();
         buffers.write_uniforms(
             &self.queue,
             views.iter().enumerate().map(|(i, v)| {
                 let (offset, count, triangles) = ranges.get(i).copied().unwrap_or((0, 0, 0));
-                TessUniforms {
+                let wall = &frame.cave.walls[v.wall];
+                let own = TessUniforms {
                     cluster_mode: u32::from(plan.direct),
                     needy_offset: offset,
                     needy_count: count,
                     root_bound: triangles,
-                    ..TessUniforms::new(
-                        v,
-                        &frame.cave.walls[v.wall],
-                        &frame.tess,
-                        frame.mode.is_omni(),
-                    )
+                    ..TessUniforms::new(v, wall, &frame.tess, omni)
+                };
+                match (shares.get(i), views.get(i + 1)) {
+                    (Some(EyeShare::Leads { .. }), Some(partner)) => {
+                        own.with_partner(v, partner, wall, omni)
+                    }
+                    _ => own,
                 }
             }),
         );
@@ -286,7 +330,10 @@ impl Renderer {
         }
     }
 
-    /// One view: its refinement, then its scene pass (scene, wand, sky) and its resolve.
+    /// One view: its refinement (or its wall's other eye's, `leader_drew` saying whether that
+    /// has output), then its scene pass (scene, wand, sky) and its resolve; whether the
+    /// tessellator drew anything for it.
+    #[allow(clippy::too_many_arguments)]
     fn encode_view(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -295,9 +342,10 @@ impl Renderer {
         style: PassStyle,
         index: usize,
         view: &ViewSetup,
-    ) {
+        leader_drew: bool,
+    ) -> bool {
         let timer = self.timer.as_ref();
-        let drew = self.encode_refinement(encoder, plan, style.rounds, index);
+        let drew = self.encode_refinement(encoder, plan, style.rounds, index, leader_drew);
         let target = &self.targets[view.wall].eyes[view.eye.map_or(0, |e| e as usize)];
         let samples = target
             .encoded_samples
@@ -352,26 +400,44 @@ impl Renderer {
         if let Some(t) = timer {
             t.mark(encoder, index, ViewStage::Resolve);
         }
+        drew
     }
 
-    /// Records view `index`'s refinement; whether the tessellator drew anything for it.
+    /// Records view `index`'s refinement, alone or for both eyes of its wall, or nothing but
+    /// its statistics where it draws its wall's other eye's (`leader_drew`); whether the
+    /// tessellator drew anything for it.
     fn encode_refinement(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         plan: FramePlan,
         rounds: u32,
         index: usize,
+        leader_drew: bool,
     ) -> bool {
         let timer = self.timer.as_ref();
         match (self.walls.tessellated(), &self.tessellator) {
+            (Some(buffers), Some(_)) if self.follows(index) => {
+                buffers.encode_follower(
+                    encoder,
+                    index,
+                    leader_drew,
+                    timer.map(|t| t.tess_marks(index)),
+                );
+                leader_drew
+            }
             (Some(buffers), Some(tessellator)) => {
                 let needy = plan
                     .direct
                     .then(|| self.needy_ranges.get(index).map_or(0, |r| r.1));
+                let partner = match self.eye_shares.get(index) {
+                    Some(EyeShare::Leads { partner }) => Some(*partner),
+                    _ => None,
+                };
                 buffers.encode(
                     tessellator,
                     encoder,
                     index,
+                    partner,
                     rounds,
                     needy,
                     timer.map(|t| t.tess_marks(index)),
@@ -440,10 +506,12 @@ impl Renderer {
     /// directly and refined.
     fn frame_stats(&mut self, views: &[ViewSetup], plan: FramePlan, rounds: u32) -> FrameStats {
         let n = views.len();
+        // A view drawing its wall's other eye's refinement dispatches nothing.
+        let refining = (0..n).filter(|&i| !self.follows(i)).count();
         let tessellated_views = match (plan.tessellate, plan.direct) {
             (false, _) => 0,
             (true, true) => self.needy_ranges.iter().filter(|r| r.1 > 0).count(),
-            (true, false) => n,
+            (true, false) => refining,
         };
         self.last_dispatches = tessellated_views * tessellator::dispatches_per_view(rounds);
         let triangles = self.scene.as_ref().map_or(0, |s| s.triangle_count);
@@ -452,10 +520,12 @@ impl Renderer {
             (false, _) => 0,
             (true, true) => splits
                 .iter()
-                .flat_map(|s| &s.needy)
+                .enumerate()
+                .filter(|(i, _)| !self.follows(*i))
+                .flat_map(|(_, s)| &s.needy)
                 .map(|r| r[1] as usize)
                 .sum(),
-            (true, false) => triangles * n,
+            (true, false) => triangles * refining,
         };
         let fine_triangles: usize = if plan.tessellate && plan.direct {
             splits.iter().map(|s| s.fine_triangles() as usize).sum()

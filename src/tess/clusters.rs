@@ -449,19 +449,30 @@ pub struct ClusterSplit {
 }
 
 impl ClusterSplit {
-    /// Classifies `clusters` with `test` (without one, every cluster gets `unproven`); hidden
-    /// ones are in neither list.
+    /// Classifies `clusters` for the view whose test is `tests[0]` (a `None` test gives every
+    /// cluster `unproven`); hidden ones are in neither list. Further tests are the other eyes
+    /// one refinement serves: a cluster any of them refines is refined for this one too, so
+    /// their needy lists are the same and none draws a cluster both directly and refined.
     pub fn classify(
         &mut self,
         clusters: &[Cluster],
-        test: Option<&ClusterTest>,
+        tests: &[Option<&ClusterTest>],
         unproven: Verdict,
     ) {
         self.fine.clear();
         self.needy.clear();
         self.needy_draws.clear();
+        let judge =
+            |test: &Option<&ClusterTest>, c: &Cluster| test.map_or(unproven, |t| t.verdict(c));
+        let (own, others) = match tests.split_first() {
+            Some((own, others)) => (*own, others),
+            None => (None, &[][..]),
+        };
         for c in clusters {
-            let verdict = test.map_or(unproven, |t| t.verdict(c));
+            let mut verdict = judge(&own, c);
+            if verdict != Verdict::Needy && others.iter().any(|t| judge(t, c) == Verdict::Needy) {
+                verdict = Verdict::Needy;
+            }
             if verdict == Verdict::Hidden {
                 continue;
             }
@@ -812,7 +823,7 @@ mod tests {
             }
         }
         let mut split = ClusterSplit::default();
-        split.classify(&clusters, None, Verdict::Needy);
+        split.classify(&clusters, &[None], Verdict::Needy);
         assert_eq!(split.needy.len(), expected.len());
         assert!(split.fine.is_empty());
         assert_eq!(split.needy_draws, [0, 1]);
@@ -825,16 +836,16 @@ mod tests {
             0.064,
         );
         let tv = tess_view(&views[0], &cave.walls[0], Mat4::IDENTITY, None);
-        split.classify(&clusters, None, Verdict::Fine);
+        split.classify(&clusters, &[None], Verdict::Fine);
         assert_eq!(split.fine, vec![(0, 0, 300), (1, 300, 150)]);
         assert!(split.needy.is_empty() && split.needy_draws.is_empty());
         assert_eq!(split.fine_triangles(), 150);
         // Uniform subdivision refines every visible cluster; uniform:0 none.
         let test = ClusterTest::new(&tv, Some(Criterion::Uniform(1))).expect("test");
-        split.classify(&clusters, Some(&test), Verdict::Needy);
+        split.classify(&clusters, &[Some(&test)], Verdict::Needy);
         assert!(split.fine.is_empty());
         let test = ClusterTest::new(&tv, Some(Criterion::Uniform(0))).expect("test");
-        split.classify(&clusters, Some(&test), Verdict::Needy);
+        split.classify(&clusters, &[Some(&test)], Verdict::Needy);
         assert!(split.needy.is_empty());
     }
 }

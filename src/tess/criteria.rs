@@ -106,6 +106,8 @@ pub struct TessSettings {
     /// Clusters whose warp error is provably below the criterion (see `tess::clusters`) are
     /// drawn through the ordinary path; only the rest are tessellated.
     pub skip_fine: bool,
+    /// Both eyes of a wall share one refinement (see [`super::EyeShare`]).
+    pub shared_eyes: bool,
 }
 
 impl Default for TessSettings {
@@ -116,6 +118,7 @@ impl Default for TessSettings {
             backface_cull: true,
             frustum_cull: true,
             skip_fine: true,
+            shared_eyes: true,
         }
     }
 }
@@ -131,8 +134,22 @@ pub fn wall_is_vertical(wall: &crate::cave::Wall) -> bool {
 }
 
 /// Decides whether the edge `a`→`b` of a source triangle with scene-space corners `p` is
-/// split in round `depth`. A pure function of the edge: both triangles sharing it agree.
+/// split in round `depth`: where any eye of `tv` asks (one, or both eyes of a wall sharing
+/// one refinement). A pure function of the edge: both triangles sharing it agree.
 pub fn split_edge(
+    tv: &TessView<'_>,
+    criterion: &Criterion,
+    depth: u32,
+    p: [Vec3; 3],
+    a: Bary,
+    b: Bary,
+) -> bool {
+    tv.eyes()
+        .any(|eye| split_edge_for_eye(&eye, criterion, depth, p, a, b))
+}
+
+/// [`split_edge`] for one eye.
+fn split_edge_for_eye(
     tv: &TessView<'_>,
     criterion: &Criterion,
     depth: u32,

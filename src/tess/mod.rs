@@ -137,6 +137,34 @@ pub struct TessView<'a> {
     /// `Some` in the omnistereo modes.
     pub omni: Option<OmniSettings>,
     pub near: f32,
+    /// The other eye of the same wall when one refinement serves both (see
+    /// [`TessView::paired_with`]): an edge splits where either eye's criterion asks, a
+    /// triangle is culled only where both eyes' tests cull it.
+    pub partner: Option<&'a ViewSetup>,
+}
+
+impl<'a> TessView<'a> {
+    /// The same view refined for both eyes of its wall: `other` is the second eye.
+    pub fn paired_with(self, other: &'a ViewSetup) -> Self {
+        Self {
+            partner: Some(other),
+            ..self
+        }
+    }
+
+    /// The eyes whose criteria and culling decide: this view's, then its partner's.
+    pub fn eyes(&self) -> impl Iterator<Item = TessView<'a>> + '_ {
+        let alone = Self {
+            partner: None,
+            ..*self
+        };
+        std::iter::once(alone).chain(self.partner.map(move |view| Self {
+            view,
+            near: view.near,
+            partner: None,
+            ..*self
+        }))
+    }
 }
 
 /// Interpolates a source triangle's attribute at a barycentric point, canonically: a vertex is
@@ -226,11 +254,19 @@ pub fn clip_to_pixel(clip: Vec4, resolution: [u32; 2]) -> Vec2 {
 }
 
 /// The eye position(s) of a view for back-face culling: a point and a radius within which
-/// every eye of the view lies (the head and IPD/2 in omnistereo, the eye itself otherwise).
-fn eye_ball(tv: &TessView<'_>) -> (Vec3, f32) {
-    match (tv.omni, tv.view.omni) {
-        (Some(_), Some(o)) => (o.head, 0.5 * o.ipd),
-        _ => (tv.view.eye_position, 0.0),
+/// every eye of the view lies (the head and IPD/2 in omnistereo, the eye itself otherwise;
+/// with a `partner`, the ball through both eyes). The GPU gets the same from
+/// `TessUniforms::new`, so both cull alike bit for bit.
+pub fn eye_ball(view: &ViewSetup, partner: Option<&ViewSetup>, omni: bool) -> (Vec3, f32) {
+    match (omni, view.omni) {
+        (true, Some(o)) => (o.head, 0.5 * o.ipd),
+        _ => match partner {
+            Some(other) => (
+                0.5 * (view.eye_position + other.eye_position),
+                0.5 * view.eye_position.distance(other.eye_position),
+            ),
+            None => (view.eye_position, 0.0),
+        },
     }
 }
 
@@ -245,7 +281,7 @@ pub fn is_backfacing(tv: &TessView<'_>, cave: [Vec3; 3]) -> bool {
     if len <= 0.0 {
         return false;
     }
-    let (centre, radius) = eye_ball(tv);
+    let (centre, radius) = eye_ball(tv.view, tv.partner, tv.omni.is_some());
     n.dot(centre - cave[0]) / len < -(radius + BACKFACE_EPSILON)
 }
 
@@ -309,9 +345,14 @@ pub fn cluster_verdicts(
     settings: &TessSettings,
 ) -> Vec<clusters::Verdict> {
     let mut verdicts = vec![clusters::Verdict::Needy; scene.triangle_count()];
-    let Some(test) = clusters::ClusterTest::for_settings(tv, settings, true) else {
+    // Every eye the refinement serves must prove a cluster fine (see `ClusterSplit::classify`).
+    let tests: Vec<_> = tv
+        .eyes()
+        .map(|eye| clusters::ClusterTest::for_settings(&eye, settings, true))
+        .collect();
+    if tests.iter().any(Option::is_none) {
         return verdicts;
-    };
+    }
     let draws = scene
         .draws
         .iter()
@@ -320,8 +361,15 @@ pub fn cluster_verdicts(
         .map(|(i, d)| (i as u32, d.first_index, d.index_count));
     for c in clusters::build_clusters(scene, draws) {
         let range = c.first_triangle as usize..(c.first_triangle + c.triangle_count) as usize;
+        let mut judged = tests.iter().flatten().map(|t| t.verdict(&c));
+        let own = judged.next().unwrap_or(clusters::Verdict::Needy);
+        let verdict = if judged.any(|v| v == clusters::Verdict::Needy) {
+            clusters::Verdict::Needy
+        } else {
+            own
+        };
         if let Some(v) = verdicts.get_mut(range) {
-            v.fill(test.verdict(&c));
+            v.fill(verdict);
         }
     }
     verdicts
@@ -519,15 +567,18 @@ impl TessRun<'_> {
         let backfacing = settings.backface_cull
             && !double_sided
             && is_backfacing(tv, p.map(|q| tv.cave_from_world.transform_point3(q)));
-        let outside = !backfacing && settings.frustum_cull && {
-            let mut pts = [Vec4::ZERO; 6];
-            for k in 0..3 {
-                pts[k] = project(tv, p[k]).clip;
-                pts[k + 3] =
-                    project(tv, point_position(p, root[k].midpoint(root[(k + 1) % 3]))).clip;
-            }
-            all_outside_by(&pts, tv.near, CULL_MARGIN)
-        };
+        // Outside only if outside every eye's view (a shared refinement serves both).
+        let outside = !backfacing
+            && settings.frustum_cull
+            && tv.eyes().all(|eye| {
+                let mut pts = [Vec4::ZERO; 6];
+                for k in 0..3 {
+                    pts[k] = project(&eye, p[k]).clip;
+                    pts[k + 3] =
+                        project(&eye, point_position(p, root[k].midpoint(root[(k + 1) % 3]))).clip;
+                }
+                all_outside_by(&pts, eye.near, CULL_MARGIN)
+            });
         (backfacing, outside)
     }
 
@@ -651,6 +702,60 @@ fn cut_from_corner(p: [Vec3; 3], a: Bary, m0: Bary, m1: Bary, cc: Bary) -> bool 
     length2(a, m1) < length2(m0, cc) * (1.0 - DIAGONAL_MARGIN)
 }
 
+/// How a view's refinement is shared with the other eye of its wall.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EyeShare {
+    /// Refined for itself alone.
+    Alone,
+    /// Refined for itself and view `partner` (the next view, its wall's other eye).
+    Leads { partner: usize },
+    /// Draws view `leader`'s refinement (the previous view) with its own warp.
+    Follows { leader: usize },
+}
+
+/// Each view's [`EyeShare`] in a frame's `views` (walls' eyes in order, as
+/// [`crate::cave::view_setups`] lists them), into `out`: consecutive views of one wall with
+/// both eyes share one refinement when `shared` is on; everything else is refined alone.
+pub fn eye_shares(views: &[ViewSetup], shared: bool, out: &mut Vec<EyeShare>) {
+    out.clear();
+    out.resize(views.len(), EyeShare::Alone);
+    if !shared {
+        return;
+    }
+    let mut i = 0;
+    while i + 1 < views.len() {
+        let (a, b) = (&views[i], &views[i + 1]);
+        if a.wall == b.wall && a.eye.is_some() && b.eye.is_some() && a.eye != b.eye {
+            out[i] = EyeShare::Leads { partner: i + 1 };
+            out[i + 1] = EyeShare::Follows { leader: i };
+            i += 2;
+        } else {
+            i += 1;
+        }
+    }
+}
+
+/// The other eye whose refinement view `index` of `views` shares with `settings`, as the
+/// renderer pairs them (see [`eye_shares`]): for the CPU twin of what view `index` draws.
+pub fn shared_partner<'v>(
+    views: &'v [ViewSetup],
+    index: usize,
+    settings: &TessSettings,
+) -> Option<&'v ViewSetup> {
+    let mut shares = Vec::new();
+    eye_shares(
+        views,
+        settings.criterion.is_some() && settings.shared_eyes,
+        &mut shares,
+    );
+    match shares.get(index)? {
+        EyeShare::Alone => None,
+        EyeShare::Leads { partner: other } | EyeShare::Follows { leader: other } => {
+            views.get(*other)
+        }
+    }
+}
+
 /// One view's context from the usual renderer inputs (the near plane is the view's).
 pub fn tess_view<'a>(
     view: &'a ViewSetup,
@@ -664,6 +769,7 @@ pub fn tess_view<'a>(
         cave_from_world: world_from_cave.inverse(),
         omni,
         near: view.near,
+        partner: None,
     }
 }
 
