@@ -44,7 +44,8 @@ pub struct Row {
     pub stages_ms: Option<[f64; STAGE_COLUMNS]>,
     /// Compute dispatches per frame.
     pub dispatches: usize,
-    /// Source triangles that entered the tessellator per frame (all views).
+    /// Source triangles that entered the tessellator per frame (all refinements: one per
+    /// wall where both eyes share it).
     pub refined_input: usize,
 }
 
@@ -290,21 +291,71 @@ impl CaseRun<'_> {
     }
 
     /// Accuracy from the CPU twin; a sky does not change the geometry, so sky methods share
-    /// the accuracy of the same method without one.
+    /// the accuracy of the same method without one. The distinct methods are measured on
+    /// every core (each is independent; at a GPU's wall sizes the CPU twin takes longer than
+    /// the frames).
     fn accuracies(&self) -> Vec<Option<Accuracy>> {
         let methods = self.methods;
         let mut accuracies: Vec<Option<Accuracy>> = vec![None; methods.len()];
         // An animated scene's accuracy is that of its pose at the checked instant.
-        if let Some(scene) = self.posed.as_ref().or(self.scene) {
-            for (i, m) in methods.iter().enumerate() {
-                let base = methods[..i]
+        let Some(scene) = self.posed.as_ref().or(self.scene) else {
+            return accuracies;
+        };
+        // Each method's first twin (same mode and tessellation), itself for the distinct ones.
+        let first: Vec<usize> = methods
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                methods[..i]
                     .iter()
                     .position(|o| o.mode == m.mode && o.tess == m.tess)
-                    .and_then(|j| accuracies[j]);
-                accuracies[i] = Some(base.unwrap_or_else(|| {
-                    let case = self.case;
-                    accuracy::accuracy(self.config, scene, case.head, case.world_from_cave, m)
-                }));
+                    .unwrap_or(i)
+            })
+            .collect();
+        let distinct: Vec<usize> = (0..methods.len()).filter(|&i| first[i] == i).collect();
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .clamp(1, distinct.len().max(1));
+        let case = self.case;
+        let config = self.config;
+        let measured: Vec<(usize, Accuracy)> = std::thread::scope(|scope| {
+            let workers: Vec<_> = (0..threads)
+                .map(|t| {
+                    let mine: Vec<usize> =
+                        distinct.iter().copied().skip(t).step_by(threads).collect();
+                    scope.spawn(move || {
+                        mine.into_iter()
+                            .map(|i| {
+                                let m = &methods[i];
+                                (
+                                    i,
+                                    accuracy::accuracy(
+                                        config,
+                                        scene,
+                                        case.head,
+                                        case.world_from_cave,
+                                        m,
+                                    ),
+                                )
+                            })
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .flat_map(|w| {
+                    w.join()
+                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+                })
+                .collect()
+        });
+        for (i, a) in measured {
+            accuracies[i] = Some(a);
+        }
+        for (i, &f) in first.iter().enumerate() {
+            if accuracies[i].is_none() {
+                accuracies[i] = accuracies[f];
             }
         }
         accuracies
