@@ -154,8 +154,8 @@ pub struct TessellationSection {
     /// needs refining). Off: every triangle goes through the tessellator.
     pub skip_fine: bool,
     /// Refine once for both eyes of a wall (edges split where either eye's warp needs it;
-    /// each eye warps the shared result). Off: each eye is refined on its own, twice the
-    /// tessellator's work for the same error.
+    /// each eye warps the shared result). Off: each eye is refined on its own, with twice
+    /// the tessellator's dispatches, each eye's error held alike.
     pub shared_eyes: bool,
 }
 

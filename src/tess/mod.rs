@@ -523,15 +523,21 @@ impl TessRun<'_> {
                 // Provably invisible in this view: neither drawn nor tessellated.
                 continue;
             }
-            let (backfacing, outside) = self.cull(self.positions(t), double_sided_t);
             if verdict == clusters::Verdict::Fine {
-                // Drawn directly: the rasteriser, not the tessellator, drops what the culling
-                // tests find invisible (kept out of the tessellator's counts, as on the GPU).
+                // Drawn directly by this eye alone: the rasteriser, not the tessellator, drops
+                // what this eye's culling tests find invisible (kept out of the tessellator's
+                // counts, as on the GPU).
+                let own = TessView {
+                    partner: None,
+                    ..*self.tv
+                };
+                let (backfacing, outside) = self.cull_in(&own, self.positions(t), double_sided_t);
                 if !(backfacing || outside) {
                     self.out.fine.push(t as u32);
                 }
                 continue;
             }
+            let (backfacing, outside) = self.cull_in(self.tv, self.positions(t), double_sided_t);
             if backfacing {
                 self.out.stats.culled_backface += 1;
                 continue;
@@ -559,10 +565,10 @@ impl TessRun<'_> {
         (live, roots)
     }
 
-    /// The culling tests on a source triangle (scene-space corners `p`): whether it faces
-    /// away from every eye, and (if not) whether it lies outside the view.
-    fn cull(&self, p: [Vec3; 3], double_sided: bool) -> (bool, bool) {
-        let (tv, settings) = (self.tv, self.settings);
+    /// The culling tests on a source triangle (scene-space corners `p`) in `tv`: whether it
+    /// faces away from every eye, and (if not) whether it lies outside every eye's view.
+    fn cull_in(&self, tv: &TessView<'_>, p: [Vec3; 3], double_sided: bool) -> (bool, bool) {
+        let settings = self.settings;
         let root = [Bary::V0, Bary::V1, Bary::V2];
         let backfacing = settings.backface_cull
             && !double_sided
