@@ -471,12 +471,13 @@ fn outside_view(p: array<vec3<f32>, 3>, v0: vec2<u32>, v1: vec2<u32>, v2: vec2<u
 
 @compute @workgroup_size(64)
 fn cs_init(
-    @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(local_invocation_index) lane: u32,
 ) {
     begin_refinement();
-    var t = id.x;
+    // A thread per source triangle, over a two-dimensional grid of workgroups (a scene of
+    // more than 65 535 × 64 triangles needs more than one row).
+    var t = (group.y * MAX_GROUPS_X + group.x) * WORKGROUP + lane;
     if tess.cluster_mode != 0u {
         let c = group.y * MAX_GROUPS_X + group.x;
         if c >= tess.needy_count {
@@ -731,7 +732,9 @@ fn cs_fallback() {
         args[ARGS_FALLBACK] = min(n, MAX_GROUPS_X);
         args[ARGS_FALLBACK + 1u] = (n + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
     } else {
-        args[ARGS_FALLBACK] = (tess.source_triangles + WORKGROUP - 1u) / WORKGROUP;
+        let groups = (tess.source_triangles + WORKGROUP - 1u) / WORKGROUP;
+        args[ARGS_FALLBACK] = min(groups, MAX_GROUPS_X);
+        args[ARGS_FALLBACK + 1u] = (groups + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
     }
 }
 

@@ -743,3 +743,57 @@ fn both_eyes_of_a_wall_share_one_refinement() {
         );
     }
 }
+
+/// A scene of more source triangles than one row of workgroups dispatches (65 535 × 64 =
+/// 4 194 240): the tessellator covers them on a two-dimensional grid, so every triangle is
+/// culled or refined, the last ones included. The scene shares three vertices between 4.3 M
+/// small triangles behind the viewer (no wall sees them: frustum-culled in every view; the
+/// vertex buffer stays small), then ends with a red quad ahead, which must be drawn.
+#[test]
+fn a_scene_past_one_row_of_workgroups_is_tessellated_to_its_last_triangle() {
+    let mut cave = cave_at(96, 54);
+    cave.walls.truncate(2); // left and front walls
+    const HIDDEN: u32 = 4_300_000;
+    const { assert!(HIDDEN > 65_535 * 64) };
+    let mut scene = Scene::default();
+    let vertex = |p: [f32; 3]| omnicave::scene::Vertex {
+        position: p,
+        normal: [0.0, 0.0, -1.0],
+        ..Default::default()
+    };
+    let grey = scene.add_material(omnicave::scene::Material::unlit("hidden", [0.5; 3]));
+    let hidden = [[0.0, 1.7, 5.0], [0.1, 1.7, 5.0], [0.0, 1.8, 5.0]].map(vertex);
+    let indices: Vec<u32> = (0..HIDDEN).flat_map(|_| [0, 2, 1]).collect();
+    scene.add_mesh(&hidden, &indices, grey);
+    let red = scene.add_material(omnicave::scene::Material::unlit("quad", [1.0, 0.0, 0.0]));
+    let quad = grid(Vec3::new(-0.5, 1.2, -1.6), Vec3::X, Vec3::Y, 1, 1, 1.0);
+    scene.add_mesh(&quad.vertices, &quad.indices, red);
+    let tess = TessSettings {
+        // Every source triangle through the tessellator's own culling, a thread each.
+        skip_fine: false,
+        ..settings(Some(Criterion::Error(0.5)))
+    };
+    let (images, stats, _) = render_tess(
+        &cave,
+        Head::at(Vec3::new(0.0, 1.7, 0.0)),
+        RenderMode::OmniOffAxis,
+        &scene,
+        tess,
+        None,
+    );
+    for s in &stats {
+        assert_eq!(s.input as usize, scene.triangle_count());
+        assert_eq!(s.culled_frustum, HIDDEN, "{s:?}");
+        assert!(s.emitted >= 2, "{s:?}");
+    }
+    let front = &images[1];
+    for eye in [&front.left, &front.right] {
+        let red = eye
+            .pixels()
+            .filter(|p| p[0] > 200 && p[1] < 40 && p[2] < 40)
+            .count();
+        // The quad (1 m × 1 m, 1.6 m ahead on the 3.3 m × 2.9 m front wall at 96 × 54) covers
+        // roughly 29 × 19 = 550 pixels; at least half of that, whatever the eye.
+        assert!(red > 250, "{red} red pixels");
+    }
+}

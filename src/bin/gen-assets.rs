@@ -4,6 +4,9 @@
 //!
 //! `gen-assets [--out DIR]` writes them; `gen-assets --check [--out DIR]` fails if the files
 //! there differ from what this generator makes (so committed assets always match the code).
+//! `gen-assets --dense TRIANGLES [--out DIR]` writes only `dense.glb`, a generated hall of
+//! that many triangles for measuring how rendering scales (not bundled: 8 M triangles are
+//! about 210 MiB).
 
 use std::path::PathBuf;
 
@@ -25,12 +28,24 @@ struct Args {
     #[arg(long, default_value = "assets")]
     out: PathBuf,
     /// Write nothing: fail if the files in --out differ from what the generator makes.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "dense")]
     check: bool,
+    /// Write only dense.glb: a hall of about this many triangles (dense grids and a dense
+    /// sphere, see `scene::build::dense_hall`), up to 50 million.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=50_000_000))]
+    dense: Option<u64>,
 }
 
 fn main() -> anyhow::Result<()> {
-    let Args { out, check } = <Args as clap::Parser>::parse();
+    let Args { out, check, dense } = <Args as clap::Parser>::parse();
+    if let Some(triangles) = dense {
+        let path = out.join("dense.glb");
+        let bytes = dense_hall(triangles);
+        std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+        std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("wrote {} ({} MiB)", path.display(), bytes.len() >> 20);
+        return Ok(());
+    }
     type Generator = fn() -> anyhow::Result<Vec<u8>>;
     let generators: [(&str, Generator); 5] = [
         ("living-room.glb", living_room),
@@ -74,6 +89,21 @@ fn main() -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `scene::build::dense_hall` as a GLB: the shell in grey plaster, the sphere in white.
+fn dense_hall(triangles: u64) -> Vec<u8> {
+    let (shell, sphere) = omnicave::scene::build::dense_hall(triangles);
+    let mut w = GlbWriter::new();
+    let plaster = w.add_material(&MaterialDesc::plain("plaster", [0.7, 0.68, 0.64], 0.9));
+    let white = w.add_material(&MaterialDesc::plain("white", [0.92, 0.92, 0.9], 0.4));
+    let shell_mesh = w.add_mesh("hall", &[(&shell, plaster)]);
+    let sphere_mesh = w.add_mesh("sphere", &[(&sphere, white)]);
+    let roots = [
+        w.add_node(NodeDesc::new("hall").with_mesh(shell_mesh)),
+        w.add_node(NodeDesc::new("sphere").with_mesh(sphere_mesh)),
+    ];
+    w.to_glb(&roots)
 }
 
 /// A small deterministic PRNG (xorshift64*), so the assets are byte-identical on every run.

@@ -62,8 +62,6 @@ pub enum RenderError {
 /// Everything that can go wrong setting up the tessellator.
 #[derive(Debug, thiserror::Error)]
 pub enum TessError {
-    #[error("scene has {0} triangles; the tessellator dispatches at most {1}")]
-    TooManyTriangles(usize, usize),
     #[error(
         "the scene is split over {0} buffers (it is larger than this GPU's largest buffer); \
          the tessellator binds it whole: use a mode without tessellation or a smaller scene"

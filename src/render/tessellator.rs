@@ -403,7 +403,7 @@ impl Tessellator {
             vertex_buffer,
             index_buffer,
         };
-        check_inputs(device, tri_info.len(), &inputs)?;
+        check_inputs(device, &inputs)?;
         let storage = TessStorage::allocate(device, tri_info, draws, clusters, capacity, views);
         let shared_group = self.shared_group(device, &inputs, &storage);
         let lists = |label, a: &wgpu::Buffer, b: &wgpu::Buffer, ca: &wgpu::Buffer, cb| {
@@ -503,16 +503,9 @@ struct BoundInputs<'a> {
     index_buffer: &'a wgpu::Buffer,
 }
 
-/// Refuses a scene the tessellator cannot dispatch over or bind, naming the limit.
-fn check_inputs(
-    device: &wgpu::Device,
-    triangles: usize,
-    inputs: &BoundInputs<'_>,
-) -> Result<(), TessError> {
-    let max_tris = 65_535 * WORKGROUP as usize;
-    if triangles > max_tris {
-        return Err(TessError::TooManyTriangles(triangles, max_tris));
-    }
+/// Refuses a scene the tessellator cannot bind, naming the limit (any number of triangles
+/// dispatches: a thread each over a two-dimensional grid of workgroups).
+fn check_inputs(device: &wgpu::Device, inputs: &BoundInputs<'_>) -> Result<(), TessError> {
     let limit = device.limits().max_storage_buffer_binding_size;
     for (what, buffer) in [
         ("vertices", inputs.vertex_buffer),
@@ -725,7 +718,14 @@ impl TessBuffers {
                 Some(n) => {
                     pass.dispatch_workgroups(n.min(MAX_GROUPS_X), n.div_ceil(MAX_GROUPS_X), 1)
                 }
-                None => pass.dispatch_workgroups(self.source_triangles.div_ceil(WORKGROUP), 1, 1),
+                None => {
+                    let groups = self.source_triangles.div_ceil(WORKGROUP);
+                    pass.dispatch_workgroups(
+                        groups.min(MAX_GROUPS_X),
+                        groups.div_ceil(MAX_GROUPS_X),
+                        1,
+                    )
+                }
             }
             if let Some(m) = inside {
                 pass.write_timestamp(m.queries, m.cull);
