@@ -52,6 +52,20 @@ fn instanced_grid(name: &str, instances: usize) -> (PathBuf, usize) {
     (path, vertices * instances)
 }
 
+/// Green pixels in the row 4 px above the bottom of `out/front-left.png` (the ground), and the
+/// image's width.
+fn green_near_the_bottom(out: &std::path::Path) -> (usize, usize) {
+    let front = image::open(out.join("front-left.png")).unwrap().to_rgb8();
+    let (w, h) = front.dimensions();
+    let green = (0..w)
+        .filter(|&x| {
+            let p = front.get_pixel(x, h - 4).0;
+            p[1] > p[0] + 20 && p[1] > p[2] + 20
+        })
+        .count();
+    (green, w as usize)
+}
+
 /// A valid scene past 8 388 608 vertices, whose vertex buffer is past wgpu's default 256 MiB
 /// buffer limit, renders: the device's own limit is asked for (lavapipe: 2 GiB) and every size
 /// is checked against it. This scene, 10 000 instances of a grid, has 8.41 M vertices (606 MB
@@ -83,15 +97,8 @@ fn a_scene_of_8_4_million_instanced_vertices_renders() {
     ]);
     assert_eq!(code, 0, "{stderr}");
     // The ground fills the lower half of the front wall's view: green, not background.
-    let front = image::open(out.join("front-left.png")).unwrap().to_rgb8();
-    let (w, h) = front.dimensions();
-    let green = (0..w)
-        .filter(|&x| {
-            let p = front.get_pixel(x, h - 4).0;
-            p[1] > p[0] + 20 && p[1] > p[2] + 20
-        })
-        .count();
-    assert!(green > w as usize / 2, "ground not drawn: {green} of {w}");
+    let (green, w) = green_near_the_bottom(&out);
+    assert!(green > w / 2, "ground not drawn: {green} of {w}");
 
     // Tessellated omnistereo binds the whole vertex buffer.
     let (code, _, stderr) = omnicave(&[
@@ -119,15 +126,8 @@ fn a_scene_of_8_4_million_instanced_vertices_renders() {
         ),
         // A device that binds it: all 15.7 M triangles through the tessellator's grid.
         0 => {
-            let front = image::open(out.join("front-left.png")).unwrap().to_rgb8();
-            let (w, h) = front.dimensions();
-            let green = (0..w)
-                .filter(|&x| {
-                    let p = front.get_pixel(x, h - 4).0;
-                    p[1] > p[0] + 20 && p[1] > p[2] + 20
-                })
-                .count();
-            assert!(green > w as usize / 2, "tessellated ground: {green} of {w}");
+            let (green, w) = green_near_the_bottom(&out);
+            assert!(green > w / 2, "tessellated ground: {green} of {w}");
         }
         _ => panic!("exit {code}: {stderr}"),
     }
