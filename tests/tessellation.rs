@@ -662,43 +662,34 @@ fn both_eyes_of_a_wall_share_one_refinement() {
             shared_eyes: false,
             ..shared
         };
-        let (pictures, dispatches) = [shared, alone]
-            .map(|tess| {
-                with_renderer(&cave, NO_MSAA, None, |renderer| {
-                    renderer.set_scene(scene).unwrap();
-                    let frame =
-                        test_frame(&cave, Head::at(head), mode, OmniSettings::default(), tess);
-                    let stats = renderer.render(&frame).unwrap();
-                    let entries = renderer.read_tess_entries().unwrap();
-                    let tess_stats = renderer.read_tess_stats().unwrap();
-                    (
-                        renderer.read_images().unwrap(),
-                        stats.dispatches,
-                        entries,
-                        tess_stats,
-                    )
-                })
+        // (images, dispatches, the last view's entries, per-view statistics) per setting.
+        let [
+            (images, shared_dispatches, entries, stats),
+            (alone_images, alone_dispatches, _, _),
+        ] = [shared, alone].map(|tess| {
+            with_renderer(&cave, NO_MSAA, None, |renderer| {
+                renderer.set_scene(scene).unwrap();
+                let frame = test_frame(&cave, Head::at(head), mode, OmniSettings::default(), tess);
+                let dispatches = renderer.render(&frame).unwrap().dispatches;
+                (
+                    renderer.read_images().unwrap(),
+                    dispatches,
+                    renderer.read_tess_entries().unwrap(),
+                    renderer.read_tess_stats().unwrap(),
+                )
             })
-            .into_iter()
-            .fold(
-                (Vec::new(), Vec::new()),
-                |(mut p, mut d), (images, n, entries, stats)| {
-                    p.push((images, entries, stats));
-                    d.push(n);
-                    (p, d)
-                },
-            );
+        });
+        let dispatches = [shared_dispatches, alone_dispatches];
         assert!(dispatches[0] > 0, "{label}: nothing refined");
         assert_eq!(2 * dispatches[0], dispatches[1], "{label}: dispatches");
         // The last view (the front wall's right eye) draws its wall's shared refinement:
         // exactly the twin's, for either eye.
-        let (images, entries, stats) = &pictures[0];
         let twin = cpu_views(&cave, head, mode, scene, &shared);
         let (_, last) = twin.last().unwrap();
         let mut expected = last.triangles.clone();
         expected.sort();
         assert!(
-            sorted_triangles(entries) == expected,
+            sorted_triangles(&entries) == expected,
             "{label}: GPU and twin differ"
         );
         let (_, leader) = &twin[twin.len() - 2];
@@ -724,10 +715,9 @@ fn both_eyes_of_a_wall_share_one_refinement() {
         }
         // The pictures: at most 0.5 % of pixels differ by more than 24/255 in a channel (edge
         // pixels whose coverage flips between two meshes that both lie within the criterion).
-        let (alone_images, _, _) = &pictures[1];
         let mut differing = 0usize;
         let mut total = 0usize;
-        for (a, b) in images.iter().zip(alone_images) {
+        for (a, b) in images.iter().zip(&alone_images) {
             for (x, y) in [(&a.left, &b.left), (&a.right, &b.right)] {
                 total += x.pixels().len();
                 differing += x

@@ -256,10 +256,11 @@ impl Renderer {
                     root_bound: triangles,
                     ..TessUniforms::new(v, wall, &frame.tess, omni)
                 };
-                match (shares.get(i), views.get(i + 1)) {
-                    (Some(EyeShare::Leads { .. }), Some(partner)) => {
-                        own.with_partner(v, partner, wall, omni)
-                    }
+                match shares.get(i) {
+                    Some(EyeShare::Leads { partner }) => match views.get(*partner) {
+                        Some(other) => own.with_partner(v, other, wall, omni),
+                        None => own,
+                    },
                     _ => own,
                 }
             }),
