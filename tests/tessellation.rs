@@ -787,3 +787,81 @@ fn a_scene_past_one_row_of_workgroups_is_tessellated_to_its_last_triangle() {
         assert!(red > 250, "{red} red pixels");
     }
 }
+
+/// Models beyond the front wall, one reaching past its left border: the front wall shows most of
+/// them, the left wall the part beyond the CAVE's side, the right wall nothing. The clusters that
+/// straddle the side walls' eye planes are proven hidden by the planes through the eyes and the
+/// walls' borders, so the right wall refines nothing; and the picture is the one drawn when
+/// every triangle goes through the tessellator's own culling (`skip_fine` off), so no visible
+/// cluster was hidden.
+#[test]
+fn a_model_beyond_the_front_wall_is_refined_only_where_a_wall_shows_it() {
+    let cave = cave_at(160, 90);
+    let mut scene = Scene::default();
+    let orange = scene.add_material(omnicave::scene::Material::unlit("ball", [1.0, 0.5, 0.0]));
+    let sphere = omnicave::scene::build::uv_sphere(1.0, 24, 48);
+    // One ball reaching past the front wall's left border; one straight ahead, across the
+    // eyes' plane of each side wall (part of it nearer the right wall than the eyes, part
+    // further): the case the border planes are for.
+    for centre in [Vec3::new(-2.0, 1.4, -2.6), Vec3::new(0.3, 1.4, -3.0)] {
+        let vertices: Vec<_> = sphere
+            .vertices
+            .iter()
+            .map(|v| omnicave::scene::Vertex {
+                position: (Vec3::from(v.position) + centre).to_array(),
+                ..*v
+            })
+            .collect();
+        scene.add_mesh(&vertices, &sphere.indices, orange);
+    }
+    let mut most_on_the_left = 0;
+    for (mode, head) in [
+        (RenderMode::OmniOffAxis, Vec3::new(0.0, 1.7, 0.0)),
+        (RenderMode::OmniOnAxis, Vec3::new(-0.9, 1.5, -1.6)),
+        (RenderMode::OmniOffAxis, Vec3::new(1.6, 1.2, 1.0)),
+    ] {
+        let label = format!("{mode:?}, head {head}");
+        let run = |skip_fine| {
+            let tess = TessSettings {
+                skip_fine,
+                ..settings(Some(Criterion::Error(0.25)))
+            };
+            render_tess(&cave, Head::at(head), mode, &scene, tess, None)
+        };
+        let (images, stats, _) = run(true);
+        let (all_images, all_stats, _) = run(false);
+        let shown = |wall: &WallImages| {
+            [&wall.left, &wall.right]
+                .iter()
+                .map(|img| img.pixels().filter(|p| p[0] > 200 && p[2] < 60).count())
+                .sum::<usize>()
+        };
+        let [left, front, right] = [0, 1, 2].map(|w| shown(&all_images[w]));
+        assert!(front > 500 && right == 0, "{label}: {left} {front} {right}");
+        most_on_the_left = most_on_the_left.max(left);
+        // The right wall's two views: no triangle reaches the tessellator (none culled there,
+        // none emitted), where with every triangle sent to it most are culled one by one (and
+        // some that cross the eyes' plane are emitted, to be clipped: the picture shows none).
+        for (s, all) in stats[4..6].iter().zip(&all_stats[4..6]) {
+            assert_eq!(
+                s.culled_frustum + s.culled_backface + s.emitted,
+                0,
+                "{label}: {s:?}"
+            );
+            assert!(all.culled_frustum > 1000, "{label}: {all:?}");
+        }
+        assert!(
+            stats[2].emitted > 0,
+            "{label}: the front wall refines nothing"
+        );
+        let mut differing = 0;
+        for (a, b) in images.iter().zip(&all_images) {
+            for (x, y) in [(&a.left, &b.left), (&a.right, &b.right)] {
+                differing += x.pixels().zip(y.pixels()).filter(|(p, q)| p != q).count();
+            }
+        }
+        assert_eq!(differing, 0, "{label}: pictures differ");
+    }
+    // Some head sees the ball's far side through the left wall.
+    assert!(most_on_the_left > 100, "{most_on_the_left}");
+}

@@ -41,9 +41,13 @@
 //! G2 = r·(φ''/D² + φ'·‖∇²el‖) + 2·r·φ'/(Dρ) + 2·r/ρ², where the fade's terms vanish when the
 //! whole ball lies below its start and E = h (G1 = G2 = 0) when it lies above its end.
 //!
-//! Hidden: the whole box lies further from the wall than every eye (u < 0: behind them), or
-//! the centre's image Π(c) lies beyond one side of the wall by more than the first-derivative
-//! bound over R (every point's image is within that of Π(c)) plus 4 px.
+//! Hidden: the whole box lies further from the wall than every eye (u < 0: behind them); or
+//! the whole ball lies beyond the plane through an eye and a border of the wall (moved 4 px
+//! outwards) for every eye of the ball (see `BorderPlane`): a point there is behind its eye
+//! or drawn beyond that border, which also hides what straddles the eyes' plane, such as a
+//! model beyond the front wall in a side wall's or the floor's view; or the centre's image Π(c)
+//! lies beyond one side of the wall by more than the first-derivative bound over R (every
+//! point's image is within that of Π(c)) plus 4 px.
 //!
 //! A cluster is needy unless it lies wholly in front of every eye (u > 0, the warped points
 //! beyond twice the near plane) and every bound, with a margin for the GPU's rounding, stays
@@ -196,6 +200,67 @@ pub struct ClusterTest {
     px_per_m: f32,
     px_per_m_x: f32,
     near: f32,
+    /// The four planes through the eyes and the wall's borders (`None` where the eyes' ball
+    /// reaches a border's line).
+    borders: [Option<BorderPlane>; 4],
+}
+
+/// The plane through the head and one border of the wall (moved [`OFF_WALL_PX`] outwards),
+/// and how far it can turn about that border for an eye elsewhere in the eyes' ball.
+///
+/// In the section across the border's line, a point is (γ, δ): γ towards the head, δ outwards.
+/// The plane through an eye E of the ball holds the line and E; it is the head's turned by at
+/// most α, sin α = r / (the head's distance from the line). A point is beyond every such plane
+/// when δ·cos α − |γ|·sin α > 0: then, for any eye, it lies behind that eye (not drawn) or its
+/// image lies beyond the border. Both coordinates are linear in the point, so a ball of
+/// radius R is beyond when (δ(c) − R)·cos α > (|γ(c)| + R)·sin α.
+#[derive(Debug, Clone, Copy)]
+struct BorderPlane {
+    /// A point of the (moved) border's line.
+    origin: Vec3,
+    /// Unit: outwards across the plane (δ), and within it towards the head (γ).
+    outwards: Vec3,
+    towards_head: Vec3,
+    sin_turn: f32,
+    cos_turn: f32,
+}
+
+impl BorderPlane {
+    /// The plane through `head` and the line through `origin` along the unit `along`, with
+    /// `off_wall` (in the wall's plane, pointing away from the wall) on its outer side;
+    /// `None` when the ball of radius `r` around `head` reaches the line.
+    fn new(head: Vec3, origin: Vec3, along: Vec3, off_wall: Vec3, r: f32) -> Option<Self> {
+        let to_head = head - origin;
+        let across = to_head - to_head.dot(along) * along;
+        let distance = across.length();
+        if !(distance > r && distance.is_finite()) {
+            return None;
+        }
+        let towards_head = across / distance;
+        let normal = along.cross(towards_head);
+        let outwards = if normal.dot(off_wall) >= 0.0 {
+            normal
+        } else {
+            -normal
+        };
+        let sin_turn = r / distance;
+        Some(Self {
+            origin,
+            outwards,
+            towards_head,
+            sin_turn,
+            cos_turn: (1.0 - sin_turn * sin_turn).max(0.0).sqrt(),
+        })
+    }
+
+    /// Whether every point of the ball (`centre`, `radius`) lies beyond the plane of every
+    /// eye of the ball.
+    fn excludes(&self, centre: Vec3, radius: f32) -> bool {
+        let v = centre - self.origin;
+        let beyond = self.outwards.dot(v) - radius;
+        let along_plane = self.towards_head.dot(v).abs() + radius;
+        beyond > 0.0 && beyond * self.cos_turn > along_plane * self.sin_turn
+    }
 }
 
 /// Pixels an image must lie beyond the wall's border to count as off it (as the
@@ -232,6 +297,24 @@ impl ClusterTest {
         let finite = [scale, kx, ky, s_centre, tv.near]
             .iter()
             .all(|v| v.is_finite() && *v > 0.0);
+        let (right, up) = (wall.right_axis(), wall.up_axis());
+        let margin = OFF_WALL_PX / kx.max(ky);
+        let corner = wall.lower_left;
+        let border = |origin: Vec3, along: Vec3, off_wall: Vec3| {
+            BorderPlane::new(
+                head,
+                origin + margin * off_wall,
+                along,
+                off_wall,
+                eye_radius,
+            )
+        };
+        let borders = [
+            border(corner, up, -right),
+            border(corner + size.x * right, up, right),
+            border(corner, right, -up),
+            border(corner + size.y * up, right, up),
+        ];
         finite.then_some(Self {
             // Uniform:0 splits nothing: as good as none.
             criterion: criterion.filter(|c| *c != Criterion::Uniform(0)),
@@ -241,8 +324,8 @@ impl ClusterTest {
             offset,
             normal_in_scene: glam::Mat3::from_mat4(m).transpose() * normal,
             lower_left: wall.lower_left,
-            right: wall.right_axis(),
-            up: wall.up_axis(),
+            right,
+            up,
             size,
             s_centre,
             head,
@@ -252,6 +335,7 @@ impl ClusterTest {
             px_per_m: kx.max(ky),
             px_per_m_x: kx,
             near: tv.near,
+            borders,
         })
     }
 
@@ -307,6 +391,15 @@ impl ClusterTest {
             .min(radius);
         if s(c) - depth > s_eye_max {
             // Every point lies behind every eye (further from the wall): not in this view.
+            return Verdict::Hidden;
+        }
+        if self
+            .borders
+            .iter()
+            .flatten()
+            .any(|border| border.excludes(c, radius))
+        {
+            // Beyond a border for every eye: seen through another wall, or behind the eyes.
             return Verdict::Hidden;
         }
         let u_min = (s_head - r) - (s(c) + depth);
@@ -788,6 +881,83 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_model_beyond_the_front_wall_is_hidden_from_the_other_walls() {
+        // A model a lab stands beyond the front wall straddles the eyes' plane parallel to
+        // each side wall and to the floor (some of it nearer that wall than the eyes, some
+        // further), so "in front of every eye" proves nothing there; the planes through the
+        // eyes and the walls' borders do. Over random heads (down to 5 cm from a wall), modes
+        // and small clusters beyond the front wall: every cluster proven hidden is invisible
+        // point by point, the side walls and the floor hide nearly all (clusters near the
+        // planes through the front wall's borders stay unproven), and the front wall, which
+        // shows them, hides none whose centre it draws.
+        let mut rng = Rng(0x5151_2026_1207_0042);
+        let cave = cave_with_floor();
+        let h = 1.65;
+        let (mut other_views, mut other_hidden, mut front_drawn) = (0, 0, 0);
+        for trial in 0..300 {
+            let mode = [
+                RenderMode::OmniOffAxis,
+                RenderMode::OmniOnAxis,
+                RenderMode::Stereo,
+            ][trial % 3];
+            let near_wall = trial % 5 == 0;
+            let head = Head::at(Vec3::new(
+                if near_wall {
+                    -h + 0.05
+                } else {
+                    rng.range(-1.3, 1.3)
+                },
+                rng.range(1.0, 2.0),
+                if trial % 5 == 1 {
+                    -h + 0.05
+                } else {
+                    rng.range(-1.3, 1.3)
+                },
+            ));
+            let centre = Vec3::new(
+                rng.range(-1.3, 1.3),
+                rng.range(0.1, 2.5),
+                rng.range(-5.0, -2.0),
+            );
+            let size = 10f32.powf(rng.range(-2.0, -0.7));
+            let scene = random_cluster(&mut rng, centre, size, size, 8, trial % 2 == 0);
+            let clusters = build_clusters(&scene, [(0, 0, scene.indices.len() as u32)]);
+            let omni = mode.is_omni().then(OmniSettings::default);
+            for view in view_setups(&cave, &head, mode, 0.064) {
+                let wall = &cave.walls[view.wall];
+                let tv = tess_view(&view, wall, Mat4::IDENTITY, omni);
+                let test = ClusterTest::new(&tv, Some(Criterion::Error(1.0))).expect("test");
+                let verdict = test.verdict(&clusters[0]);
+                if verdict == Verdict::Hidden {
+                    assert_invisible(&tv, &scene, &clusters[0], trial);
+                }
+                if wall.name == "front" {
+                    let clip = crate::tess::project(&tv, centre).clip;
+                    if clip.w > 0.0 && clip.x.abs() < 0.9 * clip.w && clip.y.abs() < 0.9 * clip.w {
+                        front_drawn += 1;
+                        assert_ne!(verdict, Verdict::Hidden, "trial {trial}: drawn, hidden");
+                    }
+                } else {
+                    other_views += 1;
+                    other_hidden += usize::from(verdict == Verdict::Hidden);
+                }
+            }
+        }
+        eprintln!(
+            "{other_hidden} of {other_views} side-wall and floor views hidden; the front wall \
+             draws {front_drawn}"
+        );
+        assert!(
+            other_hidden * 10 > other_views * 9,
+            "{other_hidden} of {other_views}: the side walls and floor hide too little"
+        );
+        assert!(
+            front_drawn > 200,
+            "{front_drawn}: the front wall drew too few"
+        );
     }
 
     #[test]
