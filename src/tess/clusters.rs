@@ -902,7 +902,7 @@ mod tests {
     fn a_border_plane_excludes_only_what_lies_beyond_every_eyes_plane() {
         // Random walls (a plane through a border line), heads in front of them, eye balls and
         // cluster balls placed near the head's plane (where the turn of the plane matters):
-        // whenever `excludes` holds, every sampled point of the ball (its surface included)
+        // whenever `excludes` holds, every sampled point of the ball (out to its surface)
         // lies strictly beyond the plane through every sampled eye (on the ball's surface,
         // where the plane turns most) and the line. And the test is not vacuous: it excludes
         // a good share, some of them within the turn of the head's plane.
