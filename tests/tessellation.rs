@@ -804,15 +804,8 @@ fn a_model_beyond_the_front_wall_is_refined_only_where_a_wall_shows_it() {
     // eyes' plane of each side wall (part of it nearer the right wall than the eyes, part
     // further): the case the border planes are for.
     for centre in [Vec3::new(-2.0, 1.4, -2.6), Vec3::new(0.3, 1.4, -3.0)] {
-        let vertices: Vec<_> = sphere
-            .vertices
-            .iter()
-            .map(|v| omnicave::scene::Vertex {
-                position: (Vec3::from(v.position) + centre).to_array(),
-                ..*v
-            })
-            .collect();
-        scene.add_mesh(&vertices, &sphere.indices, orange);
+        let ball = sphere.clone().transformed(Mat4::from_translation(centre));
+        scene.add_mesh(&ball.vertices, &ball.indices, orange);
     }
     let mut most_on_the_left = 0;
     for (mode, head) in [
