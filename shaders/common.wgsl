@@ -139,6 +139,21 @@ fn omni_warp(v: vec3<f32>, e: vec3<f32>, c: vec3<f32>, wall_plane: vec4<f32>, va
 // `GpuVertex` in src/render/scene_pass.rs.
 const VERTEX_FLOATS: u32 = 18u;
 
+// The tessellator and the tessellated draws bind the scene's vertex buffer as storage in
+// VERTEX_WINDOWS windows (a GPU binds at most max_storage_buffer_binding_size bytes at once):
+// window k holds vertices k·W … k·W + W − 1, W being window 0's length in vertices (a buffer
+// within the limit is window 0 whole). Returns (window, vertex within it). Keep in sync with
+// src/render/vertex_windows.rs.
+const VERTEX_WINDOWS: u32 = 4u;
+
+fn vertex_window(vertex: u32, window_vertices: u32) -> vec2<u32> {
+    if vertex < window_vertices {
+        return vec2<u32>(0u, vertex);
+    }
+    let k = min(vertex / max(window_vertices, 1u), VERTEX_WINDOWS - 1u);
+    return vec2<u32>(k, vertex - k * window_vertices);
+}
+
 // Tessellation, shared by shaders/tessellate.wgsl (splitting) and shaders/scene.wgsl (drawing);
 // mirrored on the CPU by src/tess/mod.rs.
 

@@ -81,10 +81,14 @@ struct VertexOutput {
 }
 
 // Tessellated geometry (src/render/tessellator.rs): the sorted output triangles and the
-// scene's vertex and index buffers, read as storage.
+// scene's vertex and index buffers, read as storage (the vertices in windows, see
+// `vertex_window` in common.wgsl).
 @group(2) @binding(0) var<storage, read> tess_entries: array<TessEntry>;
 @group(2) @binding(1) var<storage, read> tess_vertices: array<f32>;
 @group(2) @binding(2) var<storage, read> tess_indices: array<u32>;
+@group(2) @binding(3) var<storage, read> tess_vertices_1: array<f32>;
+@group(2) @binding(4) var<storage, read> tess_vertices_2: array<f32>;
+@group(2) @binding(5) var<storage, read> tess_vertices_3: array<f32>;
 
 // Attributes moved from world into CAVE space.
 fn cave_attributes(a: Attributes) -> Attributes {
@@ -127,14 +131,32 @@ fn vs_main(in: VertexInput) -> VertexOutput {
 }
 
 fn tess_vec3(vertex: u32, offset: u32) -> vec3<f32> {
-    let base = VERTEX_FLOATS * vertex + offset;
-    return vec3<f32>(tess_vertices[base], tess_vertices[base + 1u], tess_vertices[base + 2u]);
+    return tess_vec4(vertex, offset).xyz;
 }
 
+// The four floats at `offset` of source vertex `vertex` (at most 14: the tangent ends the
+// vertex), from its window.
 fn tess_vec4(vertex: u32, offset: u32) -> vec4<f32> {
-    let base = VERTEX_FLOATS * vertex + offset;
-    return vec4<f32>(tess_vertices[base], tess_vertices[base + 1u], tess_vertices[base + 2u],
-        tess_vertices[base + 3u]);
+    let at = vertex_window(vertex, arrayLength(&tess_vertices) / VERTEX_FLOATS);
+    let b = VERTEX_FLOATS * at.y + offset;
+    switch at.x {
+        case 0u: {
+            return vec4<f32>(tess_vertices[b], tess_vertices[b + 1u], tess_vertices[b + 2u],
+                tess_vertices[b + 3u]);
+        }
+        case 1u: {
+            return vec4<f32>(tess_vertices_1[b], tess_vertices_1[b + 1u],
+                tess_vertices_1[b + 2u], tess_vertices_1[b + 3u]);
+        }
+        case 2u: {
+            return vec4<f32>(tess_vertices_2[b], tess_vertices_2[b + 1u],
+                tess_vertices_2[b + 2u], tess_vertices_2[b + 3u]);
+        }
+        default: {
+            return vec4<f32>(tess_vertices_3[b], tess_vertices_3[b + 1u],
+                tess_vertices_3[b + 2u], tess_vertices_3[b + 3u]);
+        }
+    }
 }
 
 // One corner of a tessellated triangle (world space), interpolated canonically from its

@@ -92,6 +92,7 @@ var<private> split_room: u32;
 @group(0) @binding(0) var<uniform> frame: FrameUniforms;
 @group(0) @binding(1) var<uniform> view: ViewUniforms;
 @group(0) @binding(2) var<uniform> tess: TessUniforms;
+// The scene's vertices in windows (see `vertex_window` in common.wgsl).
 @group(0) @binding(3) var<storage, read> vertices: array<f32>;
 @group(0) @binding(4) var<storage, read> indices: array<u32>;
 // Per source triangle: draw index, bit 31 set if double-sided.
@@ -103,6 +104,9 @@ var<private> split_room: u32;
 @group(0) @binding(9) var<storage, read> needy: array<vec2<u32>>;
 // The other eye of a shared refinement (the view itself when there is none).
 @group(0) @binding(10) var<uniform> partner_view: ViewUniforms;
+@group(0) @binding(11) var<storage, read> vertices_1: array<f32>;
+@group(0) @binding(12) var<storage, read> vertices_2: array<f32>;
+@group(0) @binding(13) var<storage, read> vertices_3: array<f32>;
 
 // Which eye `project`, the criteria and the culling measure for: the view's (false) or its
 // partner's (true).
@@ -127,8 +131,22 @@ fn eye_wall_distance() -> f32 {
 @group(2) @binding(0) var<storage, read_write> args: array<u32>;
 
 fn vertex_position(i: u32) -> vec3<f32> {
-    let b = VERTEX_FLOATS * i;
-    return vec3<f32>(vertices[b], vertices[b + 1u], vertices[b + 2u]);
+    let at = vertex_window(i, arrayLength(&vertices) / VERTEX_FLOATS);
+    let b = VERTEX_FLOATS * at.y;
+    switch at.x {
+        case 0u: {
+            return vec3<f32>(vertices[b], vertices[b + 1u], vertices[b + 2u]);
+        }
+        case 1u: {
+            return vec3<f32>(vertices_1[b], vertices_1[b + 1u], vertices_1[b + 2u]);
+        }
+        case 2u: {
+            return vec3<f32>(vertices_2[b], vertices_2[b + 1u], vertices_2[b + 2u]);
+        }
+        default: {
+            return vec3<f32>(vertices_3[b], vertices_3[b + 1u], vertices_3[b + 2u]);
+        }
+    }
 }
 
 fn source_positions(t: u32) -> array<vec3<f32>, 3> {

@@ -449,6 +449,23 @@ fn shared_constants_match_their_wgsl_twins() {
     // The margin by which a two-edge split's other diagonal must be shorter: the GPU and the
     // CPU twin must cut every quadrilateral alike.
     let module = naga::front::wgsl::parse_str(&source).expect("WGSL parses");
+    // The windows the scene's vertices are bound in, and the storage buffers the tessellator
+    // binds in its compute stage: what the renderer asks the device for.
+    assert_eq!(
+        wgsl_u32_constant(&source, "VERTEX_WINDOWS").map(|v| v as usize),
+        Some(omnicave::render::vertex_windows::VERTEX_WINDOWS),
+        "vertex windows: shaders/common.wgsl and src/render/vertex_windows.rs"
+    );
+    let storage = module
+        .global_variables
+        .iter()
+        .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
+        .count();
+    assert_eq!(
+        storage as u32,
+        omnicave::render::gpu::TESSELLATOR_STORAGE_BUFFERS,
+        "storage buffers: shaders/tessellate.wgsl and src/render/gpu.rs"
+    );
     let (_, margin) = module
         .constants
         .iter()

@@ -68,9 +68,9 @@ pub enum TessError {
     )]
     SplitScene(usize),
     #[error(
-        "the scene's {what} take {bytes} bytes; the tessellator binds them whole and this \
-         GPU binds at most {limit} bytes (max_storage_buffer_binding_size): use a mode \
-         without tessellation or a smaller scene"
+        "the scene's {what} take {bytes} bytes; the tessellator binds at most {limit} bytes \
+         of them on this GPU (its max_storage_buffer_binding_size, four times for vertices): \
+         use a mode without tessellation or a smaller scene"
     )]
     BindingTooLarge {
         what: &'static str,

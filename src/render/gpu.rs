@@ -50,8 +50,9 @@ pub struct Gpu {
     pub fault: Arc<GpuFault>,
 }
 
-/// Storage buffers the compute tessellator binds in one stage.
-pub const TESSELLATOR_STORAGE_BUFFERS: u32 = 12;
+/// Storage buffers the compute tessellator binds in one stage (12, and three more windows
+/// of the scene's vertices, see `vertex_windows`).
+pub const TESSELLATOR_STORAGE_BUFFERS: u32 = 12 + super::vertex_windows::VERTEX_WINDOWS as u32 - 1;
 
 impl Gpu {
     /// Opens the default adapter without a window (honours `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`).
@@ -97,7 +98,7 @@ impl Gpu {
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES;
         let features = adapter.features() & wanted;
-        // The tessellator binds 12 storage buffers in one compute stage; WebGPU's default is 8
+        // The tessellator binds 15 storage buffers in one compute stage; WebGPU's default is 8
         // but desktop adapters (and lavapipe) offer far more.
         let mut limits = wgpu::Limits::default().using_resolution(adapter.limits());
         limits.max_storage_buffers_per_shader_stage = adapter

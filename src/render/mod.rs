@@ -23,6 +23,7 @@ pub mod sky_pass;
 pub mod targets;
 pub mod tessellator;
 pub mod uniforms;
+pub mod vertex_windows;
 pub mod view_set;
 mod wall_frame;
 
@@ -147,6 +148,9 @@ pub struct Renderer {
     tessellator: Option<Tessellator>,
     /// Output budget of the tessellator, triangles per view.
     tess_capacity: u32,
+    /// The largest window the tessellator binds the scene's vertices in (`None`: the
+    /// device's largest storage binding).
+    tess_vertex_window: Option<u64>,
     /// The walls' eyes: their uniforms and tessellation output.
     walls: ViewSet,
     /// The panorama's eyes or cube faces: their own uniforms and tessellation output.
@@ -272,6 +276,7 @@ impl Renderer {
             drew_encoded: false,
             tessellator,
             tess_capacity: tessellator::DEFAULT_CAPACITY,
+            tess_vertex_window: None,
             walls,
             pano_set,
             targets: Vec::new(),
@@ -309,6 +314,25 @@ impl Renderer {
     /// device whose largest buffer is large.
     pub fn limit_scene_buffers(&mut self, bytes: Option<u64>) {
         self.scene_buffer_limit = bytes;
+    }
+
+    /// Binds the scene's vertices for the tessellator in windows of at most `bytes` (`None`:
+    /// the device's largest storage binding): to test the windows on a device whose storage
+    /// bindings are large. Takes effect at the next tessellated frame.
+    pub fn limit_tess_vertex_windows(&mut self, bytes: Option<u64>) {
+        self.tess_vertex_window = bytes;
+        self.walls.drop_tessellation();
+        self.pano_set.drop_tessellation();
+    }
+
+    /// What bounds the tessellation buffers: the output budget and the largest window the
+    /// scene's vertices are bound in.
+    fn tess_limits(&self) -> view_set::TessLimits {
+        let device = self.device.limits().max_storage_buffer_binding_size;
+        view_set::TessLimits {
+            capacity: self.tess_capacity,
+            vertex_window: self.tess_vertex_window.map_or(device, |w| w.min(device)),
+        }
     }
 
     /// How many buffers the current scene's geometry is split over (0: no scene).

@@ -215,9 +215,10 @@ impl Renderer {
             0.0
         };
         if let (Some(scene), Some(tessellator)) = (&self.scene, &self.tessellator) {
-            let buffers =
-                self.pano_set
-                    .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
+            let limits = self.tess_limits();
+            let buffers = self
+                .pano_set
+                .tessellation(&self.device, tessellator, scene, limits)?;
             buffers.write_uniforms(
                 &self.queue,
                 eyes.iter().map(|_| {

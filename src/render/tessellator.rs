@@ -11,6 +11,7 @@ use super::error::RenderError;
 pub use super::error::TessError;
 use super::frame_timer::TessMarks;
 use super::shaders;
+use super::vertex_windows::{VERTEX_WINDOWS, Window, plan_windows, window_entry};
 use crate::cave::{ViewSetup, Wall};
 use crate::tess::criteria::wall_is_vertical;
 use crate::tess::{FALLBACK_DEPTH_LIMIT, MAX_DEPTH_LIMIT, TessSettings, TessStats};
@@ -299,6 +300,9 @@ impl Tessellator {
                 storage_entry(0, true, v),
                 storage_entry(1, true, v),
                 storage_entry(2, true, v),
+                storage_entry(3, true, v),
+                storage_entry(4, true, v),
+                storage_entry(5, true, v),
             ],
         })
     }
@@ -322,6 +326,9 @@ impl Tessellator {
                 storage_entry(8, false, c),
                 storage_entry(9, true, c),
                 uniform_entry(10, true),
+                storage_entry(11, true, c),
+                storage_entry(12, true, c),
+                storage_entry(13, true, c),
             ],
         });
         let lists_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -380,7 +387,8 @@ impl Tessellator {
     }
 
     /// Allocates the per-scene buffers. `tri_info[t]` = draw index of source triangle t, bit 31
-    /// set for double-sided materials.
+    /// set for double-sided materials. The vertices are bound in windows of at most
+    /// `vertex_binding_limit` bytes (the device's largest storage binding, or less).
     #[allow(clippy::too_many_arguments)]
     pub fn buffers(
         &self,
@@ -395,15 +403,18 @@ impl Tessellator {
         clusters: usize,
         capacity: u32,
         views: usize,
+        vertex_binding_limit: u64,
     ) -> Result<TessBuffers, TessError> {
+        let vertex_windows = bind_vertices(device, vertex_buffer, vertex_binding_limit)?;
         let inputs = BoundInputs {
             frame_buffer,
             view_buffer,
             view_binding_size,
             vertex_buffer,
+            vertex_windows,
             index_buffer,
         };
-        check_inputs(device, &inputs)?;
+        check_indices(device, index_buffer)?;
         let storage = TessStorage::allocate(device, tri_info, draws, clusters, capacity, views);
         let shared_group = self.shared_group(device, &inputs, &storage);
         let lists = |label, a: &wgpu::Buffer, b: &wgpu::Buffer, ca: &wgpu::Buffer, cb| {
@@ -438,8 +449,11 @@ impl Tessellator {
             layout: &self.draw_layout,
             entries: &[
                 whole(&storage.sorted, 0),
-                whole(vertex_buffer, 1),
+                window_entry(vertex_buffer, 1, vertex_windows[0]),
                 whole(index_buffer, 2),
+                window_entry(vertex_buffer, 3, vertex_windows[1]),
+                window_entry(vertex_buffer, 4, vertex_windows[2]),
+                window_entry(vertex_buffer, 5, vertex_windows[3]),
             ],
         });
         Ok(TessBuffers {
@@ -480,7 +494,7 @@ impl Tessellator {
                 whole(inputs.frame_buffer, 0),
                 sized(inputs.view_buffer, 1, inputs.view_binding_size),
                 sized(&s.uniforms, 2, std::mem::size_of::<TessUniforms>() as u64),
-                whole(inputs.vertex_buffer, 3),
+                window_entry(inputs.vertex_buffer, 3, inputs.vertex_windows[0]),
                 whole(inputs.index_buffer, 4),
                 whole(&s.tri_info, 5),
                 whole(&s.counters, 6),
@@ -488,36 +502,58 @@ impl Tessellator {
                 whole(&s.sorted, 8),
                 whole(&s.needy, 9),
                 sized(inputs.view_buffer, 10, inputs.view_binding_size),
+                window_entry(inputs.vertex_buffer, 11, inputs.vertex_windows[1]),
+                window_entry(inputs.vertex_buffer, 12, inputs.vertex_windows[2]),
+                window_entry(inputs.vertex_buffer, 13, inputs.vertex_windows[3]),
             ],
         })
     }
 }
 
 /// What the tessellator binds that is not its own: the frame's and views' uniforms and the
-/// scene's vertices and indices.
+/// scene's vertices (in windows) and indices.
 struct BoundInputs<'a> {
     frame_buffer: &'a wgpu::Buffer,
     view_buffer: &'a wgpu::Buffer,
     view_binding_size: u64,
     vertex_buffer: &'a wgpu::Buffer,
+    vertex_windows: [Window; VERTEX_WINDOWS],
     index_buffer: &'a wgpu::Buffer,
 }
 
-/// Refuses a scene the tessellator cannot bind, naming the limit (any number of triangles
-/// dispatches: a thread each over a two-dimensional grid of workgroups).
-fn check_inputs(device: &wgpu::Device, inputs: &BoundInputs<'_>) -> Result<(), TessError> {
+/// The windows the scene's vertices are bound in, each at most `binding_limit` bytes (and
+/// the device's largest storage binding); a scene whose vertices four windows cannot hold
+/// is refused, naming the limit.
+fn bind_vertices(
+    device: &wgpu::Device,
+    vertex_buffer: &wgpu::Buffer,
+    binding_limit: u64,
+) -> Result<[Window; VERTEX_WINDOWS], TessError> {
+    let limits = device.limits();
+    let bytes = vertex_buffer.size();
+    plan_windows(
+        bytes,
+        std::mem::size_of::<super::scene_gpu::GpuVertex>() as u64,
+        binding_limit.min(limits.max_storage_buffer_binding_size),
+        u64::from(limits.min_storage_buffer_offset_alignment),
+    )
+    .map_err(|e| TessError::BindingTooLarge {
+        what: "vertices",
+        bytes,
+        limit: e.limit,
+    })
+}
+
+/// Refuses indices the tessellator cannot bind in one storage binding, naming the limit (any
+/// number of triangles dispatches: a thread each over a two-dimensional grid of workgroups).
+fn check_indices(device: &wgpu::Device, index_buffer: &wgpu::Buffer) -> Result<(), TessError> {
     let limit = device.limits().max_storage_buffer_binding_size;
-    for (what, buffer) in [
-        ("vertices", inputs.vertex_buffer),
-        ("indices", inputs.index_buffer),
-    ] {
-        if buffer.size() > limit {
-            return Err(TessError::BindingTooLarge {
-                what,
-                bytes: buffer.size(),
-                limit,
-            });
-        }
+    if index_buffer.size() > limit {
+        return Err(TessError::BindingTooLarge {
+            what: "indices",
+            bytes: index_buffer.size(),
+            limit,
+        });
     }
     Ok(())
 }

@@ -9,6 +9,15 @@ use super::tessellator::{TessBuffers, Tessellator};
 use super::uniforms::{FrameUniforms, ViewUniforms};
 use crate::tess::TessStats;
 
+/// What bounds a set of views' tessellation buffers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TessLimits {
+    /// The output budget, triangles per view.
+    pub capacity: u32,
+    /// The largest window the scene's vertices are bound in, bytes (see `vertex_windows`).
+    pub vertex_window: u64,
+}
+
 /// Uniforms and tessellation output of one set of views.
 #[derive(Debug)]
 pub struct ViewSet {
@@ -139,14 +148,13 @@ impl ViewSet {
         self.tessellated_views = 0;
     }
 
-    /// The tessellation buffers for `scene` with `capacity` triangles per view, built on
-    /// first use.
+    /// The tessellation buffers for `scene` within `limits`, built on first use.
     pub fn tessellation(
         &mut self,
         device: &wgpu::Device,
         tessellator: &Tessellator,
         scene: &SceneGpu,
-        capacity: u32,
+        limits: TessLimits,
     ) -> Result<&mut TessBuffers, RenderError> {
         let buffers = match self.tess.take() {
             Some(buffers) => buffers,
@@ -160,8 +168,9 @@ impl ViewSet {
                 &scene.tri_info,
                 scene.draw_count(),
                 scene.clusters.len(),
-                capacity,
+                limits.capacity,
                 self.view_capacity,
+                limits.vertex_window,
             )?,
         };
         Ok(self.tess.insert(buffers))

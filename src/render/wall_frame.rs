@@ -221,9 +221,10 @@ impl Renderer {
         else {
             return Ok(());
         };
-        let buffers =
-            self.walls
-                .tessellation(&self.device, tessellator, scene, self.tess_capacity)?;
+        let limits = self.tess_limits();
+        let buffers = self
+            .walls
+            .tessellation(&self.device, tessellator, scene, limits)?;
         // A view that draws its partner's refinement uploads no clusters of its own (the
         // same list as its leader's).
         let shares = &self.eye_shares;
