@@ -1,5 +1,6 @@
 //! Adaptive tessellation: the compute tessellator against its CPU twin, watertightness, the
-//! geometric and seam error it leaves, triangle counts per criterion, and the output budget.
+//! geometric and seam error it leaves, triangle counts per criterion, the output budget, and
+//! scenes whose vertices exceed one storage binding.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -857,4 +858,96 @@ fn a_model_beyond_the_front_wall_is_refined_only_where_a_wall_shows_it() {
     }
     // Some head sees the ball's far side through the left wall.
     assert!(most_on_the_left > 100, "{most_on_the_left}");
+}
+
+/// A scene whose vertices exceed one storage binding is tessellated through the vertex
+/// windows: the renderer is told to bind the living room's vertices in windows of under a
+/// third of them (as lavapipe binds an 8-million-triangle scene's 288 MB in three of its
+/// 128 MiB), and the frame is the one drawn with the vertices bound whole: the same refined
+/// triangles, pixel for pixel the same picture, with refined triangles drawn from every
+/// window. Vertices past four windows are refused by name, and the renderer goes on.
+#[test]
+fn a_scene_past_one_storage_binding_is_tessellated_through_its_vertex_windows() {
+    use omnicave::render::scene_gpu::GpuVertex;
+    use omnicave::render::vertex_windows::VERTEX_WINDOWS;
+    let cave = cave_at(160, 90);
+    let scene = living_room();
+    let vertex_bytes = std::mem::size_of::<GpuVertex>() as u64;
+    let vertices = scene.vertices.len() as u64;
+    // Windows of 2/7 of the vertices: four are needed, each a whole number of vertices.
+    let window_vertices = vertices * 2 / 7;
+    let tess = settings(Some(Criterion::Error(0.5)));
+    for (mode, head) in [
+        (RenderMode::OmniOffAxis, Vec3::new(0.0, 1.7, 0.0)),
+        // 5 cm from the front wall, turned where the warp bends most.
+        (RenderMode::OmniOnAxis, Vec3::new(0.4, 1.6, -1.6)),
+    ] {
+        let label = format!("{mode:?}, head {head}");
+        let frame = test_frame(&cave, Head::at(head), mode, OmniSettings::default(), tess);
+        let (whole, windowed) = with_renderer(&cave, NO_MSAA, None, |renderer| {
+            renderer.set_scene(&scene).expect("scene upload");
+            let mut run = |window: Option<u64>| {
+                renderer.limit_tess_vertex_windows(window);
+                renderer.render(&frame).expect("render");
+                (
+                    renderer.read_images().expect("read back"),
+                    renderer.read_tess_stats().expect("stats"),
+                    sorted_triangles(&renderer.read_tess_entries().expect("entries")),
+                )
+            };
+            let windowed = run(Some(window_vertices * vertex_bytes));
+            let whole = run(None);
+            (whole, windowed)
+        });
+        assert_eq!(windowed.1, whole.1, "{label}: statistics differ");
+        assert_eq!(windowed.2, whole.2, "{label}: refined triangles differ");
+        let mut differing = 0;
+        for (a, b) in windowed.0.iter().zip(&whole.0) {
+            for (x, y) in [(&a.left, &b.left), (&a.right, &b.right)] {
+                differing += x.pixels().zip(y.pixels()).filter(|(p, q)| p != q).count();
+            }
+        }
+        assert_eq!(differing, 0, "{label}: pictures differ");
+        // The windows the refined triangles' vertices come from (the twin's output is what
+        // the GPU draws through the windows): every one of the four. The plan rounds a
+        // window down to a multiple of 32 vertices (aligned offsets).
+        let step = window_vertices / 32 * 32;
+        let mut used = [0usize; VERTEX_WINDOWS];
+        for (_, out) in cpu_views(&cave, head, mode, &scene, &tess) {
+            for t in &out.triangles {
+                for k in 0..3 {
+                    let v = u64::from(scene.indices[3 * t.source as usize + k]);
+                    used[((v / step) as usize).min(VERTEX_WINDOWS - 1)] += 1;
+                }
+            }
+        }
+        assert!(
+            used.iter().all(|&n| n > 0),
+            "{label}: windows used {used:?}"
+        );
+    }
+    // Four windows of under 2/9 of the vertices cannot hold them: refused by name, and the
+    // renderer draws the next frame with the vertices bound whole.
+    with_renderer(&cave, NO_MSAA, None, |renderer| {
+        renderer.set_scene(&scene).expect("scene upload");
+        let frame = test_frame(
+            &cave,
+            Head::at(Vec3::new(0.0, 1.7, 0.0)),
+            RenderMode::OmniOffAxis,
+            OmniSettings::default(),
+            tess,
+        );
+        renderer.limit_tess_vertex_windows(Some(vertices * 2 / 9 * vertex_bytes));
+        let refused = renderer
+            .render(&frame)
+            .expect_err("vertices past four windows");
+        let message = refused.to_string();
+        assert!(
+            message.contains("vertices") && message.contains("max_storage_buffer_binding_size"),
+            "{message}"
+        );
+        renderer.limit_tess_vertex_windows(None);
+        renderer.render(&frame).expect("render after the refusal");
+        assert!(!renderer.read_tess_stats().expect("stats").is_empty());
+    });
 }
