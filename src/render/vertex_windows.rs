@@ -4,7 +4,7 @@
 //! `vertex_window` in shaders/common.wgsl).
 
 /// Windows the shaders declare. Keep in sync with `VERTEX_WINDOWS` in shaders/common.wgsl.
-/// Four bind up to four times the largest storage binding (on lavapipe, 512 MiB: 7.4 million
+/// Four bind up to four times the largest storage binding (on lavapipe, 512 MiB: 7.46 million
 /// vertices); each window costs a storage binding in the tessellator's compute stage, which
 /// binds 15 of the 16 the renderer asks for.
 pub const VERTEX_WINDOWS: usize = 4;
