@@ -446,8 +446,6 @@ fn shared_constants_match_their_wgsl_twins() {
     }
     // The checker itself reads constants: one that is not there is not found.
     assert_eq!(wgsl_u32_constant(&source, "NO_SUCH_CONSTANT"), None);
-    // The margin by which a two-edge split's other diagonal must be shorter: the GPU and the
-    // CPU twin must cut every quadrilateral alike.
     let module = naga::front::wgsl::parse_str(&source).expect("WGSL parses");
     // The windows the scene's vertices are bound in, and the storage buffers the tessellator
     // binds in its compute stage: what the renderer asks the device for.
@@ -466,6 +464,8 @@ fn shared_constants_match_their_wgsl_twins() {
         omnicave::render::gpu::TESSELLATOR_STORAGE_BUFFERS,
         "storage buffers: shaders/tessellate.wgsl and src/render/gpu.rs"
     );
+    // The margin by which a two-edge split's other diagonal must be shorter: the GPU and the
+    // CPU twin must cut every quadrilateral alike.
     let (_, margin) = module
         .constants
         .iter()

@@ -69,8 +69,8 @@ pub enum TessError {
     SplitScene(usize),
     #[error(
         "the scene's {what} take {bytes} bytes; the tessellator binds at most {limit} bytes \
-         of them on this GPU (its max_storage_buffer_binding_size, four times for vertices): \
-         use a mode without tessellation or a smaller scene"
+         of them on this GPU (set by its max_storage_buffer_binding_size): use a mode \
+         without tessellation or a smaller scene"
     )]
     BindingTooLarge {
         what: &'static str,
