@@ -39,9 +39,28 @@ impl MeshData {
     /// Returns the mesh with every coordinate moved to the nearer of the box's bounds `lo`,
     /// `hi` on its axis: for a box built by adding half sizes and offsets, faces meeting at
     /// an edge then share its ends bit for bit (`o + u` may differ from `hi` in the last bit),
-    /// so the mesh is watertight. Only for meshes whose vertices all lie on the box.
-    pub fn snapped_to_box(mut self, lo: Vec3, hi: Vec3) -> MeshData {
-        let snap = |x: f32, l: f32, h: f32| if (x - l).abs() < (x - h).abs() { l } else { h };
+    /// so the mesh is watertight. Only for meshes whose vertices are all the box's corners.
+    pub fn snapped_to_box(self, lo: Vec3, hi: Vec3) -> MeshData {
+        self.snapped_to_lattice(lo, hi, 1)
+    }
+
+    /// Returns the mesh with every coordinate moved to the nearest of `steps` + 1 evenly
+    /// spaced values from `lo` to `hi` on its axis, each computed one way (the bounds
+    /// exactly): the faces of a box built as grids of `steps` × `steps` cells then share
+    /// their edges' vertices bit for bit, so the mesh is watertight. Only for meshes whose
+    /// vertices all lie on that lattice (`steps` = 1: the box's corners).
+    pub fn snapped_to_lattice(mut self, lo: Vec3, hi: Vec3, steps: u32) -> MeshData {
+        let steps = steps.max(1);
+        let snap = |x: f32, l: f32, h: f32| {
+            let q = ((x - l) / (h - l) * steps as f32).round();
+            if !(q > 0.0) {
+                l
+            } else if q >= steps as f32 {
+                h
+            } else {
+                l + (h - l) * (q / steps as f32)
+            }
+        };
         for v in &mut self.vertices {
             let [x, y, z] = v.position;
             v.position = [
@@ -378,7 +397,7 @@ pub fn dense_hall(triangles: u64) -> (MeshData, MeshData) {
     let n = ((triangles as f64 * 0.75 / 12.0).sqrt().round() as u32).max(1);
     let mut shell = MeshData::default();
     for (o, u, v) in faces {
-        shell.append(&grid(o, u, v, n, n, 1.0).snapped_to_box(lo, hi));
+        shell.append(&grid(o, u, v, n, n, 1.0).snapped_to_lattice(lo, hi, n));
     }
     // rings × 2·rings quads, 4·rings² triangles: the other quarter.
     let rings = ((triangles as f64 * 0.25 / 4.0).sqrt().round() as u32).max(2);
@@ -401,6 +420,47 @@ mod tests {
             assert_outward(&shell);
             assert_outward(&sphere);
         }
+    }
+
+    /// The hall's shell is its box's six faces in cells of equal size: no triangle collapsed
+    /// (a snap to the box's corners once made three quarters of them degenerate), the faces'
+    /// area the box's, and every edge shared by exactly two triangles (watertight).
+    #[test]
+    fn the_dense_halls_shell_is_its_box_in_whole_cells_and_watertight() {
+        let (lo, hi) = (Vec3::new(-4.0, -0.01, -4.0), Vec3::new(4.0, 4.0, 4.0));
+        let (shell, _) = dense_hall(10_000);
+        let n = 25.0f32; // sqrt(10 000 × 3/4 / 12)
+        let d = hi - lo;
+        let box_area = 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+        let smallest_cell = (d.x.min(d.y).min(d.z) / n).powi(2);
+        let mut area = 0.0f64;
+        let mut edges = std::collections::HashMap::new();
+        let key = |p: [f32; 3]| p.map(f32::to_bits);
+        for tri in shell.indices.chunks_exact(3) {
+            let p = [tri[0], tri[1], tri[2]].map(|i| shell.vertices[i as usize].position);
+            let [a, b, c] = p.map(Vec3::from);
+            let twice = (b - a).cross(c - a).length();
+            // Half the smallest cell, less 1 % for rounding: a collapsed triangle has none.
+            assert!(
+                0.5 * twice > 0.495 * smallest_cell,
+                "triangle {tri:?} collapsed: {p:?}"
+            );
+            area += 0.5 * f64::from(twice);
+            for k in 0..3 {
+                let (u, v) = (key(p[k]), key(p[(k + 1) % 3]));
+                *edges
+                    .entry(if u < v { (u, v) } else { (v, u) })
+                    .or_insert(0) += 1;
+            }
+        }
+        // Summed in f64 over 7 500 triangles of f32 corners: 1e-4 relative is rounding.
+        let box_area = f64::from(box_area);
+        assert!(
+            (area - box_area).abs() < 1e-4 * box_area,
+            "{area} against {box_area}"
+        );
+        let open = edges.values().filter(|&&k| k != 2).count();
+        assert_eq!(open, 0, "{open} edges not shared by exactly two triangles");
     }
 
     /// Every triangle's winding agrees with its vertex normals (front faces point outwards).
