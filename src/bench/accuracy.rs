@@ -54,6 +54,20 @@ pub fn accuracy(
     world_from_cave: Mat4,
     method: &Method,
 ) -> Accuracy {
+    accuracy_within(config, scene, head, world_from_cave, method, CAPACITY)
+}
+
+/// [`accuracy`] with the twin's output budget per view `capacity`, which binds only a method
+/// that refines: one without a criterion draws every source triangle directly, on the GPU as
+/// here, with no output budget (a cap would leave triangles out of its error and count).
+fn accuracy_within(
+    config: &Config,
+    scene: &Scene,
+    head: Vec3,
+    world_from_cave: Mat4,
+    method: &Method,
+    capacity: usize,
+) -> Accuracy {
     let cave = &config.cave;
     let head = Head::at(head);
     let ipd = config.settings.cave.eye_separation;
@@ -63,6 +77,11 @@ pub fn accuracy(
     // As the renderer: tessellated wherever a criterion is set, with or without the warp
     // (the triangle control is stereo through the tessellator).
     let settings = method.tess;
+    let capacity = if settings.criterion.is_some() {
+        capacity
+    } else {
+        usize::MAX
+    };
     let mut samples = Vec::new();
     let mut result = Accuracy::default();
     let views = view_setups(cave, &head, method.mode, ipd);
@@ -75,7 +94,7 @@ pub fn accuracy(
             Some(other) => drawn.paired_with(other),
             None => drawn,
         };
-        let out = tessellate(scene, &flags, &drawn, &settings, CAPACITY);
+        let out = tessellate(scene, &flags, &drawn, &settings, capacity);
         result.input += u64::from(out.stats.input);
         result.culled += u64::from(out.stats.culled_backface + out.stats.culled_frustum);
         // Drawn: what the tessellator emits and the clusters drawn directly.
@@ -186,6 +205,42 @@ fn drawn_edge_length(scene: &Scene, tv: &TessView<'_>, out: &TessOutput) -> f64 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Stereo and the plain warp draw the whole scene directly: the twin measures every
+    /// triangle of theirs however small its budget (a scene past it once had its stereo count
+    /// and errors measured on the first 2^21 triangles of a view only).
+    #[test]
+    fn a_method_without_a_criterion_is_measured_whole_past_the_twins_budget() {
+        use crate::scene::build::grid;
+        let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/config/cave.toml"));
+        let config = Config::load(path).expect("the bundled config loads");
+        let head = config.settings.head().position;
+        // 800 triangles 1 m ahead of the head, facing it: most of them in the front wall's
+        // views.
+        let mesh = grid(
+            head + Vec3::new(-0.5, -0.5, -1.0),
+            Vec3::X,
+            Vec3::Y,
+            20,
+            20,
+            1.0,
+        );
+        let mut scene = Scene::default();
+        let material = scene.add_material(crate::scene::Material::unlit("grid", [0.5; 3]));
+        scene.add_mesh(&mesh.vertices, &mesh.indices, material);
+        let world_from_cave = config.settings.world_from_cave();
+        let all = super::super::methods::methods(true, config.settings.tess());
+        for name in ["stereo", "omni-offaxis"] {
+            let method = all
+                .iter()
+                .find(|m| m.name == name)
+                .expect("the quick methods hold it");
+            let whole = accuracy_within(&config, &scene, head, world_from_cave, method, usize::MAX);
+            let small = accuracy_within(&config, &scene, head, world_from_cave, method, 16);
+            assert!(whole.emitted > 2 * 16, "{name}: {} drawn", whole.emitted);
+            assert_eq!(small, whole, "{name}");
+        }
+    }
 
     #[test]
     fn only_the_part_of_an_edge_inside_the_image_counts() {
