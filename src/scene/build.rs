@@ -53,7 +53,8 @@ impl MeshData {
         let steps = steps.max(1);
         let snap = |x: f32, l: f32, h: f32| {
             let q = ((x - l) / (h - l) * steps as f32).round();
-            if !(q > 0.0) {
+            // A NaN (a box of no size on this axis) takes the lower bound.
+            if q.is_nan() || q <= 0.0 {
                 l
             } else if q >= steps as f32 {
                 h
