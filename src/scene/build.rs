@@ -423,9 +423,9 @@ mod tests {
         }
     }
 
-    /// The hall's shell is its box's six faces in cells of equal size: no triangle collapsed
-    /// (a snap to the box's corners once made three quarters of them degenerate), the faces'
-    /// area the box's, and every edge shared by exactly two triangles (watertight).
+    /// The hall's shell is its box's six faces in n × n cells: no triangle collapsed (a snap
+    /// to the box's corners once left all but twelve of them without area), the faces' area
+    /// the box's, and every edge shared by exactly two triangles (watertight).
     #[test]
     fn the_dense_halls_shell_is_its_box_in_whole_cells_and_watertight() {
         let (lo, hi) = (Vec3::new(-4.0, -0.01, -4.0), Vec3::new(4.0, 4.0, 4.0));
@@ -433,7 +433,8 @@ mod tests {
         let n = 25.0f32; // sqrt(10 000 × 3/4 / 12)
         let d = hi - lo;
         let box_area = 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
-        let smallest_cell = (d.x.min(d.y).min(d.z) / n).powi(2);
+        // The smallest cell: a face's two extents over n each (the walls' 8 m × 4.01 m).
+        let smallest_cell = (d.x * d.y).min(d.y * d.z).min(d.z * d.x) / (n * n);
         let mut area = 0.0f64;
         let mut edges = std::collections::HashMap::new();
         let key = |p: [f32; 3]| p.map(f32::to_bits);
@@ -441,7 +442,8 @@ mod tests {
             let p = [tri[0], tri[1], tri[2]].map(|i| shell.vertices[i as usize].position);
             let [a, b, c] = p.map(Vec3::from);
             let twice = (b - a).cross(c - a).length();
-            // Half the smallest cell, less 1 % for rounding: a collapsed triangle has none.
+            // Every triangle is half a cell; 1 % below half the smallest cell is far above the
+            // corners' rounding (1e-6 of a cell), and a collapsed triangle has no area.
             assert!(
                 0.5 * twice > 0.495 * smallest_cell,
                 "triangle {tri:?} collapsed: {p:?}"
