@@ -233,4 +233,101 @@ mod tests {
         assert!(!warp_intersection(v, e, c, plane).is_finite());
         assert!(warp_similar(v, e, c, plane).is_finite());
     }
+
+    /// The scene shader shades an omnistereo fragment from its corners' eyes, interpolated
+    /// with the weights that give its point (`fs_main` in shaders/scene.wgsl), not from the
+    /// point's own eye. The bound it states: within one IPD always, and within
+    /// IPD·sin(Δ/2) where every point keeps the full IPD and the triangle spans Δ < 180° of
+    /// azimuth round the head (it does not surround the head's vertical).
+    #[test]
+    fn an_interpolated_shading_eye_stays_within_its_bound() {
+        // xorshift: the same triangles every run.
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut unit = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let ipd = 0.064;
+        let mut tight_cases = 0;
+        let mut worst_tight = 0.0_f32;
+        for case in 0..4000 {
+            let head = Vec3::new(unit() - 0.5, 1.2 + 0.6 * unit(), unit() - 0.5);
+            // Triangles from 5 cm to 6 m wide, anywhere from beside the head to 5 m away.
+            let size = 0.05 + 6.0 * unit() * unit();
+            let centre = head + 5.0 * Vec3::new(unit() - 0.5, 0.6 * (unit() - 0.5), unit() - 0.5);
+            let mut corner = || centre + size * Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+            let corners = [corner(), corner(), corner()];
+            let pole = (case % 2 == 0).then(PoleMerge::default);
+            let eye = if case % 4 < 2 { Eye::Left } else { Eye::Right };
+            let eyes = corners.map(|c| omni_eye(head, c, ipd, eye, pole));
+            // Azimuth round the head: horizontal directions, and whether the triangle's
+            // horizontal shadow keeps the head's vertical outside (then its points' azimuths
+            // lie between its corners').
+            let flat = corners.map(|c| Vec2::new(c.x - head.x, c.z - head.z));
+            let side = |a: Vec2, b: Vec2| a.perp_dot(b);
+            let s = [
+                side(flat[0], flat[1]),
+                side(flat[1], flat[2]),
+                side(flat[2], flat[0]),
+            ];
+            let surrounds = s.iter().all(|&x| x >= 0.0) || s.iter().all(|&x| x <= 0.0);
+            let span = (0..3)
+                .flat_map(|i| (0..3).map(move |j| (i, j)))
+                .map(|(i, j)| flat[i].angle_to(flat[j]).abs())
+                .fold(0.0_f32, f32::max);
+            // Inside the triangle, perspective-correct interpolation gives non-negative
+            // weights summing to one, the same for the point and its eye.
+            for _ in 0..16 {
+                let (a, b) = (unit(), unit());
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                let w = [1.0 - a - b, a, b];
+                let p = w[0] * corners[0] + w[1] * corners[1] + w[2] * corners[2];
+                let interpolated = w[0] * eyes[0] + w[1] * eyes[1] + w[2] * eyes[2];
+                let off = interpolated.distance(omni_eye(head, p, ipd, eye, pole));
+                // 1e-5 m: f32 rounding of positions a few metres from the origin.
+                assert!(off <= ipd + 1e-5, "case {case}: {off} m off, over one IPD");
+                if pole.is_none() && !surrounds && flat.iter().all(|f| f.length() > 1e-3) {
+                    let bound = ipd * (0.5 * span).sin();
+                    assert!(
+                        off <= bound + 1e-5,
+                        "case {case}: {off} m off, bound {bound} m (span {span} rad)"
+                    );
+                    tight_cases += 1;
+                    worst_tight = worst_tight.max(off / bound.max(1e-9));
+                }
+            }
+        }
+        // The tight bound was exercised.
+        assert!(tight_cases > 10_000, "{tight_cases} tight cases");
+        assert!(worst_tight > 0.5, "at most {worst_tight} of the bound");
+        // And it is reached: one corner 1 mm beside the head's vertical, two 5 m away at 118°
+        // and 120° round. A point 1 % of the way from the near corner to the far one lies in
+        // the far corner's direction (its eye nearly the far eye), while 99 % of its
+        // interpolated eye is the near corner's.
+        let head = Vec3::new(0.0, 1.6, 0.0);
+        let round = |degrees: f32| {
+            let a = degrees.to_radians();
+            head + Vec3::new(5.0 * a.cos(), -1.0, 5.0 * a.sin())
+        };
+        let corners = [
+            head + Vec3::new(0.001, -0.5, 0.0),
+            round(120.0),
+            round(118.0),
+        ];
+        let eyes = corners.map(|c| omni_eye(head, c, ipd, Eye::Left, None));
+        let p = 0.99 * corners[0] + 0.01 * corners[1];
+        let off =
+            (0.99 * eyes[0] + 0.01 * eyes[1]).distance(omni_eye(head, p, ipd, Eye::Left, None));
+        let bound = ipd * 60.0_f32.to_radians().sin();
+        assert!(
+            (0.97 * bound..=bound).contains(&off),
+            "{off} m off, bound {bound} m"
+        );
+    }
 }
