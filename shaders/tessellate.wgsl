@@ -255,35 +255,73 @@ fn pano_split_edge(p: array<vec3<f32>, 3>, a_in: vec2<u32>, b_in: vec2<u32>) -> 
     return length(jm - 0.5 * (ja + jb)) > value;
 }
 
-// Mirrors tess::criteria::split_edge: where the view's criterion asks, or its partner's.
-fn split_edge(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
+// Which of the triangle's edges (corners c[k] to c[k + 1]) split: mirrors
+// tess::criteria::split_edge for each, where the view's criterion asks or its partner's.
+fn split_edges(p: array<vec3<f32>, 3>, depth: u32, c: array<vec2<u32>, 3>) -> array<bool, 3> {
     second_eye = false;
-    if split_edge_for_eye(p, depth, a, b) {
-        return true;
+    var s = split_edges_for_eye(p, depth, c, array<bool, 3>(false, false, false));
+    if tess.partner != 0u && !(s[0] && s[1] && s[2]) {
+        second_eye = true;
+        s = split_edges_for_eye(p, depth, c, s);
+        second_eye = false;
     }
-    if tess.partner == 0u {
-        return false;
-    }
-    second_eye = true;
-    let split = split_edge_for_eye(p, depth, a, b);
-    second_eye = false;
-    return split;
+    return s;
 }
 
-// The criterion for one eye (`second_eye` says which).
-fn split_edge_for_eye(p: array<vec3<f32>, 3>, depth: u32, a: vec2<u32>, b: vec2<u32>) -> bool {
-    let code = tess.criterion;
-    let value = tess.criterion_value;
-    if code == 1u {
-        return f32(depth) < value;
+// The criterion for one eye (`second_eye` says which) on the edges `already` does not split.
+// Each corner is projected once for its two edges: the same value either edge would compute,
+// so neighbours sharing an edge still agree bit for bit.
+fn split_edges_for_eye(
+    p: array<vec3<f32>, 3>,
+    depth: u32,
+    c: array<vec2<u32>, 3>,
+    already: array<bool, 3>,
+) -> array<bool, 3> {
+    var s = already;
+    if tess.criterion == 1u {
+        let deeper = f32(depth) < tess.criterion_value;
+        return array<bool, 3>(deeper, deeper, deeper);
     }
     if view.pano_projection != 0u {
-        return pano_split_edge(p, a, b);
+        for (var k = 0u; k < 3u; k++) {
+            if !s[k] {
+                s[k] = pano_split_edge(p, c[k], c[(k + 1u) % 3u]);
+            }
+        }
+        return s;
     }
-    let pa = point_position(p, a);
-    let pb = point_position(p, b);
-    let ja = project(pa);
-    let jb = project(pb);
+    let corners = array<vec3<f32>, 3>(
+        point_position(p, c[0]),
+        point_position(p, c[1]),
+        point_position(p, c[2]),
+    );
+    let projected = array<Projected, 3>(
+        project(corners[0]),
+        project(corners[1]),
+        project(corners[2]),
+    );
+    for (var k = 0u; k < 3u; k++) {
+        let k1 = (k + 1u) % 3u;
+        if !s[k] {
+            s[k] = split_projected_edge(p, c[k], c[k1], corners[k], corners[k1], projected[k], projected[k1]);
+        }
+    }
+    return s;
+}
+
+// The criterion (edge, sphere or error) for one eye on the edge a–b of scene points pa, pb,
+// projected ja, jb.
+fn split_projected_edge(
+    p: array<vec3<f32>, 3>,
+    a: vec2<u32>,
+    b: vec2<u32>,
+    pa: vec3<f32>,
+    pb: vec3<f32>,
+    ja: Projected,
+    jb: Projected,
+) -> bool {
+    let code = tess.criterion;
+    let value = tess.criterion_value;
     let near = eye_near();
     let va = ja.clip.w > near;
     let vb = jb.clip.w > near;
@@ -593,11 +631,7 @@ const REFUSED: u32 = 0xffffffffu;
 fn split_once(e: TessEntry) -> u32 {
     let p = source_positions(e.source);
     let c = array<vec2<u32>, 3>(e.c0, e.c1, e.c2);
-    let s = array<bool, 3>(
-        split_edge(p, e.depth, c[0], c[1]),
-        split_edge(p, e.depth, c[1], c[2]),
-        split_edge(p, e.depth, c[2], c[0]),
-    );
+    let s = split_edges(p, e.depth, c);
     var n_split = 0u;
     for (var k = 0u; k < 3u; k++) {
         if s[k] {
