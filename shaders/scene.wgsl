@@ -78,10 +78,11 @@ struct VertexOutput {
     @location(2) uvs: vec4<f32>,
     @location(3) color: vec4<f32>,
     @location(4) tangent: vec4<f32>,
-    // The eye the specular term is computed for: the view's, or in omnistereo the vertex's
-    // own, interpolated across the triangle (see fs_main for how far that can be from the
-    // fragment's own eye).
-    @location(5) shading_eye: vec3<f32>,
+    // Omnistereo: the vertex's own eye, for the specular term, interpolated across the
+    // triangle (see fs_main for how far that can be from the fragment's own eye). At the
+    // centroid: where MSAA covers a pixel only partly, its centre can lie outside the
+    // triangle, and an eye extrapolated there could leave the eyes' circle.
+    @location(5) @interpolate(perspective, centroid) shading_eye: vec3<f32>,
 }
 
 // Tessellated geometry (src/render/tessellator.rs): the sorted output triangles and the
@@ -879,12 +880,15 @@ fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @loca
     surface.color = in.color;
     surface.tangent = in.tangent;
     // The eye this fragment is seen from: the view's, or in omnistereo its corners' eyes
-    // interpolated with the weights that give its point. Every omnistereo eye lies on the
+    // interpolated with the weights that give its point (at the centroid of the samples it
+    // covers: the same weights wherever the pixel's centre is covered). Every omnistereo eye lies on the
     // circle of half the IPD round the head (inside it with pole merge), so this is within one
     // IPD of the fragment's own eye, and within IPD·sin(Δ/2) for a triangle spanning Δ < 180°
     // of azimuth round the head at the full IPD (src/cave/omni.rs tests the bound). Computing
-    // the fragment's own eye instead costs 1–2 % of the frame on a software rasteriser.
-    let color = surface_color(surface, dpdx(in.uvs), dpdy(in.uvs), in.shading_eye, front_facing);
+    // the fragment's own eye instead cost 2–8 % of the omnistereo frame in paired runs on a
+    // software rasteriser.
+    let eye = select(view.eye_position.xyz, in.shading_eye, frame.omni.x > 0.5);
+    let color = surface_color(surface, dpdx(in.uvs), dpdy(in.uvs), eye, front_facing);
     if color.a < 0.0 {
         discard;
     }

@@ -280,7 +280,7 @@ fn split_edges_for_eye(
     var s = already;
     if tess.criterion == 1u {
         let deeper = f32(depth) < tess.criterion_value;
-        return array<bool, 3>(deeper, deeper, deeper);
+        return array<bool, 3>(deeper || s[0], deeper || s[1], deeper || s[2]);
     }
     if view.pano_projection != 0u {
         for (var k = 0u; k < 3u; k++) {
@@ -303,7 +303,9 @@ fn split_edges_for_eye(
     for (var k = 0u; k < 3u; k++) {
         let k1 = (k + 1u) % 3u;
         if !s[k] {
-            s[k] = split_projected_edge(p, c[k], c[k1], corners[k], corners[k1], projected[k], projected[k1]);
+            s[k] = split_projected_edge(
+                p, c[k], c[k1], corners[k], corners[k1], projected[k], projected[k1],
+            );
         }
     }
     return s;
