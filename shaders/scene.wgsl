@@ -880,8 +880,8 @@ fn fs_main(in: VertexOutput, @builtin(front_facing) front_facing: bool) -> @loca
     surface.color = in.color;
     surface.tangent = in.tangent;
     // The eye this fragment is seen from: the view's, or in omnistereo its corners' eyes
-    // interpolated with the weights that give its point (at the centroid of the samples it
-    // covers: the same weights wherever the pixel's centre is covered). Every omnistereo eye lies on the
+    // interpolated across the triangle, at a point of it (the centroid of the covered samples;
+    // the pixel's centre where every sample is covered). Every omnistereo eye lies on the
     // circle of half the IPD round the head (inside it with pole merge), so this is within one
     // IPD of the fragment's own eye, and within IPD·sin(Δ/2) for a triangle spanning Δ < 180°
     // of azimuth round the head at the full IPD (src/cave/omni.rs tests the bound). Computing

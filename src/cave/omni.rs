@@ -235,8 +235,7 @@ mod tests {
     }
 
     /// The scene shader shades an omnistereo fragment from its corners' eyes, interpolated
-    /// with the weights that give its point (`fs_main` in shaders/scene.wgsl), not from the
-    /// point's own eye. The bound it states: within one IPD always, and within
+    /// across the triangle (`fs_main` in shaders/scene.wgsl), not from the point's own eye. The bound it states: within one IPD always, and within
     /// IPD·sin(Δ/2) where every point keeps the full IPD and the triangle spans Δ < 180° of
     /// azimuth round the head (it does not surround the head's vertical).
     #[test]
